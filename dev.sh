@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# Set up the Python environment (once, cached) and run a job in it.
+#
+#   ./dev.sh sim [ARGS]   the simulated pick-and-place (headless + video when
+#                         there is no display); ARGS go to pick_place_sim.py
+#   ./dev.sh test [ARGS]  the whole test suite (installs the hw extra: lerobot)
+#   ./dev.sh bench [ARGS] the benchmarks (benchmarks/run.py)
+#   ./dev.sh shell        a shell inside the environment
+#
+# The virtual environment lives outside the clone, keyed by a hash of
+# pyproject.toml and the extras, so a new clone reuses it and a changed
+# pyproject.toml builds a fresh one:
+#   ${SO101_VENV_ROOT:-${XDG_CACHE_HOME:-~/.cache}/so101-kinematics}/venv-<hash>-<extras>
+set -euo pipefail
+cd "$(dirname "$0")"
+
+job="${1:-sim}"
+[ $# -gt 0 ] && shift
+case "$job" in
+  sim) extras="" ;;
+  test|bench|shell) extras="dev,hw" ;;
+  *) echo "usage: ./dev.sh {sim|test|bench|shell} [ARGS]" >&2; exit 2 ;;
+esac
+
+python="${PYTHON:-python3}"
+if ! "$python" -c 'import sys; sys.exit(sys.version_info < (3, 10))' 2>/dev/null; then
+  echo "error: needs Python >= 3.10 as '$python' (set PYTHON=/path/to/python3.x)" >&2
+  exit 1
+fi
+
+root="${SO101_VENV_ROOT:-${XDG_CACHE_HOME:-$HOME/.cache}/so101-kinematics}"
+key="$( (cat pyproject.toml; echo "$extras"; "$python" -V) | sha256sum | cut -c1-16)"
+venv="$root/venv-$key-${extras:-base}"
+
+if [ ! -f "$venv/.complete" ]; then
+  echo "Setting up $venv (first run only; the hw extra pulls PyTorch: several minutes) ..." >&2
+  rm -rf "$venv"
+  mkdir -p "$root"
+  "$python" -m venv "$venv"
+  "$venv/bin/python" -m pip install --quiet --upgrade pip "setuptools>=68" wheel
+  "$venv/bin/python" -m pip install --quiet --progress-bar off -e ".${extras:+[$extras]}"
+  touch "$venv/.complete"
+fi
+# The venv is shared by clones: point its editable install at this clone.
+"$venv/bin/python" -m pip install --quiet --no-deps --no-build-isolation -e . >/dev/null 2>&1 \
+  || "$venv/bin/python" -m pip install --quiet --no-deps -e . >/dev/null
+"$venv/bin/python" so101_meshes.py >/dev/null
+
+if [ -z "${DISPLAY:-}${WAYLAND_DISPLAY:-}" ]; then
+  export MUJOCO_GL="${MUJOCO_GL:-egl}"
+fi
+
+case "$job" in
+  sim) exec "$venv/bin/python" pick_place_sim.py "$@" ;;
+  test) exec "$venv/bin/python" -m pytest "$@" ;;
+  bench) exec "$venv/bin/python" benchmarks/run.py "$@" ;;
+  shell) PATH="$venv/bin:$PATH" exec "${SHELL:-bash}" ;;
+esac

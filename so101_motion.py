@@ -1,0 +1,302 @@
+"""Joint-space motion shared by the simulated and the real SO-101.
+
+One place for what both backends must agree on:
+  - configurations: dicts joint name -> value, arm joints in [deg], gripper in
+    [0, 100] (0 = closed end of its range, 100 = open end), and their
+    validation against joint limits (:func:`check_configuration`);
+  - the interpolation between two configurations (:class:`Trajectory`, with a
+    linear or a minimum-jerk profile);
+  - the pick-and-place plan (:class:`Step`, :func:`default_plan`,
+    :func:`load_plan`) and the runner that executes it through a backend's
+    ``move_to_pose`` / ``hold_position`` (:func:`run_plan`).
+
+The backends (``so101_mujoco_utils`` for MuJoCo, ``pick_place_hw`` for a
+lerobot bus) only decide how time passes and how a command reaches the arm.
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+import math
+import sys
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from so101_forward_kinematics import ARM_JOINTS, JOINTS
+
+Configuration = dict[str, float]
+Limits = Mapping[str, tuple[float, float]]
+
+
+class PlanError(ValueError):
+    """A configuration or plan cannot be executed as given."""
+
+
+class JointLimitError(PlanError):
+    """A joint target lies outside the joint's limits."""
+
+
+def unit(joint: str) -> str:
+    """Unit of a joint's value at the user boundary: "deg" or "%" (gripper)."""
+    return "%" if joint == "gripper" else "deg"
+
+
+def check_configuration(cfg: Mapping[str, float], limits: Limits, where: str = "") -> Configuration:
+    """Validate a configuration and return it as a plain dict of floats.
+
+    Args:
+        cfg: joint name -> value ([deg]; gripper [0, 100]). All six joints are
+            required unless ``limits`` lists fewer.
+        limits: joint name -> (lower, upper) in the same units.
+        where: context for messages, e.g. "waypoint 'lift'".
+
+    Returns:
+        The configuration, keys in ``JOINTS`` order, values as floats.
+
+    Raises:
+        PlanError: a joint is missing, unknown, or not a finite number.
+        JointLimitError: a value is outside its limits (names joint, value,
+            limit and the fix).
+    """
+    prefix = f"{where}: " if where else ""
+    unknown = [name for name in cfg if name not in JOINTS]
+    if unknown:
+        name = unknown[0]
+        close = difflib.get_close_matches(name, JOINTS, n=1)
+        hint = f" Did you mean '{close[0]}'?" if close else ""
+        raise PlanError(f"{prefix}unknown joint '{name}'.{hint} Joints are: {', '.join(JOINTS)}.")
+    out = {}
+    for joint in (j for j in JOINTS if j in limits):
+        if joint not in cfg:
+            raise PlanError(f"{prefix}joint '{joint}' is missing; give all of {', '.join(limits)}.")
+        value = cfg[joint]
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise PlanError(f"{prefix}joint '{joint}' must be a finite number, got {value!r}.")
+        lower, upper = limits[joint]
+        if not lower <= value <= upper:
+            bound = lower if value < lower else upper
+            raise JointLimitError(
+                f"{prefix}{joint} = {value:g} {unit(joint)} is outside its limits "
+                f"[{lower:g}, {upper:g}] {unit(joint)} (beyond {bound:g} by "
+                f"{abs(value - bound):.3g}). Fix: choose a {joint} within the limits."
+            )
+        out[joint] = float(value)
+    return out
+
+
+def minimum_jerk(s: float) -> float:
+    """Minimum-jerk time scaling: 0 -> 0, 1 -> 1, zero velocity and acceleration at both ends."""
+    return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
+
+
+def linear(s: float) -> float:
+    """Linear time scaling (the course's interpolation)."""
+    return s
+
+
+PROFILES: dict[str, Callable[[float], float]] = {"linear": linear, "minimum_jerk": minimum_jerk}
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Joint-space path from ``start`` to ``goal`` in ``duration`` [s].
+
+    Example:
+        >>> path = Trajectory({"gripper": 0.0}, {"gripper": 100.0}, 2.0, "minimum_jerk")
+        >>> path.at(1.0)  # halfway in time is halfway in space for this profile
+        {'gripper': 50.0}
+    """
+
+    start: Mapping[str, float]
+    goal: Mapping[str, float]
+    duration: float
+    profile: str = "minimum_jerk"
+
+    def __post_init__(self):
+        if self.profile not in PROFILES:
+            raise PlanError(f"Unknown profile '{self.profile}'; use one of {', '.join(PROFILES)}.")
+        if not (math.isfinite(self.duration) and self.duration >= 0.0):
+            raise PlanError(f"Duration must be >= 0 s, got {self.duration!r}.")
+
+    def fraction(self, t: float) -> float:
+        """Fraction of the way from start to goal at time ``t`` [s] (0 before, 1 after)."""
+        s = 1.0 if self.duration <= 0.0 else min(max(t / self.duration, 0.0), 1.0)
+        return PROFILES[self.profile](s)
+
+    def at(self, t: float) -> Configuration:
+        """Configuration at time ``t`` [s] after the start (held at the ends)."""
+        alpha = self.fraction(t)
+        return {j: self.start[j] + alpha * (self.goal[j] - self.start[j]) for j in self.goal}
+
+
+@dataclass
+class Step:
+    """One waypoint of a plan: move to ``configuration`` in ``duration`` [s], then hold ``hold`` [s]."""
+
+    name: str
+    configuration: Configuration
+    duration: float = 2.0
+    hold: float = 0.5
+
+
+@dataclass
+class Plan:
+    """A named sequence of steps; ``return_to_start`` ends back at the initial pose."""
+
+    steps: list[Step] = field(default_factory=list)
+    return_to_start: bool = True
+    return_duration: float = 2.0
+
+    def configurations(self) -> dict[str, Configuration]:
+        """Step name -> configuration."""
+        return {step.name: step.configuration for step in self.steps}
+
+
+# The course's pick-and-place. The first and last two configurations are the
+# assignment's; "lift" and "carry" raise the cube clear of the table.
+STARTING_CONFIGURATION = {
+    "shoulder_pan": -45.0, "shoulder_lift": 45.0, "elbow_flex": -45.0,
+    "wrist_flex": 90.0, "wrist_roll": 0.0, "gripper": 50.0,
+}
+FINAL_CONFIGURATION = dict(STARTING_CONFIGURATION, shoulder_pan=45.0)
+GRIPPER_CLOSED = 5.0
+
+
+def default_plan(move_duration: float = 2.0, hold_duration: float = 0.5) -> Plan:
+    """The course's pick-and-place plan.
+
+    Args:
+        move_duration: time for each move [s].
+        hold_duration: pause after each move [s].
+
+    Returns:
+        The plan: start open, start closed, lift, carry, final closed, final
+        open, then back to the initial pose.
+    """
+    closed = {"gripper": GRIPPER_CLOSED}
+    lift = {"shoulder_lift": 0.0, "elbow_flex": -20.0, "wrist_flex": 85.0}
+    waypoints = [
+        ("start_open", STARTING_CONFIGURATION),
+        ("start_closed", dict(STARTING_CONFIGURATION, **closed)),
+        ("lift", dict(STARTING_CONFIGURATION, **closed, **lift)),
+        ("carry", dict(FINAL_CONFIGURATION, **closed, **lift)),
+        ("final_closed", dict(FINAL_CONFIGURATION, **closed)),
+        ("final_open", FINAL_CONFIGURATION),
+    ]
+    return Plan([Step(name, dict(cfg), move_duration, hold_duration) for name, cfg in waypoints])
+
+
+def validate_plan(plan: Plan, limits: Limits) -> Plan:
+    """Check every step before anything moves.
+
+    Args:
+        plan: the plan.
+        limits: joint name -> (lower, upper) [deg] (gripper [0, 100]).
+
+    Returns:
+        The same plan with configurations normalised to floats.
+
+    Raises:
+        PlanError: empty plan, duplicate names, bad durations or configurations.
+    """
+    if not plan.steps:
+        raise PlanError("The plan has no steps.")
+    seen = set()
+    for i, step in enumerate(plan.steps):
+        where = f"waypoint {i + 1} '{step.name}'"
+        if step.name in seen:
+            raise PlanError(f"{where}: the name is used twice; give each waypoint its own name.")
+        seen.add(step.name)
+        for label, value in (("duration", step.duration), ("hold", step.hold)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                    or not math.isfinite(value) or value < 0:
+                raise PlanError(f"{where}: {label} must be a number of seconds >= 0, got {value!r}.")
+        step.configuration = check_configuration(step.configuration, limits, where)
+    return plan
+
+
+def load_plan(path: str | Path, limits: Limits | None = None) -> Plan:
+    """Read a plan from a JSON or TOML waypoint file.
+
+    The file holds ``steps``: a list of tables with ``name``, ``configuration``
+    (all six joints, [deg], gripper [0, 100]) and optional ``duration`` and
+    ``hold`` [s]; optionally ``return_to_start`` (bool) and ``return_duration`` [s].
+
+    Args:
+        path: a ``.json`` or ``.toml`` file.
+        limits: if given, the plan is validated against them.
+
+    Raises:
+        PlanError: unreadable file or wrong structure, with the file and the fix.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as error:
+        raise PlanError(f"Cannot read waypoint file '{path}': {error.strerror}.") from None
+    try:
+        if path.suffix.lower() == ".toml":
+            if sys.version_info >= (3, 11):
+                import tomllib
+            else:  # pragma: no cover - Python 3.10
+                import tomli as tomllib
+            data = tomllib.loads(text)
+        else:
+            data = json.loads(text)
+    except ValueError as error:  # JSONDecodeError and TOMLDecodeError are ValueErrors
+        raise PlanError(f"Waypoint file '{path}' is not valid {path.suffix[1:].upper() or 'JSON'}: "
+                        f"{error}.") from None
+    if not isinstance(data, dict) or not isinstance(data.get("steps"), list):
+        raise PlanError(f"Waypoint file '{path}' must contain a list 'steps' of waypoints "
+                        "(see waypoints/example.json).")
+    known = {"steps", "return_to_start", "return_duration"}
+    extra = set(data) - known
+    if extra:
+        raise PlanError(f"Waypoint file '{path}': unknown key(s) {sorted(extra)}; "
+                        f"allowed: {sorted(known)}.")
+    steps = []
+    for i, raw in enumerate(data["steps"]):
+        where = f"'{path}', waypoint {i + 1}"
+        if not isinstance(raw, dict) or not isinstance(raw.get("configuration"), dict):
+            raise PlanError(f"{where}: each waypoint needs a 'configuration' table "
+                            "of joint values.")
+        extra = set(raw) - {"name", "configuration", "duration", "hold"}
+        if extra:
+            raise PlanError(f"{where}: unknown key(s) {sorted(extra)}; allowed: "
+                            "name, configuration, duration, hold.")
+        steps.append(Step(str(raw.get("name", f"waypoint_{i + 1}")), dict(raw["configuration"]),
+                          raw.get("duration", 2.0), raw.get("hold", 0.5)))
+    plan = Plan(steps, bool(data.get("return_to_start", True)), data.get("return_duration", 2.0))
+    if limits is not None:
+        validate_plan(plan, limits)
+    return plan
+
+
+def run_plan(
+    plan: Plan,
+    move_to_pose: Callable[[Mapping[str, float], float], None],
+    hold_position: Callable[[float], None],
+    initial: Mapping[str, float] | None = None,
+    on_step: Callable[[Step], None] | None = None,
+) -> None:
+    """Execute a validated plan through a backend.
+
+    Args:
+        plan: the plan (already validated).
+        move_to_pose: ``move_to_pose(cfg, duration)`` of the backend.
+        hold_position: ``hold_position(duration)`` of the backend.
+        initial: the pose to return to at the end (if ``plan.return_to_start``).
+        on_step: called with each step before it starts (progress reporting).
+    """
+    for step in plan.steps:
+        if on_step is not None:
+            on_step(step)
+        move_to_pose(step.configuration, step.duration)
+        if step.hold > 0:
+            hold_position(step.hold)
+    if plan.return_to_start and initial is not None:
+        if on_step is not None:
+            on_step(Step("return_to_start", dict(initial), plan.return_duration, 0.0))
+        move_to_pose(initial, plan.return_duration)

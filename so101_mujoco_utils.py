@@ -1,0 +1,245 @@
+"""MuJoCo helpers for the SO-101: loading the model, unit conversion and motion.
+
+Units at the user's boundary are the course's: arm joints in [deg], the
+gripper in [0, 100]. Inside MuJoCo everything is [rad]. The conversion lives
+here and only here (:func:`to_radians`, :func:`from_radians`):
+
+- arm joints: radians = degrees * pi / 180 (zero at the middle of the range,
+  as lerobot's SO-101 calibration defines it);
+- gripper: 0..100 maps linearly onto the gripper joint's range, 0 at its
+  lower (closed) end and 100 at its upper (open) end; the same mapping as
+  lerobot's RANGE_0_100 over the calibrated range, so the virtual and the real
+  arm agree with the simulator.
+
+Motion is timed on simulation time (``d.time``): a headless run
+(``viewer=None``) is deterministic and runs as fast as the CPU allows; with a
+viewer it is paced to real time and stops with :class:`ViewerClosed` when the
+window is closed.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from functools import lru_cache
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from so101_forward_kinematics import JOINTS, TOOL_SITE
+from so101_meshes import ensure_meshes
+from so101_motion import Configuration, Trajectory, check_configuration
+
+_HERE = Path(__file__).resolve().parent
+MODEL_DIR = _HERE / "model"
+SCENE_PATH = MODEL_DIR / "scene.xml"
+VIEWER_SYNC_PERIOD = 1.0 / 60.0  # [s] of simulation time between viewer updates
+
+
+class ViewerClosed(Exception):
+    """The viewer window was closed; the motion stopped early."""
+
+
+def load_model(path: str | Path = SCENE_PATH) -> mujoco.MjModel:
+    """Load an SO-101 scene, installing and verifying the meshes first.
+
+    Args:
+        path: MJCF file (default ``model/scene.xml``).
+
+    Returns:
+        The compiled model.
+    """
+    ensure_meshes()
+    return mujoco.MjModel.from_xml_path(str(path))
+
+
+@lru_cache(maxsize=8)
+def _joint_table(m: mujoco.MjModel) -> tuple[tuple[str, int, int, float, float], ...]:
+    """(name, qpos address, actuator id, lower, upper [rad]) for each joint."""
+    return tuple(
+        (name, int(m.joint(name).qposadr[0]), int(m.actuator(name).id), *map(float, m.joint(name).range))
+        for name in JOINTS
+    )
+
+
+def joint_limits(m: mujoco.MjModel) -> dict[str, tuple[float, float]]:
+    """Joint limits in user units: [deg] for the arm, (0, 100) for the gripper."""
+    limits = {}
+    for name, _, _, lower, upper in _joint_table(m):
+        if name == "gripper":
+            limits[name] = (0.0, 100.0)
+        else:
+            limits[name] = (math.degrees(lower), math.degrees(upper))
+    return limits
+
+
+def gripper_to_radians(m: mujoco.MjModel, percent: float) -> float:
+    """Gripper opening in [0, 100] -> gripper joint angle [rad]."""
+    lower, upper = m.joint("gripper").range
+    return float(lower + (upper - lower) * percent / 100.0)
+
+
+def gripper_from_radians(m: mujoco.MjModel, angle: float) -> float:
+    """Gripper joint angle [rad] -> opening in [0, 100] (not clamped)."""
+    lower, upper = m.joint("gripper").range
+    return float((angle - lower) / (upper - lower) * 100.0)
+
+
+def to_radians(m: mujoco.MjModel, cfg: Mapping[str, float]) -> dict[str, float]:
+    """User configuration ([deg], gripper [0, 100]) -> joint angles [rad]."""
+    return {
+        name: gripper_to_radians(m, value) if name == "gripper" else math.radians(value)
+        for name, value in cfg.items()
+    }
+
+
+def from_radians(m: mujoco.MjModel, angles: Mapping[str, float]) -> Configuration:
+    """Joint angles [rad] -> user configuration ([deg], gripper [0, 100])."""
+    return {
+        name: gripper_from_radians(m, value) if name == "gripper" else math.degrees(value)
+        for name, value in angles.items()
+    }
+
+
+def validate(m: mujoco.MjModel, cfg: Mapping[str, float], where: str = "") -> Configuration:
+    """Check a full configuration against the model's joint limits.
+
+    Raises:
+        so101_motion.JointLimitError: naming joint, value and limit.
+        so101_motion.PlanError: missing, unknown or non-numeric joints.
+    """
+    return check_configuration(cfg, joint_limits(m), where)
+
+
+def get_configuration(m: mujoco.MjModel, d: mujoco.MjData) -> Configuration:
+    """Measured configuration (from ``d.qpos``) in user units."""
+    return from_radians(m, {name: float(d.qpos[adr]) for name, adr, *_ in _joint_table(m)})
+
+
+def get_command(m: mujoco.MjModel, d: mujoco.MjData) -> Configuration:
+    """Currently commanded configuration (from ``d.ctrl``) in user units."""
+    return from_radians(m, {name: float(d.ctrl[act]) for name, _, act, *_ in _joint_table(m)})
+
+
+def set_initial_pose(d: mujoco.MjData, cfg: Mapping[str, float]) -> None:
+    """Place the arm at ``cfg`` at rest (qpos, zero velocity) and command it there.
+
+    Args:
+        d: the simulation data (its model is ``d.model``).
+        cfg: configuration ([deg], gripper [0, 100]); validated against the limits.
+    """
+    m = d.model
+    angles = to_radians(m, validate(m, cfg, "initial pose"))
+    for name, adr, act, *_ in _joint_table(m):
+        d.qpos[adr] = angles[name]
+        d.qvel[m.joint(name).dofadr[0]] = 0.0
+        d.ctrl[act] = angles[name]
+    mujoco.mj_forward(m, d)
+
+
+def send_position_command(d: mujoco.MjData, cfg: Mapping[str, float]) -> None:
+    """Set the position servos' targets; joints missing from ``cfg`` keep theirs.
+
+    Args:
+        d: the simulation data.
+        cfg: joint name -> target ([deg], gripper [0, 100]).
+    """
+    m = d.model
+    limits = joint_limits(m)
+    partial = {name: limits[name] for name in cfg if name in limits}
+    angles = to_radians(m, check_configuration(cfg, partial, "position command"))
+    for name, _, act, *_ in _joint_table(m):
+        if name in angles:
+            d.ctrl[act] = angles[name]
+
+
+def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> None:
+    """Step the simulation to time ``until`` [s], following ``path`` if given."""
+    realtime = viewer is not None and not getattr(viewer, "offscreen", False)
+    if path is not None:
+        # The unit conversion is affine per joint, so interpolating in radians
+        # is the same path as interpolating in user units.
+        actuators = [act for name, _, act, *_ in _joint_table(m) if name in path.goal]
+        start = np.array(list(to_radians(m, {j: path.start[j] for j in path.goal}).values()))
+        delta = np.array(list(to_radians(m, path.goal).values())) - start
+    wall0, sim0 = time.perf_counter(), d.time
+    next_sync = d.time
+    while d.time < until - 0.5 * m.opt.timestep:
+        if path is not None:
+            d.ctrl[actuators] = start + path.fraction(d.time - t0) * delta
+        mujoco.mj_step(m, d)
+        if viewer is None:
+            continue
+        if getattr(viewer, "sync_every_step", False) or d.time >= next_sync:
+            if not viewer.is_running():
+                raise ViewerClosed("The viewer was closed.")
+            viewer.sync()
+            next_sync = d.time + VIEWER_SYNC_PERIOD
+            if realtime:
+                lag = (d.time - sim0) - (time.perf_counter() - wall0)
+                if lag > 0:
+                    time.sleep(lag)
+
+
+def move_to_pose(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    viewer,
+    cfg: Mapping[str, float],
+    duration: float,
+    profile: str = "minimum_jerk",
+) -> None:
+    """Move from the current command to ``cfg`` in ``duration`` [s] of simulation time.
+
+    The target is validated before the first step. The path starts at the
+    last command (not the measured pose), so a gripper squeezing an object
+    keeps squeezing while the arm moves.
+
+    Args:
+        m: the model.
+        d: the simulation data.
+        viewer: ``None`` (headless, as fast as possible), a passive viewer
+            (paced to real time) or any object with ``sync()`` and
+            ``is_running()`` (e.g. an offscreen recorder).
+        cfg: target configuration ([deg], gripper [0, 100]).
+        duration: time for the move [s].
+        profile: "minimum_jerk" (smooth, default) or "linear" (the course's).
+
+    Raises:
+        so101_motion.JointLimitError: the target is outside the limits.
+        ViewerClosed: the viewer window was closed.
+    """
+    goal = validate(m, cfg, "move_to_pose target")
+    path = Trajectory(get_command(m, d), goal, float(duration), profile)
+    t0 = d.time
+    _advance(m, d, viewer, t0 + path.duration, path, t0)
+
+
+def hold_position(m: mujoco.MjModel, d: mujoco.MjData, viewer, duration: float) -> None:
+    """Keep the current command for ``duration`` [s] of simulation time.
+
+    Args:
+        m: the model.
+        d: the simulation data.
+        viewer: as for :func:`move_to_pose`.
+        duration: [s].
+
+    Raises:
+        ViewerClosed: the viewer window was closed.
+    """
+    _advance(m, d, viewer, d.time + float(duration), None, d.time)
+
+
+def get_object_pose(m: mujoco.MjModel, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+    """Simulated object-frame pose: (position (3,) [m], rotation (3, 3)), from the last kinematics."""
+    site = d.site(TOOL_SITE)
+    return site.xpos.copy(), site.xmat.reshape(3, 3).copy()
+
+
+def has_display() -> bool:
+    """Whether an interactive viewer can open (an X11 or Wayland display is set)."""
+    import os
+
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
