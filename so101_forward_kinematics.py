@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from pathlib import Path
 
 import numpy as np
 
@@ -127,8 +128,11 @@ def _fixed_rotation(name: str) -> np.ndarray:
     return rotation
 
 
+_FIXED_ROTATION = {name: _fixed_rotation(name) for name in _FIXED}
+
+
 def _joint_transform(name: str, theta_deg: float) -> np.ndarray:
-    return pose(_fixed_rotation(name) @ Rz(theta_deg), _FIXED[name][0])
+    return pose(_FIXED_ROTATION[name] @ Rz(theta_deg), _FIXED[name][0])
 
 
 def get_gw1(theta1_deg: float) -> np.ndarray:
@@ -162,7 +166,44 @@ def get_g45(theta5_deg: float) -> np.ndarray:
 
 def get_g5t() -> np.ndarray:
     """Pose of the object frame t in frame 5 (fixed: the gripper joint does not move it)."""
-    return pose(_fixed_rotation("5t"), _FIXED["5t"][0])
+    return pose(_FIXED_ROTATION["5t"], _FIXED["5t"][0])
+
+
+def _read_angles(position_dict: Mapping[str, float]) -> list[float]:
+    """The five arm joint angles [deg] of a configuration, validated (see :func:`joint_angles`)."""
+    angles = []
+    for joint in ARM_JOINTS:
+        try:
+            value = position_dict[joint]
+        except (KeyError, TypeError, IndexError):
+            raise ValueError(
+                f"Configuration has no '{joint}' angle; expected a dict with keys "
+                f"{', '.join(ARM_JOINTS)} (degrees), got {_describe_keys(position_dict)}."
+            ) from None
+        if type(value) is not float:  # ints, numpy scalars; rejects text and booleans
+            value = _as_degrees(joint, value)
+        if not math.isfinite(value):
+            raise ValueError(f"Joint '{joint}' must be finite, got {value!r} degrees.")
+        angles.append(value)
+    return angles
+
+
+def _as_degrees(joint: str, value) -> float:
+    if isinstance(value, (str, bytes, bool, np.bool_)):
+        raise ValueError(f"Joint '{joint}' must be a number of degrees, got {value!r}.")
+    try:
+        return float(value)
+    except OverflowError:
+        raise ValueError(f"Joint '{joint}' must be finite, got {value!r} degrees.") from None
+    except (TypeError, ValueError):
+        raise ValueError(f"Joint '{joint}' must be a number of degrees, got {value!r}.") from None
+
+
+def _describe_keys(position_dict) -> str:
+    try:
+        return repr(sorted(map(str, position_dict.keys())))
+    except Exception:  # not a mapping: say what it is instead
+        return f"a {type(position_dict).__name__}"
 
 
 def joint_angles(position_dict: Mapping[str, float]) -> np.ndarray:
@@ -175,25 +216,10 @@ def joint_angles(position_dict: Mapping[str, float]) -> np.ndarray:
         (5,) angles [deg] in ``ARM_JOINTS`` order.
 
     Raises:
-        ValueError: a joint is missing, or its value is not a finite number.
+        ValueError: a joint is missing, or its value is not a finite number
+            (text and booleans are refused).
     """
-    angles = np.empty(len(ARM_JOINTS))
-    for i, joint in enumerate(ARM_JOINTS):
-        if joint not in position_dict:
-            raise ValueError(
-                f"Configuration has no '{joint}' angle; expected keys {', '.join(ARM_JOINTS)} "
-                f"(degrees), got {sorted(position_dict)}."
-            )
-        value = position_dict[joint]
-        try:
-            angles[i] = value
-        except (TypeError, ValueError):
-            raise ValueError(
-                f"Joint '{joint}' must be a number of degrees, got {value!r}."
-            ) from None
-        if not math.isfinite(angles[i]):
-            raise ValueError(f"Joint '{joint}' must be finite, got {value!r} degrees.")
-    return angles
+    return np.array(_read_angles(position_dict))
 
 
 def get_frame_chain(position_dict: Mapping[str, float]) -> dict[str, np.ndarray]:
@@ -204,46 +230,81 @@ def get_frame_chain(position_dict: Mapping[str, float]) -> dict[str, np.ndarray]
 
     Returns:
         Frame name (``FRAMES``: "w", "1".."5", "t") -> ``g_w<frame>`` (4, 4).
+
+    Raises:
+        ValueError: a joint is missing or not a finite number.
     """
-    theta = joint_angles(position_dict)
+    theta = _read_angles(position_dict)
     factors = (get_gw1(theta[0]), get_g12(theta[1]), get_g23(theta[2]),
                get_g34(theta[3]), get_g45(theta[4]), get_g5t())
     chain = {"w": np.eye(4)}
     g_w = chain["w"]
-    for frame, factor in zip(FRAMES[1:], factors):
+    for frame, factor in zip(FRAMES[1:], factors, strict=True):
         g_w = g_w @ factor
         chain[frame] = g_w
     return chain
 
 
-# Fast path. Each factor g(theta) = fixed @ Rz(theta) is linear in
-# (cos theta, sin theta): g = K0 + cos * Kc + sin * Ks. The constant tool
-# transform is folded into the last factor.
-def _linear_factors() -> np.ndarray:
-    names = ("w1", "12", "23", "34", "45")
-    factors = np.zeros((len(names), 3, 4, 4))
-    for i, name in enumerate(names):
-        at_0 = _joint_transform(name, 0.0)
-        at_90 = _joint_transform(name, 90.0)
-        constant = at_0.copy()
-        constant[:, :2] = 0.0  # columns 0, 1 are the only ones theta touches
-        factors[i, 0] = constant
-        factors[i, 1] = at_0 - constant   # multiplies cos(theta)
-        factors[i, 2] = at_90 - constant  # multiplies sin(theta)
-    factors[-1] = factors[-1] @ get_g5t()
-    return factors
+# ---------------------------------------------------------------------------
+# Closed form of g_wt, used by get_forward_kinematics and the batch form.
+#
+# The product gw1 @ g12 @ g23 @ g34 @ g45 @ g5t simplifies because of two
+# facts about the SO-101 (checked below at import, and against MuJoCo and the
+# product itself in tests/test_forward_kinematics.py):
+#   1. shoulder_lift, elbow_flex and wrist_flex turn about parallel axes: the
+#      fixed rotations of g23 and g34 are Rz(+90) and Rz(-90), so
+#      Rz(th2) Rz(90) Rz(th3) Rz(-90) Rz(th4) = Rz(phi), phi = th2 + th3 + th4.
+#   2. the other fixed rotations are signed permutations:
+#      R_w1 = diag(-1, 1, -1), R_12 = P (rows e_y, e_z, e_x), R_5t = diag(-1, 1, -1),
+#      and R_45 = D Rz(tilt) with D = Rz(180) Rx(90); the tilt adds to wrist_roll:
+#      psi = th5 + GRIPPER_MOUNT_TILT_DEG.
+# Then R_wt = diag(-1, 1, -1) Rz(th1) P Rz(phi) D Rz(psi) diag(-1, 1, -1), whose
+# entries are the short products written out in _closed_form, and
+#   p_wt = p_w1 + diag(-1, 1, -1) Rz(th1) (p_12 + P r), with
+#   r = Rz(th2) p_23 + Rz(th2 + th3 + 90) p_34 + Rz(phi) (p_45 + D Rz(psi) p_5t).
+_P_W1, _P_12, _P_23, _P_34, _P_45, _P_5T = (
+    tuple(map(float, _FIXED[name][0])) for name in ("w1", "12", "23", "34", "45", "5t")
+)
+_V_X = _P_45[0]                             # p_45 + D Rz(psi) p_5t = (V_X - c5 a + s5 b,
+_V_Y = _P_45[1] + _P_5T[2]                  #                          V_Y,
+_V_Z = _P_45[2] + _P_12[1] + _P_23[2] + _P_34[2]  # V_Z + s5 a + c5 b), plus p_12,y and r_z
+_TOOL_A, _TOOL_B = _P_5T[0], _P_5T[1]       # a, b
+_DEG = math.pi / 180.0
+_HALF_DEG = math.pi / 360.0
+_TILT_DEG = GRIPPER_MOUNT_TILT_DEG
 
 
-_K = _linear_factors()  # (joint, {constant, cos, sin}, 4, 4)
-_K_WIDE = _K.transpose(0, 2, 1, 3).reshape(len(_K), 4, 12)  # [K0 | Kc | Ks] side by side
+def _check_closed_form_assumptions() -> None:
+    """Fail loudly if ``_FIXED`` no longer has the structure the closed form assumes."""
+    flip = np.diag([1.0, -1.0, 1.0]) * -1.0  # diag(-1, 1, -1)
+    expected = {
+        "w1": flip,
+        "12": np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]),
+        "23": Rz(90.0),
+        "34": Rz(-90.0),
+        "45": Rz(180.0) @ Rx(90.0) @ Rz(_TILT_DEG),
+        "5t": flip,
+    }
+    for name, rotation in expected.items():
+        if not np.allclose(_FIXED_ROTATION[name], rotation, rtol=0.0, atol=1e-15):
+            raise RuntimeError(
+                f"The fixed rotation of g_{name} changed; update the closed form in "
+                f"{Path(__file__).name} (get_forward_kinematics and the batch form) to match."
+            )
+
+
+_check_closed_form_assumptions()
 
 
 def get_forward_kinematics(position_dict: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
     """Object-frame pose in the world for one configuration.
 
+    Equal (to rounding, ~1e-16) to ``get_gw1 @ get_g12 @ ... @ get_g5t`` as the
+    assignment composes it, evaluated in closed form for speed.
+
     Args:
         position_dict: joint name -> angle [deg]. The five arm joints are
-            required; ``gripper`` is ignored.
+            required; ``gripper`` (and any other key) is ignored.
 
     Returns:
         ``(position, rotation)``: (3,) position [m] and (3, 3) rotation of the
@@ -252,14 +313,55 @@ def get_forward_kinematics(position_dict: Mapping[str, float]) -> tuple[np.ndarr
     Raises:
         ValueError: a joint is missing or not a finite number.
     """
-    theta = np.radians(joint_angles(position_dict))
-    g = _K[:, 0] + np.cos(theta)[:, None, None] * _K[:, 1] + np.sin(theta)[:, None, None] * _K[:, 2]
-    g_wt = g[0] @ g[1] @ g[2] @ g[3] @ g[4]
-    return g_wt[:3, 3].copy(), g_wt[:3, :3].copy()
+    th1, th2, th3, th4, th5 = _read_angles(position_dict)
+    cos, sin = math.cos, math.sin
+    a = th1 * _DEG
+    c1, s1 = cos(a), sin(a)
+    a = th2 * _DEG
+    c2, s2 = cos(a), sin(a)
+    a = (th2 + th3) * _DEG
+    c23, s23 = cos(a), sin(a)
+    a = (th2 + th3 + th4) * _DEG
+    cp, sp = cos(a), sin(a)
+    a = (th5 + _TILT_DEG) * _DEG
+    c5, s5 = cos(a), sin(a)
+    v_x = _V_X - c5 * _TOOL_A + s5 * _TOOL_B
+    h_1 = _V_Z + s5 * _TOOL_A + c5 * _TOOL_B
+    r_x = (c2 * _P_23[0] - s2 * _P_23[1] - s23 * _P_34[0] - c23 * _P_34[1]
+           + cp * v_x - sp * _V_Y)
+    h_0 = (_P_12[0] + s2 * _P_23[0] + c2 * _P_23[1] + c23 * _P_34[0] - s23 * _P_34[1]
+           + sp * v_x + cp * _V_Y)
+    spc5, sps5 = sp * c5, sp * s5
+    position = np.array((_P_W1[0] - c1 * h_0 + s1 * h_1,
+                         _P_W1[1] + s1 * h_0 + c1 * h_1,
+                         _P_W1[2] - _P_12[2] - r_x))
+    rotation = np.array(((-c1 * spc5 - s1 * s5, s1 * c5 - c1 * sps5, c1 * cp),
+                         (s1 * spc5 - c1 * s5, s1 * sps5 + c1 * c5, -s1 * cp),
+                         (-cp * c5, -cp * s5, -sp)))
+    return position, rotation
 
 
-def get_forward_kinematics_batch(angles_deg, chunk: int = 16384) -> tuple[np.ndarray, np.ndarray]:
+def _cos_sin_from_half(half: np.ndarray, cos: np.ndarray, sin: np.ndarray,
+                       scratch: np.ndarray) -> None:
+    """Cosine and sine of ``2 * half`` [rad], in place, from t = tan(half).
+
+    cos = 2 / (1 + t^2) - 1 and sin = t * 2 / (1 + t^2): one vectorised tan
+    (fast in numpy) instead of a sin and a cos (much slower), exact to a few
+    1e-16 for every angle (t is at most ~1.6e16 at half = 90 deg).
+    """
+    np.tan(half, out=sin)
+    np.multiply(sin, sin, out=scratch)
+    scratch += 1.0
+    np.divide(2.0, scratch, out=scratch)
+    np.subtract(scratch, 1.0, out=cos)
+    sin *= scratch
+
+
+def get_forward_kinematics_batch(angles_deg, chunk: int = 8192) -> tuple[np.ndarray, np.ndarray]:
     """Object-frame poses for many configurations at once.
+
+    The closed form of :func:`get_forward_kinematics`, evaluated on columns of
+    ``chunk`` configurations at a time with preallocated buffers.
 
     Args:
         angles_deg: (N, 5) arm joint angles [deg], columns in ``ARM_JOINTS`` order.
@@ -269,33 +371,104 @@ def get_forward_kinematics_batch(angles_deg, chunk: int = 16384) -> tuple[np.nda
         ``(positions, rotations)``: (N, 3) [m] and (N, 3, 3).
 
     Raises:
-        ValueError: wrong shape or non-finite angles.
+        ValueError: wrong shape, non-numeric or non-finite angles, or chunk < 1.
     """
-    theta = np.radians(np.asarray(angles_deg, dtype=float))
+    try:
+        theta = np.asarray(angles_deg, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"angles_deg must be numbers [deg] in an (N, {len(ARM_JOINTS)}) array; "
+            f"could not convert {type(angles_deg).__name__} to floats."
+        ) from None
     if theta.ndim != 2 or theta.shape[1] != len(ARM_JOINTS):
         raise ValueError(
             f"angles_deg must have shape (N, {len(ARM_JOINTS)}) with columns "
             f"{', '.join(ARM_JOINTS)}; got {np.shape(angles_deg)}."
         )
-    if not np.all(np.isfinite(theta)):
+    if not np.isfinite(theta).all():
         row, col = np.argwhere(~np.isfinite(theta))[0]
-        raise ValueError(f"Joint '{ARM_JOINTS[col]}' of configuration {row} is not finite.")
+        raise ValueError(
+            f"Joint '{ARM_JOINTS[col]}' of configuration {row} is not finite: {theta[row, col]!r}."
+        )
+    if chunk < 1:
+        raise ValueError(f"chunk must be >= 1, got {chunk!r}.")
     n = theta.shape[0]
     positions = np.empty((n, 3))
     rotations = np.empty((n, 3, 3))
-    cos, sin = np.cos(theta), np.sin(theta)
+    buffers = np.empty((16, min(chunk, n)))
+    mul, add, sub, neg = np.multiply, np.add, np.subtract, np.negative
     for start in range(0, n, chunk):
         stop = min(start + chunk, n)
-        c, s = cos[start:stop, :, None], sin[start:stop, :, None]
-        # Rows of the accumulated top block [R | p] of g_w<i>, stacked: (3m, 4).
-        g = (_K[0, 0, :3] + c[:, 0, :, None] * _K[0, 1, :3] + s[:, 0, :, None] * _K[0, 2, :3])
-        g = g.reshape(-1, 4)
-        for j in range(1, len(ARM_JOINTS)):
-            # g @ (K0 + c Kc + s Ks), the three products in one matrix product.
-            parts = (g @ _K_WIDE[j]).reshape(stop - start, 3, 3, 4)
-            g = (parts[:, :, 0] + c[:, j, :, None] * parts[:, :, 1]
-                 + s[:, j, :, None] * parts[:, :, 2]).reshape(-1, 4)
-        g = g.reshape(stop - start, 3, 4)
-        positions[start:stop] = g[:, :, 3]
-        rotations[start:stop] = g[:, :, :3]
+        th = theta[start:stop]
+        p, R = positions[start:stop], rotations[start:stop]
+        (c1, s1, c2, s2, c23, s23, cp, sp, c5, s5,
+         x, y, z, u, w, tmp) = buffers[:, : stop - start]
+        # cos and sin of th1, th2, th2 + th3, phi and psi, from half angles [rad].
+        mul(th[:, 0], _HALF_DEG, out=x)
+        _cos_sin_from_half(x, c1, s1, tmp)
+        mul(th[:, 1], _HALF_DEG, out=y)
+        _cos_sin_from_half(y, c2, s2, tmp)
+        mul(th[:, 2], _HALF_DEG, out=z)
+        z += y
+        _cos_sin_from_half(z, c23, s23, tmp)
+        mul(th[:, 3], _HALF_DEG, out=x)
+        x += z
+        _cos_sin_from_half(x, cp, sp, tmp)
+        add(th[:, 4], _TILT_DEG, out=x)
+        x *= _HALF_DEG
+        _cos_sin_from_half(x, c5, s5, tmp)
+        # x = v_x, y = h_1 (as in get_forward_kinematics).
+        mul(c5, -_TOOL_A, out=x)
+        mul(s5, _TOOL_B, out=tmp)
+        x += tmp
+        x += _V_X
+        mul(s5, _TOOL_A, out=y)
+        mul(c5, _TOOL_B, out=tmp)
+        y += tmp
+        y += _V_Z
+        # z = r_x, u = h_0.
+        mul(cp, x, out=z)
+        for column, factor in ((sp, -_V_Y), (c2, _P_23[0]), (s2, -_P_23[1]),
+                               (s23, -_P_34[0]), (c23, -_P_34[1])):
+            mul(column, factor, out=tmp)
+            z += tmp
+        mul(sp, x, out=u)
+        for column, factor in ((cp, _V_Y), (s2, _P_23[0]), (c2, _P_23[1]),
+                               (c23, _P_34[0]), (s23, -_P_34[1])):
+            mul(column, factor, out=tmp)
+            u += tmp
+        u += _P_12[0]
+        mul(c1, u, out=tmp)
+        mul(s1, y, out=w)
+        w -= tmp
+        add(w, _P_W1[0], out=p[:, 0])
+        mul(s1, u, out=tmp)
+        mul(c1, y, out=w)
+        w += tmp
+        add(w, _P_W1[1], out=p[:, 1])
+        sub(_P_W1[2] - _P_12[2], z, out=p[:, 2])
+        # Rotation; x = sin(phi) cos(psi), y = sin(phi) sin(psi).
+        mul(sp, c5, out=x)
+        mul(sp, s5, out=y)
+        mul(c1, x, out=tmp)
+        mul(s1, s5, out=w)
+        w += tmp
+        neg(w, out=R[:, 0, 0])
+        mul(s1, c5, out=tmp)
+        mul(c1, y, out=w)
+        sub(tmp, w, out=R[:, 0, 1])
+        mul(c1, cp, out=R[:, 0, 2])
+        mul(s1, x, out=tmp)
+        mul(c1, s5, out=w)
+        sub(tmp, w, out=R[:, 1, 0])
+        mul(s1, y, out=tmp)
+        mul(c1, c5, out=w)
+        add(tmp, w, out=R[:, 1, 1])
+        mul(s1, cp, out=tmp)
+        neg(tmp, out=R[:, 1, 2])
+        mul(cp, c5, out=tmp)
+        neg(tmp, out=R[:, 2, 0])
+        mul(cp, s5, out=tmp)
+        neg(tmp, out=R[:, 2, 1])
+        neg(sp, out=R[:, 2, 2])
     return positions, rotations
