@@ -40,6 +40,8 @@ if [ ! -f "$venv/.complete" ]; then
   "$venv/bin/python" -m pip install --quiet --upgrade pip "setuptools>=68" wheel
   "$venv/bin/python" -m pip install --quiet --progress-bar off -e ".${extras:+[$extras]}"
   touch "$venv/.complete"
+  # Keep the two newest environments of this kind; each hw one is ~9 GB.
+  ls -dt "$root"/venv-*-"${extras:-base}" 2>/dev/null | tail -n +3 | xargs -r rm -rf
 fi
 # The venv is shared by clones: point its editable install at this clone.
 "$venv/bin/python" -m pip install --quiet --no-deps --no-build-isolation -e . >/dev/null 2>&1 \
