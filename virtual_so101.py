@@ -97,6 +97,7 @@ import logging
 import math
 import os
 import select
+import signal
 import socket
 import statistics
 import subprocess
@@ -320,7 +321,7 @@ def present_to_radians(cal: Mapping[str, int], joint: str, present: float,
 
 def radians_to_present(cal: Mapping[str, int], joint: str, angle: float,
                        joint_range: tuple[float, float]) -> float:
-    """Joint angle [rad] -> Present_Position [ticks, not rounded]; inverse of :func:`present_to_radians`."""
+    """Joint angle [rad] -> Present_Position [ticks, not rounded]; see present_to_radians."""
     lo, hi = cal["range_min"], cal["range_max"]
     if joint == "gripper":
         return lo + (angle - joint_range[0]) / (joint_range[1] - joint_range[0]) * (hi - lo)
@@ -376,6 +377,8 @@ def parse_faults(spec: str | None, calibration: Mapping[str, Mapping[str, int]])
                 if len(args) != 1:
                     raise ValueError
                 faults.append((kind, servo(args[0], item), None))
+        except FaultSpecError:
+            raise
         except (ValueError, IndexError):
             raise FaultSpecError(f"Bad fault '{item}'. Grammar: {grammar}.") from None
     return faults
@@ -385,7 +388,12 @@ def parse_faults(spec: str | None, calibration: Mapping[str, Mapping[str, int]])
 # Emulator process
 # =============================================================================================
 class _Servo:
-    """One STS3215: its register memory and its link to a simulated joint."""
+    """One STS3215: its register memory and its link to a simulated joint.
+
+    The registers live in ``regs`` (256 bytes); the values the hot paths need
+    (torque, limits, offsets, the tick <-> radian affine map) are cached as
+    attributes and refreshed by :meth:`sync_cache` after every generic write.
+    """
 
     def __init__(self, joint: str, cal: Mapping[str, int], m):
         self.joint = joint
@@ -396,6 +404,9 @@ class _Servo:
         self.act = int(m.actuator(joint).id)
         self.kp = float(m.actuator_gainprm[self.act, 0])
         self.kv = float(-m.actuator_biasprm[self.act, 2])
+        # present = base + scale * angle (calibration frame), exactly lerobot's mapping
+        self.base = radians_to_present(self.cal, joint, 0.0, self.range)
+        self.scale = radians_to_present(self.cal, joint, 1.0, self.range) - self.base
         self.regs = bytearray(256)
         for name, value in FACTORY.items():
             self.set(name, value)
@@ -410,10 +421,19 @@ class _Servo:
         self.removed = False
         self.stalled_at: float | None = None  # [rad]
         self.load = 0.0  # stall load [0.1 %]
+        self.sync_cache()
 
-    @property
-    def id(self) -> int:
-        return self.regs[5]
+    def sync_cache(self) -> None:
+        """Refresh the cached register values from ``regs``."""
+        self.id = self.regs[5]
+        self.baud = BAUD_RATES.get(self.regs[6])
+        self.torque = self.regs[40] != 0
+        self.position_mode = self.regs[33] == 0
+        lo, hi = self.get("Min_Position_Limit"), self.get("Max_Position_Limit")
+        self.limits = (lo, hi) if lo < hi else None
+        # encoder = calibration present + calibration offset; present = encoder - register offset
+        self.delta = self.cal["homing_offset"] - self.get("Homing_Offset")
+        self.return_delay = 2e-6 * self.regs[7]
 
     def get(self, name: str) -> int:
         addr, size = ADDR[name]
@@ -431,16 +451,13 @@ class _Servo:
 
     def angle_to_present(self, angle: float) -> int:
         """Joint angle [rad] -> Present_Position with the current Homing_Offset register."""
-        encoder = radians_to_present(self.cal, self.joint, angle, self.range) + self.cal["homing_offset"]
-        return int(round(encoder - self.get("Homing_Offset"))) % RESOLUTION
+        return round(self.base + self.scale * angle + self.delta) % RESOLUTION
 
     def goal_to_angle(self, goal: int) -> float:
         """Goal_Position (clamped to the limit registers) -> actuator target [rad]."""
-        lo, hi = self.get("Min_Position_Limit"), self.get("Max_Position_Limit")
-        if lo < hi:
-            goal = min(hi, max(lo, goal))
-        present = goal + self.get("Homing_Offset") - self.cal["homing_offset"]
-        return present_to_radians(self.cal, self.joint, present, self.range)
+        if self.limits is not None:
+            goal = min(self.limits[1], max(self.limits[0], goal))
+        return (goal - self.delta - self.base) / self.scale
 
 
 class _Emulator:
@@ -470,6 +487,8 @@ class _Emulator:
         self.rx = bytearray()
         self.rx_partial_since = 0.0
         self.wire_free = 0.0
+        self.host_baud = 1_000_000
+        self.listening: dict[int, _Servo] = {}
         if options["initial"] is None:
             mujoco.mj_resetDataKeyframe(self.m, self.d, self.m.key("home").id)
             mujoco.mj_forward(self.m, self.d)
@@ -477,10 +496,11 @@ class _Emulator:
             smu.set_initial_pose(self.d, options["initial"])
         for servo in self.servos.values():
             servo.set("Torque_Enable", 1 if options["torque_on_start"] else 0)
+            servo.sync_cache()
             self._apply_torque(servo)
             self._hold(servo)
-        for fault in options["faults"]:
-            self.inject([fault])
+        self.update_listening()
+        self.inject(options["faults"])
         self.viewer = None
         if options["viewer"]:
             import mujoco.viewer
@@ -494,13 +514,12 @@ class _Emulator:
         self.port = os.ttyname(self.slave)
         self.speeds = {getattr(termios, f"B{b}"): b for b in BAUD_RATES.values()
                        if hasattr(termios, f"B{b}")}
-        self.host_baud = 1_000_000
         self.t0 = time.perf_counter()
         self.steps = 0
 
     # --- physics --------------------------------------------------------------------------
     def _apply_torque(self, servo: _Servo) -> None:
-        on = servo.get("Torque_Enable") != 0
+        on = servo.torque
         m, act = self.m, servo.act
         m.actuator_gainprm[act, 0] = servo.kp if on else 0.0
         m.actuator_biasprm[act, 1] = -servo.kp if on else 0.0
@@ -532,7 +551,7 @@ class _Emulator:
         for s in stalled:
             err = s.get("Goal_Position") - s.angle_to_present(s.stalled_at)
             rate = STALL_LOAD_RATE * due * self.dt
-            if abs(err) > 3 and s.get("Torque_Enable"):
+            if abs(err) > 3 and s.torque:
                 s.load = math.copysign(min(1000.0, abs(s.load) + rate), err)
             else:
                 s.load = math.copysign(max(0.0, abs(s.load) - rate), s.load)
@@ -542,59 +561,83 @@ class _Emulator:
             self.viewer.sync()
             self.next_view = time.perf_counter() + 1 / 60
 
-    def refresh(self, servo: _Servo) -> None:
-        """Update the servo's Present_* registers from the simulation."""
-        d = self.d
-        angle = float(d.qpos[servo.qadr])
-        servo.set("Present_Position", servo.angle_to_present(angle))
+    def refresh(self, servo: _Servo, lo: int = 56, hi: int = 71) -> None:
+        """Update the servo's Present_* registers overlapping [lo, hi) from the simulation."""
+        d, regs = self.d, servo.regs
+        angle = servo.stalled_at if servo.stalled_at is not None else float(d.qpos[servo.qadr])
+        present = round(servo.base + servo.scale * angle + servo.delta) % RESOLUTION
+        regs[56] = present & 0xFF
+        regs[57] = present >> 8
+        if not servo.torque:  # the STS keeps Goal_Position on Present_Position while limp
+            regs[42], regs[43] = regs[56], regs[57]
+        if hi <= 58:
+            return
         velocity = float(d.qvel[servo.dofadr]) * TICKS_PER_RAD
-        servo.set("Present_Velocity", max(-32767, min(32767, int(round(velocity)))))
         if servo.stalled_at is not None:
             load = servo.load
         else:
             load = float(d.actuator_force[servo.act]) / STALL_TORQUE * 1000.0
-        load = max(-1000, min(1000, int(round(load))))
+        load = max(-1000, min(1000, round(load)))
+        servo.set("Present_Velocity", max(-32767, min(32767, round(velocity))))
         servo.set("Present_Load", load)
         servo.set("Present_Current", abs(load) * 2)
-        servo.set("Moving", int(abs(velocity) > 20))
-        servo.set("Status", self.error_byte(servo))
-        if not servo.get("Torque_Enable"):
-            servo.set("Goal_Position", servo.get("Present_Position"))
+        regs[66] = int(abs(velocity) > 20)
+        regs[65] = self.error_byte(servo)
 
     def error_byte(self, servo: _Servo) -> int:
-        if servo.stalled_at is not None and abs(servo.load) >= 10 * servo.get("Overload_Torque"):
+        if servo.stalled_at is not None and abs(servo.load) >= 10 * servo.regs[36]:
             return ERR_OVERLOAD
         return 0
 
     # --- registers ------------------------------------------------------------------------
-    def write(self, servo: _Servo, addr: int, data: bytes) -> None:
+    def write_goal(self, servo: _Servo, low: int, high: int) -> None:
+        """Fast path: a Goal_Position write (the hot path of a control loop)."""
         regs = servo.regs
-        old_id = servo.id
-        old = bytes(regs[addr:addr + len(data)])
+        regs[42] = low
+        regs[43] = high
+        goal = low | high << 8
+        if goal & 0x8000:
+            goal = -(goal & 0x7FFF)
+        if servo.torque and servo.position_mode:
+            self.d.ctrl[servo.act] = servo.goal_to_angle(goal)
+        self.goal_log.append((time.time(), servo.id, goal))
+
+    def write(self, servo: _Servo, addr: int, data: bytes) -> None:
+        if addr == 42 and len(data) == 2:
+            self.write_goal(servo, data[0], data[1])
+            return
+        regs = servo.regs
+        old_id, was_on = servo.id, servo.torque
         for i, byte in enumerate(data):
             if addr + i not in READ_ONLY and addr + i < 256:
                 regs[addr + i] = byte
         if addr < EEPROM_END and regs[55] == 0:
             servo.saved = bytes(regs[:EEPROM_END])
+        servo.sync_cache()
         touched = set(range(addr, addr + len(data)))
-        if servo.id != old_id:
-            del self.servos[old_id]
-            self.servos[servo.id] = servo
+        if servo.id != old_id or touched & {6}:
+            self.servos = {s.id: s for s in self.by_joint.values()}
+            self.update_listening()
         if touched & {40, 16, 17}:
-            was_on = old[40 - addr] if addr <= 40 < addr + len(data) else None
             self._apply_torque(servo)
-            if 40 in touched and servo.get("Torque_Enable") and not was_on:
+            if servo.torque and not was_on:
                 self._hold(servo)
-        if touched & {42, 43, 31, 32, 9, 10, 11, 12}:
-            if servo.get("Torque_Enable") and servo.get("Operating_Mode") == 0:
+        if touched & {42, 43, 31, 32, 9, 10, 11, 12, 33}:
+            if servo.torque and servo.position_mode:
                 self.d.ctrl[servo.act] = servo.goal_to_angle(servo.get("Goal_Position"))
             if touched & {42, 43}:
                 self.goal_log.append((time.time(), servo.id, servo.get("Goal_Position")))
 
     def read(self, servo: _Servo, addr: int, size: int) -> bytes:
-        if addr + size > 56 and addr < 71 or addr <= 43 and addr + size > 42:
-            self.refresh(servo)
-        return bytes(servo.regs[addr:addr + size]).ljust(size, b"\0")
+        end = addr + size
+        if (end > 56 and addr < 71) or (not servo.torque and addr <= 43 and end > 42):
+            self.refresh(servo, addr, end)
+        return bytes(servo.regs[addr:end]).ljust(size, b"\0")
+
+    def update_listening(self) -> None:
+        """The servos that hear the host: present, and at the host's baud rate."""
+        self.listening = {i: s for i, s in self.servos.items()
+                          if not s.removed and s.baud == self.host_baud}
 
     # --- protocol -------------------------------------------------------------------------
     def on_serial(self) -> None:
@@ -606,8 +649,10 @@ class _Emulator:
             time.sleep(0.001)
             return
         now = time.perf_counter()
-        attrs = termios.tcgetattr(self.master)
-        self.host_baud = self.speeds.get(attrs[5], self.host_baud)
+        baud = self.speeds.get(termios.tcgetattr(self.master)[5], self.host_baud)
+        if baud != self.host_baud:
+            self.host_baud = baud
+            self.update_listening()
         rx = self.rx
         if rx and now - self.rx_partial_since > 0.01:
             del rx[:2]  # a stale partial packet: a servo's byte timeout would discard it
@@ -646,8 +691,7 @@ class _Emulator:
             self.wire_free = t_end
         else:
             t_end = t_seen
-        listening = {i: s for i, s in self.servos.items()
-                     if not s.removed and BAUD_RATES.get(s.get("Baud_Rate")) == self.host_baud}
+        listening = self.listening
         replies: list[tuple[_Servo, bytes]] = []
         if inst == INST_PING:
             if target == BROADCAST_ID:
@@ -665,13 +709,14 @@ class _Emulator:
                 self.write(servo, addr, data)
             if target != BROADCAST_ID and targets:
                 servo = targets[0]
-                if servo.get("Response_Status_Level") != 0:
+                if servo.regs[8] != 0:
                     replies = [(servo, b"")]
         elif inst == INST_SYNC_READ and target == BROADCAST_ID and len(params) >= 2:
             addr, size = params[0], params[1]
             for servo_id in params[2:]:
-                if servo_id in listening:
-                    replies.append((listening[servo_id], self.read(listening[servo_id], addr, size)))
+                servo = listening.get(servo_id)
+                if servo is not None:
+                    replies.append((servo, self.read(servo, addr, size)))
         elif inst == INST_SYNC_WRITE and target == BROADCAST_ID and len(params) >= 2:
             addr, size = params[0], params[1]
             body = params[2:]
@@ -695,7 +740,7 @@ class _Emulator:
             if servo.corrupt:
                 servo.corrupt -= 1
                 packet = packet[:-1] + bytes(((packet[-1] + 1) & 0xFF,))
-            t_ready += 2e-6 * servo.get("Return_Delay_Time") + len(packet) * tpb
+            t_ready += servo.return_delay + len(packet) * tpb
             out.append((t_ready, packet))
         if not out:
             return
@@ -723,7 +768,7 @@ class _Emulator:
     # --- faults and commands --------------------------------------------------------------
     def inject(self, faults: list[tuple]) -> None:
         for kind, servo_id, arg in faults:
-            servo = next(s for s in self.servos.values() if s.cal["id"] == servo_id)
+            servo = next(s for s in self.by_joint.values() if s.cal["id"] == servo_id)
             if kind == "drop":
                 servo.drop += arg
             elif kind == "corrupt":
@@ -735,6 +780,7 @@ class _Emulator:
                 servo.load = 0.0
             elif kind == "firmware":
                 servo.regs[0], servo.regs[1] = arg
+            self.update_listening()
             logger.info("fault injected: %s on servo %d (%s)", kind, servo_id, servo.joint)
 
     def clear_faults(self) -> None:
@@ -744,6 +790,7 @@ class _Emulator:
             servo.stalled_at = None
             servo.load = 0.0
             servo.regs[0], servo.regs[1] = FIRMWARE
+        self.update_listening()
 
     def command(self, name: str, args: tuple):
         smu = self.smu
@@ -757,7 +804,7 @@ class _Emulator:
             self.goal_log.clear()
             return None
         if name == "torque_enabled":
-            return {s.joint: bool(s.get("Torque_Enable")) for s in self.servos.values()}
+            return {s.joint: s.torque for s in self.by_joint.values()}
         if name == "inject":
             return self.inject(args[0])
         if name == "clear_faults":
@@ -782,15 +829,18 @@ class _Emulator:
                 servo.__init__(servo.joint, servo.cal, self.m)
                 servo.regs[:EEPROM_END] = eeprom
                 servo.saved = eeprom
+                servo.sync_cache()
                 self._apply_torque(servo)
             self.servos = {s.id: s for s in self.by_joint.values()}
+            self.update_listening()
             return None
         if name == "reply_stats":
             lateness = sorted(self.lateness)
+            p99 = lateness[int(0.99 * (len(lateness) - 1))] if lateness else 0.0
             return {
                 "replies": self.replies, "late_replies": self.late,
                 "lateness_median_ms": 1e3 * statistics.median(lateness) if lateness else 0.0,
-                "lateness_p99_ms": 1e3 * lateness[int(0.99 * (len(lateness) - 1))] if lateness else 0.0,
+                "lateness_p99_ms": 1e3 * p99,
                 "lateness_max_ms": 1e3 * lateness[-1] if lateness else 0.0,
                 "sim_time_s": self.d.time, "wall_time_s": time.perf_counter() - self.t0,
             }
@@ -824,16 +874,21 @@ class _Emulator:
 
 
 def _wait_until(deadline: float) -> None:
-    """Sleep, then spin, until ``time.perf_counter() >= deadline`` (sub-100 us precision)."""
+    """Spin (sleeping first if far) until ``time.perf_counter() >= deadline``.
+
+    A wire-timed reply is due within a millisecond or so: sleeping that short
+    overshoots by 50-100 us (more on a busy machine), so only longer waits sleep.
+    """
     remaining = deadline - time.perf_counter()
-    if remaining > 3e-4:
-        time.sleep(remaining - 2.5e-4)
+    if remaining > 2e-3:
+        time.sleep(remaining - 1e-3)
     while time.perf_counter() < deadline:
         pass
 
 
 def _emulator_main(fd: int) -> None:
     """Entry point of the emulator process: ``fd`` is its end of the socket pair."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
     conn = Connection(fd)
     options = conn.recv()
     logging.basicConfig(level=options.get("log_level", logging.WARNING),
@@ -1025,7 +1080,7 @@ class VirtualSO101:
         self._call("power_cycle")
 
     def reply_stats(self) -> dict[str, float]:
-        """Replies sent, replies later than 45 ms, and lateness behind the wire-time deadline [ms]."""
+        """Replies sent, replies later than 45 ms, lateness behind each reply's deadline [ms]."""
         return self._call("reply_stats")
 
     def clear_stats(self) -> None:
@@ -1136,7 +1191,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("-v", "--verbose", action="store_true", help="log every fault and start-up")
     args = parser.parse_args(argv)
     level = logging.INFO if args.verbose else logging.WARNING
-    logging.basicConfig(level=level, stream=sys.stderr, format="%(levelname)s %(name)s: %(message)s")
+    logging.basicConfig(level=level, stream=sys.stderr,
+                        format="%(levelname)s %(name)s: %(message)s")
     if args.write_default_calibration:
         import so101_mujoco_utils
 
