@@ -495,6 +495,7 @@ def connect(port: str, calibration: Mapping[str, ServoCalibration], *, robot_id:
         CalibrationError: the servos hold another calibration.
         LerobotMissing: lerobot is not installed.
     """
+    import_lerobot()  # first: without lerobot nothing else matters
     if not port:
         raise ConnectionFailed(f"No port given. Find the arm's port with `{FIND_PORT_HINT}` "
                                "and pass it with --port.")
