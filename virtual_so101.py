@@ -816,6 +816,11 @@ class _Emulator:
                     servo.stalled_at = float(self.d.qpos[servo.qadr])
                 self._hold(servo)
             return None
+        if name == "set_torque":
+            for servo in self.by_joint.values():
+                if args[1] is None or servo.joint in args[1]:
+                    self.write(servo, 40, bytes((int(args[0]),)))
+            return None
         if name == "set_wire_timing":
             self.wire_timing = bool(args[0])
             return None
@@ -1064,6 +1069,16 @@ class VirtualSO101:
             so101_motion.JointLimitError: a value is outside the joint limits.
         """
         self._call("set_pose", dict(cfg))
+
+    def set_torque(self, enabled: bool, joints: list[str] | None = None) -> None:
+        """Set Torque_Enable as the host would (test setup); ``joints`` default: all.
+
+        Enabling holds each joint where it is (Goal_Position := Present_Position).
+        """
+        unknown = [j for j in joints or () if j not in self._ids]
+        if unknown:
+            raise KeyError(f"Unknown joints {unknown}; joints are {list(self._ids)}.")
+        self._call("set_torque", bool(enabled), list(joints) if joints else None)
 
     def set_wire_timing(self, enabled: bool) -> None:
         """Switch wire timing on or off while running."""

@@ -44,6 +44,7 @@ def fresh_arm(arm):
     """The shared arm, back at HOME with torque on, no faults, empty goal log."""
     arm.clear_faults()
     arm.set_wire_timing(False)
+    arm.set_torque(True)
     arm.set_pose(HOME)
     arm.clear_goal_log()
     arm.clear_stats()
@@ -519,3 +520,26 @@ def test_command_line_serves_with_faults_from_power_up(lerobot_bus_factory):
     finally:
         process.send_signal(2)  # Ctrl-C
         assert process.wait(timeout=20) == 0
+
+
+@pytest.mark.hw
+def test_lock_decides_which_eeprom_writes_survive_a_power_cycle(bus, fresh_arm):
+    bus.disable_torque("wrist_roll")  # lerobot: Torque_Enable = 0, then Lock = 0
+    bus.write("P_Coefficient", "wrist_roll", 16)  # saved (unlocked)
+    bus.enable_torque("wrist_roll")  # Torque_Enable = 1, Lock = 1
+    bus.write("D_Coefficient", "wrist_roll", 10)  # acts now, not saved (locked)
+    assert fresh_arm.registers("wrist_roll")["D_Coefficient"] == 10
+    fresh_arm.power_cycle()
+    registers = fresh_arm.registers("wrist_roll")
+    assert (registers["P_Coefficient"], registers["D_Coefficient"]) == (16, 32)
+    assert registers["Torque_Enable"] == 0  # a servo powers up limp
+    assert bus.is_calibrated  # calibration registers were saved with the arm
+
+
+@pytest.mark.hw
+def test_measure_cycle_reports_wire_time_and_no_late_replies(fresh_arm):
+    pytest.importorskip("lerobot")
+    result = vso.measure_cycle(n=100, wire_timing=True, arm=fresh_arm, warmup=10)
+    assert result["wire_ms"] == pytest.approx(0.88)  # 88 bytes at 1 Mbaud, 10 bits a byte
+    assert result["cycle_median_ms"] >= result["wire_ms"]  # replies wait for their bytes' time
+    assert result["late_replies"] == 0
