@@ -543,3 +543,8 @@ def test_measure_cycle_reports_wire_time_and_no_late_replies(fresh_arm):
     assert result["wire_ms"] == pytest.approx(0.88)  # 88 bytes at 1 Mbaud, 10 bits a byte
     assert result["cycle_median_ms"] >= result["wire_ms"]  # replies wait for their bytes' time
     assert result["late_replies"] == 0
+
+
+@pytest.mark.hw
+def test_lerobot_broadcast_ping_finds_six_sts3215(bus):
+    assert bus.broadcast_ping() == dict.fromkeys(range(1, 7), 777)
