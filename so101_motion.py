@@ -154,8 +154,11 @@ class Plan:
         return {step.name: step.configuration for step in self.steps}
 
 
-# The course's pick-and-place. The first and last two configurations are the
-# assignment's; "lift" and "carry" raise the cube clear of the table.
+# The course's pick-and-place. The six configurations of the assignment are
+# start_open, start_closed, lift, carry, final_closed and final_open; the first
+# and last two are the course's, lift and carry (ours) raise the cube 11.6 cm
+# clear of the table. Three extra waypoints (approach, pre_grasp, retreat) make
+# the grasp robust; they are moves of the arm only, the jaws stay open.
 STARTING_CONFIGURATION = {
     "shoulder_pan": -45.0, "shoulder_lift": 45.0, "elbow_flex": -45.0,
     "wrist_flex": 90.0, "wrist_roll": 0.0, "gripper": 50.0,
@@ -163,29 +166,71 @@ STARTING_CONFIGURATION = {
 FINAL_CONFIGURATION = dict(STARTING_CONFIGURATION, shoulder_pan=45.0)
 GRIPPER_CLOSED = 5.0
 
+# Why the approach: the fixed jaw is the jaw nearer the base, its flat inner
+# face flush with the near face of a cube standing at the FK start position.
+# Coming straight down, a cube 5 mm nearer the base (or turned 10 deg about z,
+# its corner then sticks out 2 mm) would be hit by the fixed jaw's tip. So the
+# open gripper comes down 12 mm nearer the base (pre_grasp: gripper vertical,
+# same height as start_open) and then slides out to start_open: the fixed
+# jaw's flat face pushes a misplaced cube to where the grasp expects it. A
+# cube further out is pushed back by the closing moving jaw. The numbers are
+# FK-derived (so101_forward_kinematics), rounded to whole degrees:
+#   approach:  object frame 15 mm nearer the base and 52 mm up, tilted 5 deg;
+#   pre_grasp: 12 mm nearer the base, gripper vertical, same height;
+#   lift/carry: 116 mm up (the cube's bottom 11.6 cm above the table), tilted 25 deg;
+#   retreat:   pre_grasp at the final pan: the fixed jaw backs off the placed
+#              cube horizontally before the arm returns to its initial pose.
+APPROACH = {"shoulder_lift": 24.0, "elbow_flex": -32.0, "wrist_flex": 93.0}
+PRE_GRASP = {"shoulder_lift": 35.0, "elbow_flex": -28.0, "wrist_flex": 83.0}
+LIFT = {"shoulder_lift": 0.0, "elbow_flex": -20.0, "wrist_flex": 85.0}
+PICK_STEP = "start_open"
+"""Name of the default plan's step whose FK is where the cube stands."""
+PLACE_STEP = "final_open"
+"""Name of the default plan's step whose FK is where the cube is placed."""
+
 
 def default_plan(move_duration: float = 2.0, hold_duration: float = 0.5) -> Plan:
     """The course's pick-and-place plan.
 
     Args:
-        move_duration: time for each move [s].
-        hold_duration: pause after each move [s].
+        move_duration: time for each main move [s]; the short approach,
+            sweep, grip, release and retreat moves take half of it.
+        hold_duration: pause after each of the six course configurations [s].
 
     Returns:
-        The plan: start open, start closed, lift, carry, final closed, final
-        open, then back to the initial pose.
+        The plan: approach, pre_grasp, then the course's six configurations
+        (start_open, start_closed, lift, carry, final_closed, final_open),
+        retreat, then back to the initial pose.
     """
     closed = {"gripper": GRIPPER_CLOSED}
-    lift = {"shoulder_lift": 0.0, "elbow_flex": -20.0, "wrist_flex": 85.0}
+    short = 0.5 * move_duration
     waypoints = [
-        ("start_open", STARTING_CONFIGURATION),
-        ("start_closed", dict(STARTING_CONFIGURATION, **closed)),
-        ("lift", dict(STARTING_CONFIGURATION, **closed, **lift)),
-        ("carry", dict(FINAL_CONFIGURATION, **closed, **lift)),
-        ("final_closed", dict(FINAL_CONFIGURATION, **closed)),
-        ("final_open", FINAL_CONFIGURATION),
+        ("approach", dict(STARTING_CONFIGURATION, **APPROACH), move_duration, 0.0),
+        ("pre_grasp", dict(STARTING_CONFIGURATION, **PRE_GRASP), short, 0.0),
+        ("start_open", STARTING_CONFIGURATION, short, hold_duration),
+        ("start_closed", dict(STARTING_CONFIGURATION, **closed), short, hold_duration),
+        ("lift", dict(STARTING_CONFIGURATION, **closed, **LIFT), move_duration, hold_duration),
+        ("carry", dict(FINAL_CONFIGURATION, **closed, **LIFT), move_duration, hold_duration),
+        ("final_closed", dict(FINAL_CONFIGURATION, **closed), move_duration, hold_duration),
+        ("final_open", FINAL_CONFIGURATION, short, hold_duration),
+        ("retreat", dict(FINAL_CONFIGURATION, **PRE_GRASP), short, 0.0),
     ]
-    return Plan([Step(name, dict(cfg), move_duration, hold_duration) for name, cfg in waypoints])
+    return Plan([Step(name, dict(cfg), duration, hold)
+                 for name, cfg, duration, hold in waypoints], return_duration=move_duration)
+
+
+def pick_and_place_steps(plan: Plan) -> tuple[Step, Step]:
+    """The steps at which the cube is picked and placed.
+
+    Args:
+        plan: a plan.
+
+    Returns:
+        (pick, place): the steps named ``PICK_STEP`` and ``PLACE_STEP`` if the
+        plan has them, else its first and last steps.
+    """
+    by_name = {step.name: step for step in plan.steps}
+    return by_name.get(PICK_STEP, plan.steps[0]), by_name.get(PLACE_STEP, plan.steps[-1])
 
 
 def validate_plan(plan: Plan, limits: Limits) -> Plan:
