@@ -156,23 +156,41 @@ def send_position_command(d: mujoco.MjData, cfg: Mapping[str, float]) -> None:
 
 
 def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> None:
-    """Step the simulation to time ``until`` [s], following ``path`` if given."""
+    """Step the simulation to time ``until`` [s], following ``path`` if given.
+
+    The command is updated before every physics step of a move. While the
+    command is constant (a hold), the steps between two viewer updates run in
+    one ``mj_step(m, d, n)`` call: the same physics without Python in the loop.
+    """
     realtime = viewer is not None and not getattr(viewer, "offscreen", False)
+    every_step = viewer is not None and getattr(viewer, "sync_every_step", False)
+    dt = m.opt.timestep
     if path is not None:
         # The unit conversion is affine per joint, so interpolating in radians
         # is the same path as interpolating in user units.
-        actuators = [act for name, _, act, *_ in _joint_table(m) if name in path.goal]
+        actuators = np.array([act for name, _, act, *_ in _joint_table(m) if name in path.goal])
         start = np.array(list(to_radians(m, {j: path.start[j] for j in path.goal}).values()))
         delta = np.array(list(to_radians(m, path.goal).values())) - start
+        ctrl = d.ctrl
     wall0, sim0 = time.perf_counter(), d.time
     next_sync = d.time
-    while d.time < until - 0.5 * m.opt.timestep:
+    while True:
+        remaining = round((until - d.time) / dt)  # steps left [-]
+        if remaining <= 0:
+            break
         if path is not None:
-            d.ctrl[actuators] = start + path.fraction(d.time - t0) * delta
-        mujoco.mj_step(m, d)
+            ctrl[actuators] = start + path.fraction(d.time - t0) * delta
+            mujoco.mj_step(m, d)
+        elif viewer is None:
+            mujoco.mj_step(m, d, remaining)
+        elif every_step:
+            mujoco.mj_step(m, d)
+        else:
+            to_sync = math.ceil((next_sync - d.time) / dt - 1e-6)
+            mujoco.mj_step(m, d, max(1, min(remaining, to_sync)))
         if viewer is None:
             continue
-        if getattr(viewer, "sync_every_step", False) or d.time >= next_sync:
+        if every_step or d.time >= next_sync - 1e-9:
             if not viewer.is_running():
                 raise ViewerClosed("The viewer was closed.")
             viewer.sync()
