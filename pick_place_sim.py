@@ -1,0 +1,443 @@
+"""Run the course's pick-and-place on the simulated SO-101: viewer, headless or MP4 video."""
+
+from __future__ import annotations
+
+import os
+
+# Offscreen rendering without a display needs Mesa's EGL, chosen before mujoco loads.
+if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+    os.environ.setdefault("MUJOCO_GL", "egl")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import logging  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
+from dataclasses import asdict, dataclass, field  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+import so101_mujoco_utils as utils  # noqa: E402
+from so101_forward_kinematics import ARM_JOINTS, TOOL_SITE, get_forward_kinematics  # noqa: E402
+from so101_meshes import ensure_meshes  # noqa: E402
+from so101_motion import (  # noqa: E402
+    Plan,
+    PlanError,
+    Step,
+    default_plan,
+    load_plan,
+    pick_and_place_steps,
+    run_plan,
+    validate_plan,
+)
+from so101_render import (  # noqa: E402
+    DEFAULT_CAMERA,
+    DEFAULT_FPS,
+    DEFAULT_SIZE,
+    QUALITY,
+    RenderError,
+    VideoRecorder,
+    add_overlays,
+    target_cubes,
+    use_render_meshes,
+)
+
+_HERE = Path(__file__).resolve().parent
+SCENE_PATH = _HERE / "model" / "scene.xml"
+DEFAULT_VIDEO = _HERE / "out" / "pick_place.mp4"
+INITIAL_KEYFRAME = "home"  # the arm's initial pose, returned to at the end
+
+# The free cube: a 26 mm hardwood cube (17.6 cm^3 at ~0.7 g/cm^3 = 12 g).
+# Sliding friction 0.5 is wood on wood or on PLA; where it touches a jaw pad,
+# the pad's own contact parameters apply (model/so101.xml, class jaw_pad).
+CUBE_EDGE = 0.026  # [m]
+CUBE_MASS = 0.012  # [kg]
+CUBE_FRICTION = (0.5, 0.005, 0.0001)  # sliding [-], torsional [m], rolling [m]
+CUBE_RGBA = (0.25, 0.45, 0.85, 1.0)
+
+# What counts as a successful pick-and-place.
+PLACEMENT_TOLERANCE = 0.010  # [m] horizontal distance from the FK final position
+TILT_TOLERANCE = 10.0  # [deg] angle of the cube's up axis from the vertical
+MIN_LIFT = 0.020  # [m] the cube must rise at least this much to count as carried
+HELD_DISTANCE = 0.015  # [m] cube centre this close to the object frame = in the grip
+MONITOR_PERIOD = 0.01  # [s] of simulation time between checks of the cube
+
+log = logging.getLogger("pick_place_sim")
+
+
+@dataclass
+class CubeStart:
+    """Where the free cube starts: the pick position's FK, plus a perturbation.
+
+    Attributes:
+        offset: horizontal displacement (x, y) in the world frame [m].
+        yaw: extra rotation about the vertical [deg].
+    """
+
+    offset: tuple[float, float] = (0.0, 0.0)
+    yaw: float = 0.0
+
+    def pose(self, pick: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+        """Cube centre [m] and quaternion (w, x, y, z) for the pick configuration ``pick``.
+
+        The cube stands on the table, turned about z as the FK object frame
+        (so its faces are parallel to the jaws), then by ``yaw``.
+        """
+        position, rotation = get_forward_kinematics({j: pick[j] for j in ARM_JOINTS})
+        centre = np.array([position[0] + self.offset[0], position[1] + self.offset[1],
+                           0.5 * CUBE_EDGE])
+        angle = math.atan2(rotation[1, 0], rotation[0, 0]) + math.radians(self.yaw)
+        return centre, np.array([math.cos(angle / 2), 0.0, 0.0, math.sin(angle / 2)])
+
+
+def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
+                render_meshes: bool = False) -> mujoco.MjModel:
+    """Compile the course scene, optionally with a free cube at the plan's pick position.
+
+    Args:
+        plan: gives the pick configuration (default: the built-in plan).
+        cube: the cube's start; ``None`` for no cube.
+        render_meshes: use the decimated render-only meshes (for a model that
+            is only drawn; see ``so101_render.use_render_meshes``).
+
+    Returns:
+        The model. Sleeping is enabled: a cube at rest on the table costs no
+        contact computation until the arm touches it.
+    """
+    ensure_meshes()
+    spec = mujoco.MjSpec.from_file(str(SCENE_PATH))
+    if render_meshes:
+        use_render_meshes(spec)
+    if cube is not None:
+        pick, _ = pick_and_place_steps(plan or default_plan())
+        centre, quat = cube.pose(pick.configuration)
+        body = spec.worldbody.add_body(name="cube", pos=centre, quat=quat)
+        body.add_freejoint(name="cube")
+        body.add_geom(name="cube", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.5 * CUBE_EDGE] * 3,
+                      mass=CUBE_MASS, friction=list(CUBE_FRICTION), condim=3, rgba=list(CUBE_RGBA))
+        spec.option.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP
+    return spec.compile()
+
+
+class CubeMonitor:
+    """Watches the cube during the run; a viewer wrapper for move_to_pose.
+
+    It forwards ``sync()`` / ``is_running()`` to an inner viewer (passive
+    viewer or video recorder) if there is one and takes its pacing flags.
+
+    Args:
+        m: the model (with a body "cube", or without: then it only forwards).
+        d: the data.
+        inner: the viewer to forward to, or ``None`` (headless).
+    """
+
+    def __init__(self, m: mujoco.MjModel, d: mujoco.MjData, inner=None):
+        self.d, self.inner = d, inner
+        self.offscreen = inner is None or getattr(inner, "offscreen", False)
+        self.sync_every_step = inner is not None and getattr(inner, "sync_every_step", False)
+        self.has_cube = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "cube") >= 0
+        self._next = d.time
+        if self.has_cube:
+            self._cube, self._site = d.body("cube"), d.site(TOOL_SITE)
+            self.start_height = float(self._cube.xpos[2])
+        self.max_lift = 0.0  # [m]
+        self.dropped = False
+
+    def is_running(self) -> bool:
+        """The inner viewer's state (always true headless)."""
+        return self.inner is None or self.inner.is_running()
+
+    def sync(self) -> None:
+        """Check the cube (every MONITOR_PERIOD [s]), then forward."""
+        if self.has_cube and self.d.time >= self._next:
+            self._next = self.d.time + MONITOR_PERIOD
+            self.check()
+        if self.inner is not None:
+            self.inner.sync()
+
+    def check(self) -> None:
+        """Update the lift height and note a drop: the cube in the air, out of the grip."""
+        lift = float(self._cube.xpos[2]) - self.start_height
+        self.max_lift = max(self.max_lift, lift)
+        held = np.linalg.norm(self._cube.xpos - self._site.xpos) <= HELD_DISTANCE
+        if lift > 0.005 and not held:
+            self.dropped = True
+
+
+@dataclass
+class RunReport:
+    """Outcome of a run; the JSON report has these keys.
+
+    Positions in the world (base) frame [m]; cube fields are ``None`` without a cube.
+    """
+
+    cube_final_position_m: list[float] | None
+    cube_target_position_m: list[float] | None
+    placement_error_m: float | None
+    tilt_deg: float | None
+    dropped: bool | None
+    max_lift_m: float | None
+    sim_time_s: float
+    wall_time_s: float
+    realtime_factor: float
+    frames_written: int
+    success: bool
+    completed: bool = True
+    waypoint_errors_deg: dict[str, float] = field(default_factory=dict)
+    video: str | None = None
+
+    def summary(self) -> str:
+        """Human-readable lines for stdout."""
+        lines = [f"Simulated {self.sim_time_s:.2f} s in {self.wall_time_s:.2f} s wall time "
+                 f"({self.realtime_factor:.0f}x real time)"]
+        if self.video:
+            lines[0] += f"; {self.frames_written} frames written to {self.video}"
+        if not self.completed:
+            lines.append("The viewer was closed before the end: partial run.")
+        if self.cube_final_position_m is None:
+            lines.append("No cube (--no-cube).")
+            return "\n".join(lines)
+        final, target = self.cube_final_position_m, self.cube_target_position_m
+        lines += [
+            f"Cube final position:  ({final[0]:.4f}, {final[1]:.4f}, {final[2]:.4f}) m",
+            f"Cube target (FK):     ({target[0]:.4f}, {target[1]:.4f}, {target[2]:.4f}) m",
+            f"Placement error:      {self.placement_error_m * 1000:.1f} mm "
+            f"(tolerance {PLACEMENT_TOLERANCE * 1000:.0f} mm)",
+            f"Tilt:                 {self.tilt_deg:.1f} deg (tolerance {TILT_TOLERANCE:.0f} deg)",
+            f"Max lift:             {self.max_lift_m * 1000:.0f} mm; dropped: "
+            f"{'yes' if self.dropped else 'no'}",
+        ]
+        if self.success:
+            lines.append("Result: SUCCESS - the cube was picked by friction, carried and placed.")
+        else:
+            reasons = []
+            if self.max_lift_m < MIN_LIFT:
+                reasons.append(f"it was never lifted {MIN_LIFT * 1000:.0f} mm (grasp failed)")
+            if self.dropped:
+                reasons.append("it fell out of the gripper")
+            if self.placement_error_m > PLACEMENT_TOLERANCE:
+                reasons.append("it ended too far from the target")
+            if self.tilt_deg > TILT_TOLERANCE:
+                reasons.append("it ended tilted")
+            lines.append("Result: FAILED - " + "; ".join(reasons or ["incomplete run"]) + ".")
+        return "\n".join(lines)
+
+
+def total_duration(plan: Plan) -> float:
+    """Simulated duration of a plan [s], including the return to the initial pose."""
+    return sum(s.duration + s.hold for s in plan.steps) + (plan.return_duration
+                                                           if plan.return_to_start else 0.0)
+
+
+def run_pick_place(
+    plan: Plan | None = None,
+    *,
+    cube: CubeStart | None = CubeStart(),  # noqa: B008 - immutable use
+    mode: str = "headless",
+    video: str | Path | None = None,
+    fps: float = DEFAULT_FPS,
+    size: Sequence[int] = DEFAULT_SIZE,
+    camera: str = DEFAULT_CAMERA,
+    quality: str = "fast",
+    progress: bool = True,
+) -> RunReport:
+    """Run a pick-and-place plan in simulation and measure what happened to the cube.
+
+    Args:
+        plan: the plan (default: ``so101_motion.default_plan()``); validated
+            against the joint limits before anything moves.
+        cube: where the free cube starts, or ``None`` for no cube.
+        mode: "headless" (as fast as possible), "viewer" (interactive, real
+            time) or "record" (offscreen, to ``video``).
+        video: MP4 path for mode "record".
+        fps: video frames per second of simulated time.
+        size: video (width, height) [px].
+        camera: camera name for the video.
+        quality: a ``so101_render.QUALITY`` preset name.
+        progress: progress bar while recording.
+
+    Returns:
+        The run report.
+
+    Raises:
+        so101_motion.PlanError: the plan is invalid (nothing moved).
+        so101_render.RenderError: the video cannot be written as asked.
+    """
+    if mode not in ("headless", "viewer", "record"):
+        raise ValueError(f"mode must be 'headless', 'viewer' or 'record', got {mode!r}.")
+    if quality not in QUALITY:
+        raise RenderError(f"Unknown quality '{quality}'; choose one of {', '.join(QUALITY)}.")
+    plan = plan or default_plan()
+    m = build_model(plan, cube)
+    validate_plan(plan, utils.joint_limits(m))
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, m.key(INITIAL_KEYFRAME).id)
+    mujoco.mj_forward(m, d)
+    initial = utils.get_configuration(m, d)
+    pick, place = pick_and_place_steps(plan)
+    overlays = target_cubes(pick.configuration, place.configuration)
+
+    errors: dict[str, float] = {}
+    current: list[Step] = []
+
+    def note_reached(step: Step | None) -> None:
+        # Called when a step ends: how far the arm is from that step's target.
+        if current:
+            done = current.pop()
+            measured = utils.get_configuration(m, d)
+            errors[done.name] = max(abs(measured[j] - done.configuration[j]) for j in ARM_JOINTS)
+        if step is not None:
+            current.append(step)
+
+    inner, frames, completed = None, 0, True
+    wall0 = time.perf_counter()
+    try:
+        if mode == "record":
+            quality_set = QUALITY[quality]
+            render_model = build_model(plan, cube, render_meshes=True) \
+                if quality_set.light_meshes else None
+            inner = VideoRecorder(m, d, video or DEFAULT_VIDEO, fps=fps, size=size, camera=camera,
+                                  overlays=overlays, quality=quality_set, render_model=render_model,
+                                  total_time=total_duration(plan), progress=progress)
+        elif mode == "viewer":
+            from mujoco import viewer as passive_viewer
+
+            inner = passive_viewer.launch_passive(m, d)
+            with inner.lock():
+                inner.user_scn.ngeom = 0
+                add_overlays(inner.user_scn, overlays)
+        monitor = CubeMonitor(m, d, inner)
+        try:
+            run_plan(plan, lambda cfg, duration: utils.move_to_pose(m, d, monitor, cfg, duration),
+                     lambda duration: utils.hold_position(m, d, monitor, duration), initial,
+                     on_step=note_reached)
+            note_reached(None)
+        except utils.ViewerClosed:
+            completed = False
+        if mode == "record":
+            frames = inner.frames_written
+    finally:
+        if inner is not None:
+            inner.close()
+    wall = time.perf_counter() - wall0
+    if monitor.has_cube:
+        monitor.check()
+    return _report(m, d, plan, monitor, wall, frames, completed, errors,
+                   str(video or DEFAULT_VIDEO) if mode == "record" else None)
+
+
+def _report(m, d, plan, monitor, wall, frames, completed, errors, video) -> RunReport:
+    """Assemble the run report from the final state."""
+    cube_keys = dict.fromkeys(("cube_final_position_m", "cube_target_position_m",
+                               "placement_error_m", "tilt_deg", "dropped", "max_lift_m"))
+    success = completed
+    if monitor.has_cube:
+        _, place = pick_and_place_steps(plan)
+        target, _ = get_forward_kinematics({j: place.configuration[j] for j in ARM_JOINTS})
+        final = d.body("cube").xpos.copy()
+        up = d.body("cube").xmat.reshape(3, 3)[:, 2]
+        error = float(np.linalg.norm(final[:2] - target[:2]))
+        tilt = math.degrees(math.acos(min(1.0, max(-1.0, float(up[2])))))
+        cube_keys = dict(cube_final_position_m=[float(v) for v in final],
+                         cube_target_position_m=[float(v) for v in target],
+                         placement_error_m=error, tilt_deg=tilt, dropped=monitor.dropped,
+                         max_lift_m=monitor.max_lift)
+        success = (completed and not monitor.dropped and monitor.max_lift >= MIN_LIFT
+                   and error <= PLACEMENT_TOLERANCE and tilt <= TILT_TOLERANCE)
+    return RunReport(**cube_keys, sim_time_s=float(d.time), wall_time_s=wall,
+                     realtime_factor=float(d.time) / wall if wall > 0 else float("inf"),
+                     frames_written=frames, success=success, completed=completed,
+                     waypoint_errors_deg=errors, video=video)
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"size must look like 640x480, got '{text}'") from None
+    return width, height
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Parse the command line, run, print the summary; returns the exit code."""
+    parser = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=f"""Modes:
+  with a display, no options   interactive viewer, paced to real time
+  without a display (DISPLAY / WAYLAND_DISPLAY unset), no options
+                               headless, and the video is recorded to
+                               {DEFAULT_VIDEO.relative_to(_HERE)} (as ./dev.sh sim does)
+  --headless                   no viewer, as fast as possible; no video
+                               unless --record is given
+  --record PATH.mp4            offscreen video (any machine; MUJOCO_GL=egl)
+
+Exit code: 0 done (even if the grasp failed, unless --strict), 1 the cube was
+not placed (with --strict), 2 bad input (plan file, options).""")
+    parser.add_argument("--plan", type=Path, help="waypoint file (.json or .toml) replacing the "
+                        "built-in plan; see waypoints/")
+    parser.add_argument("--headless", action="store_true", help="no viewer (default when there "
+                        "is no display)")
+    parser.add_argument("--record", type=Path, metavar="PATH.mp4", help="record a video")
+    parser.add_argument("--fps", type=float, default=DEFAULT_FPS, help="video frame rate "
+                        "(default %(default)g)")
+    parser.add_argument("--size", type=_size, default=DEFAULT_SIZE, metavar="WxH",
+                        help="video size (default 640x480)")
+    parser.add_argument("--camera", default=DEFAULT_CAMERA, help="camera (default %(default)s)")
+    parser.add_argument("--quality", choices=sorted(QUALITY), default="fast",
+                        help="video quality preset (default %(default)s)")
+    parser.add_argument("--cube", action=argparse.BooleanOptionalAction, default=True,
+                        help="put a free 26 mm cube at the pick position (default on)")
+    parser.add_argument("--cube-offset", type=float, nargs=2, default=(0.0, 0.0),
+                        metavar=("DX", "DY"), help="displace the cube's start [mm], world x, y")
+    parser.add_argument("--cube-yaw", type=float, default=0.0, metavar="DEG",
+                        help="turn the cube's start about z [deg]")
+    parser.add_argument("--move-duration", type=float, default=2.0, help="built-in plan: "
+                        "seconds per main move (default %(default)g)")
+    parser.add_argument("--hold", type=float, default=0.5, help="built-in plan: seconds held at "
+                        "each course configuration (default %(default)g)")
+    parser.add_argument("--json", type=Path, metavar="PATH", help="write the run report as JSON")
+    parser.add_argument("--strict", action="store_true", help="exit 1 unless the cube is placed "
+                        "within tolerance")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log details")
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+
+    display = utils.has_display()
+    video = args.record
+    if args.record is not None:
+        mode = "record"
+    elif args.headless:
+        mode = "headless"
+    elif display:
+        mode = "viewer"
+    else:
+        mode, video = "record", DEFAULT_VIDEO
+        print(f"No display: running headless and recording {video}", file=sys.stderr)
+    try:
+        plan = load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold)
+        cube = CubeStart((args.cube_offset[0] / 1000.0, args.cube_offset[1] / 1000.0),
+                         args.cube_yaw) if args.cube else None
+        report = run_pick_place(plan, cube=cube, mode=mode, video=video, fps=args.fps,
+                                size=args.size, camera=args.camera, quality=args.quality,
+                                progress=not args.no_progress)
+    except (PlanError, RenderError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    print(report.summary())
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(asdict(report), indent=2) + "\n")
+    if args.strict and not report.success:
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
