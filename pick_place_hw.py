@@ -592,12 +592,21 @@ def _recover_port(bus) -> None:
 
 
 def release_torque(bus) -> list[str]:
-    """Torque off on every servo, each tried on its own; returns the joints that did not answer."""
+    """Torque off on every servo, each tried on its own; returns the joints that did not answer.
+
+    A servo that answers with an error flag (e.g. overload after a stall) has
+    still executed the write: lerobot raises RuntimeError for the flag, and
+    that counts as released. No answer at all (ConnectionError) does not.
+    """
     _recover_port(bus)
     failed = []
     for joint in bus.motors:
         try:
-            bus.disable_torque(joint, num_retry=2)
+            for register in ("Torque_Enable", "Lock"):
+                try:
+                    bus.write(register, joint, 0, num_retry=2)
+                except RuntimeError as error:  # answered, with an error flag (not ConnectionError)
+                    logger.warning("%s answered with an error flag: %s", joint, error)
         except Exception:  # noqa: BLE001 - keep releasing the others
             failed.append(joint)
     return failed

@@ -79,9 +79,13 @@ class FakeBus:
 
     def disable_torque(self, motors=None, num_retry=0):
         for joint in [motors] if isinstance(motors, str) else (motors or JOINTS):
-            if joint in self.silent:
-                raise ConnectionError(f"{joint}: There is no status packet!")
-            self.torque[joint] = False
+            self.write("Torque_Enable", joint, 0)
+
+    def write(self, name, motor, value, normalize=True, num_retry=0):
+        if motor in self.silent:
+            raise ConnectionError(f"{motor}: There is no status packet!")
+        if name == "Torque_Enable":
+            self.torque[motor] = bool(value)
 
     def ping(self, motor, num_retry=0):
         return None if motor in self.silent else 777
