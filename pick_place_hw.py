@@ -33,6 +33,7 @@ from so101_motion import (
     check_configuration,
     default_plan,
     load_plan,
+    pick_and_place_steps,
     run_plan,
     unit,
     validate_plan,
@@ -529,7 +530,7 @@ def connect(port: str, calibration: Mapping[str, ServoCalibration], *, robot_id:
             bus.disable_torque()
             bus.write_calibration(bus.calibration)
     except BaseException:
-        _close(bus)
+        disconnect(bus)
         raise
     return bus
 
@@ -625,7 +626,8 @@ def silent_servos(bus) -> list[str]:
     return silent
 
 
-def _close(bus) -> None:
+def disconnect(bus) -> None:
+    """Close the port, leaving torque as it is (release it first: :func:`release_torque`)."""
     try:
         if bus.is_connected:
             bus.disconnect(disable_torque=False)
@@ -1109,7 +1111,7 @@ def run_on_arm(port: str, calibration_path: str | Path, plan: Plan, *, robot_id:
                              "its power supply.", ", ".join(unreleased))
         raise
     finally:
-        _close(bus)
+        disconnect(bus)
 
 
 # --- Output: plan, FK, log, plot ------------------------------------------------
@@ -1122,26 +1124,6 @@ def object_position_cm(cfg: Mapping[str, float]) -> tuple[float, float, float]:
     """FK object-frame position in the base frame [cm]."""
     position, _ = get_forward_kinematics({j: cfg[j] for j in ARM_JOINTS})
     return tuple(float(v) * 100.0 for v in position)
-
-
-def pick_and_place_steps(plan: Plan, threshold: float = 10.0) -> tuple[Step, Step]:
-    """The waypoints where the cube is picked and placed, found from the gripper.
-
-    Pick: the waypoint before the gripper first closes (by more than
-    ``threshold`` [%]); place: the first waypoint after that where it opens.
-    Falls back to the first and the last waypoint.
-    """
-    steps = plan.steps
-    grip = [s.configuration["gripper"] for s in steps]
-    pick, place = steps[0], steps[-1]
-    closes = next((i for i in range(1, len(steps)) if grip[i] < grip[i - 1] - threshold), None)
-    if closes is not None:
-        pick = steps[closes - 1]
-        later = range(closes + 1, len(steps))
-        opens = next((i for i in later if grip[i] > grip[i - 1] + threshold), None)
-        if opens is not None:
-            place = steps[opens]
-    return pick, place
 
 
 def format_plan(plan: Plan, *, rate_hz: float, profile: str, max_speed: Mapping[str, float],
@@ -1307,7 +1289,7 @@ def measure_loop_timing(rates_hz=(100.0, 200.0), seconds: float = 3.0, wire_timi
                 results[rate] = session.timing()
         finally:
             release_torque(bus)
-            _close(bus)
+            disconnect(bus)
     return results
 
 
@@ -1396,7 +1378,7 @@ def _dry_run(args, plan: Plan, calibration) -> int:
                 start = clamp_to_limits(measured, calibrated_limits(calibration))
                 print("Measured starting pose: " + format_configuration(measured))
             finally:
-                _close(bus)
+                disconnect(bus)
     print(format_plan(plan, rate_hz=args.rate, profile=args.profile, max_speed=caps, start=start))
     print("Dry run: the plan is valid; nothing was sent to the arm.")
     return 0
@@ -1431,7 +1413,7 @@ def main(argv: list[str] | None = None) -> int:
             try:
                 teach(bus)
             finally:
-                _close(bus)
+                disconnect(bus)
             return 0
         print(format_plan(plan, rate_hz=args.rate, profile=args.profile,
                           max_speed=speed_caps(args.max_speed)))

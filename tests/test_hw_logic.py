@@ -19,7 +19,7 @@ import pytest
 
 import pick_place_hw as hw
 from so101_forward_kinematics import JOINTS, get_forward_kinematics
-from so101_motion import JointLimitError, Plan, PlanError, Step, default_plan
+from so101_motion import JointLimitError, Plan, PlanError, Step, default_plan, pick_and_place_steps
 
 REPO = Path(__file__).resolve().parent.parent
 VIRTUAL_CALIBRATION = REPO / "calibration" / "virtual_so101.json"
@@ -424,7 +424,7 @@ def test_bus_error_releases_without_moving_back(calibration, clock):
 # --- output ------------------------------------------------------------------------------
 def test_pick_and_place_waypoints_and_their_cube_positions(calibration):
     plan = default_plan()
-    pick, place = hw.pick_and_place_steps(plan)
+    pick, place = pick_and_place_steps(plan)  # shared with the simulator
     assert (pick.name, place.name) == ("start_open", "final_open")
     text = hw.format_plan(plan, rate_hz=100.0, profile="minimum_jerk", max_speed=hw.speed_caps())
     for label, step in (("pick ", pick), ("place", place)):

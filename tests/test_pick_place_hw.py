@@ -353,21 +353,22 @@ def test_dry_run_with_the_arm_connected_sends_no_goal(arm, capsys):
 
 
 # --- teach mode and timing ---------------------------------------------------------------------
-def test_teach_mode_releases_torque_and_prints_the_pose(arm):
-    import io
+def test_teach_mode_releases_torque_and_prints_the_pose(arm, capsys):
+    import read_position
 
-    bus = hw.connect(arm.port, CALIBRATION)
-    try:
-        out = io.StringIO()
-        last = hw.teach(bus, rate_hz=20.0, duration=0.3, out=out)
-    finally:
-        hw._close(bus)
+    rc = read_position.main(["--port", arm.port, "--calibration", str(DEFAULT_CALIBRATION_PATH),
+                             "--rate", "20", "--duration", "0.3"])
+    assert rc == 0
     assert not any(arm.torque_enabled().values())
-    pasted = json.loads(out.getvalue().splitlines()[-1].split(": ", 1)[1])
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("Torque is off")
+    pasted = json.loads(lines[-1].split(": ", 1)[1])
+    live = json.loads(lines[-2].split("  object")[0])
     measured = arm.joint_positions()  # limp now: it may sag a little under gravity
     for joint in ARM_JOINTS:
-        assert abs(pasted[joint] - last[joint]) < 0.06
-        assert abs(last[joint] - measured[joint]) < 5.0
+        assert pasted[joint] == live[joint]
+        assert abs(pasted[joint] - measured[joint]) < 5.0
+    assert "object x=" in lines[-2] and lines[-2].endswith(" cm")
     assert arm.goal_log() == []
 
 
