@@ -9,6 +9,7 @@ if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
     os.environ.setdefault("MUJOCO_GL", "egl")
 
 import argparse  # noqa: E402
+import functools  # noqa: E402
 import json  # noqa: E402
 import logging  # noqa: E402
 import math  # noqa: E402
@@ -121,6 +122,12 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
                       mass=CUBE_MASS, friction=list(CUBE_FRICTION), condim=3, rgba=list(CUBE_RGBA))
         spec.option.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP
     return spec.compile()
+
+
+@functools.lru_cache(maxsize=1)
+def scene_limits() -> dict[str, tuple[float, float]]:
+    """Joint limits of the scene's arm in user units ([deg], gripper [0, 100])."""
+    return utils.joint_limits(build_model())
 
 
 class CubeMonitor:
@@ -271,9 +278,8 @@ def run_pick_place(
         raise ValueError(f"mode must be 'headless', 'viewer' or 'record', got {mode!r}.")
     if quality not in QUALITY:
         raise RenderError(f"Unknown quality '{quality}'; choose one of {', '.join(QUALITY)}.")
-    plan = plan or default_plan()
+    plan = validate_plan(plan or default_plan(), scene_limits())
     m = build_model(plan, cube)
-    validate_plan(plan, utils.joint_limits(m))
     d = mujoco.MjData(m)
     mujoco.mj_resetDataKeyframe(m, d, m.key(INITIAL_KEYFRAME).id)
     mujoco.mj_forward(m, d)
@@ -354,6 +360,23 @@ def _report(m, d, plan, monitor, wall, frames, completed, errors, video) -> RunR
                      waypoint_errors_deg=errors, video=video)
 
 
+def choose_mode(headless: bool, record: Path | None, display: bool) -> tuple[str, Path | None]:
+    """The run mode from the options and the display (see ``--help``).
+
+    Returns:
+        (mode, video path or None): "record" if a video is asked for, or if
+        nothing is asked and there is no display (then to ``DEFAULT_VIDEO``);
+        "headless" with ``--headless``; else "viewer".
+    """
+    if record is not None:
+        return "record", record
+    if headless:
+        return "headless", None
+    if display:
+        return "viewer", None
+    return "record", DEFAULT_VIDEO
+
+
 def _size(text: str) -> tuple[int, int]:
     try:
         width, height = (int(v) for v in text.lower().split("x"))
@@ -409,16 +432,8 @@ not placed (with --strict), 2 bad input (plan file, options).""")
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
 
-    display = utils.has_display()
-    video = args.record
-    if args.record is not None:
-        mode = "record"
-    elif args.headless:
-        mode = "headless"
-    elif display:
-        mode = "viewer"
-    else:
-        mode, video = "record", DEFAULT_VIDEO
+    mode, video = choose_mode(args.headless, args.record, utils.has_display())
+    if mode == "record" and args.record is None:
         print(f"No display: running headless and recording {video}", file=sys.stderr)
     try:
         plan = load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold)

@@ -1,0 +1,224 @@
+"""The simulated pick-and-place: plan validation, determinism, tracking, a cube really carried."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pick_place_sim
+import so101_mujoco_utils as utils
+from pick_place_sim import CubeStart, choose_mode, run_pick_place
+from so101_forward_kinematics import get_forward_kinematics
+from so101_motion import (
+    FINAL_CONFIGURATION,
+    GRIPPER_CLOSED,
+    STARTING_CONFIGURATION,
+    JointLimitError,
+    Plan,
+    PlanError,
+    Step,
+    default_plan,
+    load_plan,
+    pick_and_place_steps,
+    validate_plan,
+)
+
+REPO = Path(__file__).resolve().parent.parent
+WAYPOINTS = REPO / "waypoints"
+# A servo with kp = 998 N m/rad holding the arm's weight (< 1 N m at the
+# shoulder) and its friction loss (0.052 N m) settles within 0.06 deg; 0.5 deg
+# leaves room for the transient after the holds, and is well under the 1 deg
+# a misplaced waypoint would show.
+WAYPOINT_TOLERANCE_DEG = 0.5
+# 5 mm in eight horizontal directions (every 45 deg), and 10 deg about z both ways.
+PERTURBATIONS = [CubeStart((0.005 * math.cos(a), 0.005 * math.sin(a)))
+                 for a in np.radians(np.arange(0, 360, 45))]
+PERTURBATIONS += [CubeStart(yaw=10.0), CubeStart(yaw=-10.0)]
+
+
+@pytest.fixture(scope="module")
+def nominal():
+    return run_pick_place()
+
+
+def test_default_plan_validates_and_contains_the_course_configurations(model):
+    plan = validate_plan(default_plan(), utils.joint_limits(model))
+    cfg = plan.configurations()
+    closed = {"gripper": GRIPPER_CLOSED}
+    assert cfg["start_open"] == STARTING_CONFIGURATION
+    assert cfg["start_closed"] == dict(STARTING_CONFIGURATION, **closed)
+    assert cfg["final_closed"] == dict(FINAL_CONFIGURATION, **closed)
+    assert cfg["final_open"] == FINAL_CONFIGURATION
+    names = [step.name for step in plan.steps]
+    six = ["start_open", "start_closed", "lift", "carry", "final_closed", "final_open"]
+    assert [n for n in names if n in six] == six
+    # The middle configurations carry the cube at least 10 cm above the table.
+    for name in ("lift", "carry"):
+        position, _ = get_forward_kinematics(cfg[name])
+        assert position[2] - 0.013 > 0.10
+    pick, place = pick_and_place_steps(plan)
+    assert (pick.name, place.name) == ("start_open", "final_open")
+
+
+def test_out_of_limit_waypoint_is_refused_before_anything_moves(monkeypatch):
+    moves = []
+    monkeypatch.setattr(utils, "move_to_pose", lambda *args, **kw: moves.append(args))
+    plan = default_plan()
+    plan.steps[4].configuration = dict(plan.steps[4].configuration, wrist_flex=120.0)
+    with pytest.raises(JointLimitError, match=r"wrist_flex = 120 deg .*limits"):
+        run_pick_place(plan)
+    assert moves == []
+
+
+def test_headless_run_is_deterministic(nominal):
+    again = run_pick_place()
+    assert again.cube_final_position_m == nominal.cube_final_position_m
+    assert again.waypoint_errors_deg == nominal.waypoint_errors_deg
+    assert again.max_lift_m == nominal.max_lift_m
+
+
+def test_arm_reaches_each_waypoint(nominal):
+    expected = [step.name for step in default_plan().steps] + ["return_to_start"]
+    assert list(nominal.waypoint_errors_deg) == expected
+    for name, error in nominal.waypoint_errors_deg.items():
+        assert error <= WAYPOINT_TOLERANCE_DEG, f"{name}: {error:.3f} deg"
+
+
+def check_placed(report):
+    assert report.completed and not report.dropped
+    assert report.max_lift_m > 0.10, "the cube must be carried over the middle configurations"
+    assert report.placement_error_m <= pick_place_sim.PLACEMENT_TOLERANCE
+    assert report.tilt_deg <= pick_place_sim.TILT_TOLERANCE
+    assert report.success
+
+
+def test_cube_is_carried_and_placed_from_the_nominal_start(nominal):
+    check_placed(nominal)
+    target, _ = get_forward_kinematics(FINAL_CONFIGURATION)
+    np.testing.assert_allclose(nominal.cube_target_position_m, target)
+    # Resting on the table, not floating or sunk.
+    assert abs(nominal.cube_final_position_m[2] - 0.013) < 0.001
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("start", PERTURBATIONS, ids=[
+    f"dx{p.offset[0] * 1e3:+.1f}_dy{p.offset[1] * 1e3:+.1f}_yaw{p.yaw:+.0f}"
+    for p in PERTURBATIONS])
+def test_cube_is_placed_from_perturbed_starts(start):
+    check_placed(run_pick_place(cube=start))
+
+
+def test_straight_down_course_plan_knocks_the_cube_over():
+    # Why the default plan approaches from the base side: the course's six
+    # configurations alone sweep the fixed jaw through the cube.
+    report = run_pick_place(load_plan(WAYPOINTS / "course_six.json"))
+    assert not report.success
+
+
+def test_run_without_cube_reports_no_cube_values():
+    report = run_pick_place(cube=None)
+    assert report.cube_final_position_m is None and report.dropped is None
+    assert report.sim_time_s == pytest.approx(pick_place_sim.total_duration(default_plan()))
+
+
+def test_json_report_has_the_issue_keys_and_strict_exit_code(tmp_path, capsys):
+    path = tmp_path / "report.json"
+    code = pick_place_sim.main(["--headless", "--strict", "--json", str(path)])
+    assert code == 0
+    data = json.loads(path.read_text())
+    for key in ("cube_final_position_m", "cube_target_position_m", "placement_error_m",
+                "tilt_deg", "dropped", "max_lift_m", "sim_time_s", "wall_time_s",
+                "realtime_factor", "frames_written"):
+        assert key in data
+    assert "SUCCESS" in capsys.readouterr().out
+    failing = pick_place_sim.main(["--headless", "--strict", "--plan",
+                                   str(WAYPOINTS / "course_six.json")])
+    assert failing == 1
+    assert "FAILED" in capsys.readouterr().out
+
+
+def test_example_waypoint_files_are_the_default_plan(model):
+    limits = utils.joint_limits(model)
+    default = [(s.name, s.configuration, s.duration, s.hold) for s in default_plan().steps]
+    for name in ("example.json", "example.toml"):
+        plan = load_plan(WAYPOINTS / name, limits)
+        assert [(s.name, s.configuration, s.duration, s.hold) for s in plan.steps] == default
+
+
+@pytest.mark.parametrize("content, suffix, message", [
+    ("{not json", ".json", r"not valid JSON"),
+    ('{"waypoints": []}', ".json", r"must contain a list 'steps'"),
+    ('steps = [ { name = "a", configuration = { shoulder_pan = 0 } } ]', ".toml",
+     r"joint 'shoulder_lift' is missing"),
+    ('{"steps": [{"configuration": {"shoulder_pan": 0, "shoulder_lift": 0, "elbow_flex": 0, '
+     '"wrist_flex": 0, "wrist_roll": 0, "gripper": 150}}]}', ".json",
+     r"gripper = 150 % is outside its limits \[0, 100\]"),
+    ('{"steps": [{"configuration": {"shoulder_pan": 0, "shoulder_lift": 0, "elbow_flex": 0, '
+     '"wrist_flex": 0, "wrist_rol": 0, "gripper": 50}}]}', ".json", r"Did you mean 'wrist_roll'"),
+])
+def test_bad_waypoint_files_get_clear_errors(tmp_path, capsys, content, suffix, message):
+    path = tmp_path / f"plan{suffix}"
+    path.write_text(content)
+    assert pick_place_sim.main(["--headless", "--plan", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ")
+    assert re.search(message, err), err
+
+
+def test_missing_waypoint_file_is_a_clear_error(tmp_path, capsys):
+    assert pick_place_sim.main(["--headless", "--plan", str(tmp_path / "nope.json")]) == 2
+    assert "Cannot read waypoint file" in capsys.readouterr().err
+
+
+def test_mode_follows_options_and_display(tmp_path):
+    video = tmp_path / "v.mp4"
+    assert choose_mode(False, None, display=True) == ("viewer", None)
+    assert choose_mode(False, None, display=False) == ("record", pick_place_sim.DEFAULT_VIDEO)
+    assert choose_mode(True, None, display=False) == ("headless", None)
+    assert choose_mode(True, video, display=True) == ("record", video)
+
+
+def test_short_recording_is_a_valid_mp4_matching_its_duration(tmp_path):
+    imageio = pytest.importorskip("imageio.v3")
+    up = dict(STARTING_CONFIGURATION, shoulder_lift=0.0)
+    plan = Plan([Step("up", up, 0.6, 0.0), Step("down", STARTING_CONFIGURATION, 0.4, 0.0)],
+                return_to_start=False)
+    path = tmp_path / "clip.mp4"
+    fps = 30.0
+    report = run_pick_place(plan, mode="record", video=path, fps=fps, size=(160, 120),
+                            progress=False)
+    assert report.frames_written == 1 + math.floor(report.sim_time_s * fps + 1e-9) == 31
+    frames = imageio.imread(path, plugin="pyav") if _has_pyav() else \
+        np.stack(list(imageio.imiter(path)))
+    assert frames.shape == (31, 120, 160, 3)
+    meta = imageio.immeta(path)
+    assert meta["fps"] == pytest.approx(fps)
+    assert meta["duration"] == pytest.approx(31 / fps, abs=0.05)
+    motion = [np.abs(frames[i + 1].astype(int) - frames[i]).mean() for i in range(0, 30, 6)]
+    assert min(motion) > 0.05, "consecutive frames of a moving arm must differ"
+
+
+def _has_pyav() -> bool:
+    try:
+        import av  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def test_pick_and_place_steps_falls_back_to_first_and_last():
+    plan = Plan([Step("a", dict(STARTING_CONFIGURATION)), Step("b", dict(FINAL_CONFIGURATION))])
+    pick, place = pick_and_place_steps(plan)
+    assert (pick.name, place.name) == ("a", "b")
+
+
+def test_plan_error_names_the_waypoint_file(tmp_path):
+    path = tmp_path / "bad.json"
+    path.write_text('{"steps": [{"name": "x", "configuration": {}, "speed": 3}]}')
+    with pytest.raises(PlanError, match=r"bad.json.*unknown key\(s\) \['speed'\]"):
+        load_plan(path)
