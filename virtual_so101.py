@@ -888,22 +888,38 @@ class _Emulator:
             self.step_physics()
 
 
-def _wait_until(deadline: float) -> None:
-    """Spin (sleeping first if far) until ``time.perf_counter() >= deadline``.
+SPIN_S = float(os.environ.get("VIRTUAL_SO101_SPIN_S", "1e-4"))  # [s] busy-wait before a reply
 
-    A wire-timed reply is due within a millisecond or so: sleeping that short
-    overshoots by 50-100 us (more on a busy machine), so only longer waits sleep.
+
+def _wait_until(deadline: float) -> None:
+    """Sleep, then spin the last ``SPIN_S``, until ``time.perf_counter() >= deadline``.
+
+    The process runs with a 1 us timer slack (:func:`_tighten_timer_slack`),
+    so a short sleep wakes within tens of microseconds; sleeping rather than
+    spinning keeps the emulator a light, interactive task for the scheduler,
+    which then wakes it promptly on a busy machine.
     """
     remaining = deadline - time.perf_counter()
-    if remaining > 2e-3:
-        time.sleep(remaining - 1e-3)
+    if remaining > SPIN_S:
+        time.sleep(remaining - SPIN_S)
     while time.perf_counter() < deadline:
+        pass
+
+
+def _tighten_timer_slack() -> None:
+    """Ask Linux for 1 us timer slack (default 50 us) so short sleeps are precise."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(29, 1000, 0, 0, 0)  # PR_SET_TIMERSLACK
+    except (OSError, AttributeError):
         pass
 
 
 def _emulator_main(fd: int) -> None:
     """Entry point of the emulator process: ``fd`` is its end of the socket pair."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides when to stop
+    _tighten_timer_slack()
     conn = Connection(fd)
     options = conn.recv()
     logging.basicConfig(level=options.get("log_level", logging.WARNING),
