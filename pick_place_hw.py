@@ -55,7 +55,7 @@ MAX_MISSED_READS = 2               # consecutive failed Present_Position reads t
 SPIN_S = 0.0005                    # busy-wait this last part of each period [s]
 PORT_SETTLE_S = 0.06               # a late reply dies out within the SDK's 50 ms timeout [s]
 TEACH_RATE_HZ = 5.0                # live pose printing in --teach [Hz]
-LIMIT_SLACK_DEG = 0.5              # a start this far outside the calibration is clamped [deg]
+LIMIT_SLACK_DEG = 2.0              # a start this far outside the calibration is clamped [deg]
 
 ROBOT_TYPE = "so101_follower"
 # lerobot 0.4.x files SO-100/SO-101 calibrations under the robot class name
@@ -516,7 +516,8 @@ def connect(port: str, calibration: Mapping[str, ServoCalibration], *, robot_id:
             "sure the ids were set with `lerobot-setup-motors --robot.type=so101_follower`."
         ) from None
     try:
-        mismatch = calibration_mismatch(bus, calibration)
+        with bus_errors("reading the servos' calibration"):
+            mismatch = calibration_mismatch(bus, calibration)
         if mismatch:
             if not write_calibration:
                 fix = CALIBRATE_HINT.format(port=port, robot_id=robot_id or "ID")
@@ -590,6 +591,19 @@ def _recover_port(bus) -> None:
         bus.port_handler.is_using = False
     except Exception:  # noqa: BLE001 - best effort on a failing port
         logger.debug("could not flush the port", exc_info=True)
+
+
+@contextmanager
+def bus_errors(what: str):
+    """Turn lerobot's bus exceptions during ``what`` into a ConnectionFailed with the fix."""
+    try:
+        yield
+    except (ConnectionError, RuntimeError, OSError) as error:
+        if isinstance(error, HardwareError):
+            raise
+        raise ConnectionFailed(
+            f"The arm stopped answering while {what}: {str(error).strip()} Fix: check the arm's "
+            "power supply and the cables between the servos, then run again.") from error
 
 
 def release_torque(bus) -> list[str]:
@@ -1070,7 +1084,8 @@ def run_on_arm(port: str, calibration_path: str | Path, plan: Plan, *, robot_id:
     armed = False
     try:
         limits = calibrated_limits(calibration)
-        measured = {j: float(v) for j, v in bus.sync_read("Present_Position").items()}
+        with bus_errors("reading the starting pose"):
+            measured = {j: float(v) for j, v in bus.sync_read("Present_Position").items()}
         start = clamp_to_limits(measured, limits)
         for joint in JOINTS:
             if abs(start[joint] - measured[joint]) > LIMIT_SLACK_DEG:
@@ -1098,8 +1113,9 @@ def run_on_arm(port: str, calibration_path: str | Path, plan: Plan, *, robot_id:
         if confirm is not None and not confirm("Enable torque and run the pick-and-place?"):
             raise NotConfirmed("Not confirmed: nothing moved.")
         armed = True
-        configure(bus)
-        enable_torque_in_place(bus)
+        with bus_errors("configuring the servos and enabling torque"):
+            configure(bus)
+            enable_torque_in_place(bus)
         return execute(session, plan, start, return_on_abort=return_on_abort)
     except MotionAborted:
         raise  # execute() stopped, returned if safe and released already
@@ -1430,6 +1446,9 @@ def main(argv: list[str] | None = None) -> int:
     except (HardwareError, PlanError, ValueError) as error:
         print(f"Refused, nothing moved: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print("Interrupted.", file=sys.stderr)
+        return 130
     _write_outputs(args, result)
     timing = result.timing
     print("Done: back at the starting pose, torque off. Loop "

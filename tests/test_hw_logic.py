@@ -544,3 +544,14 @@ def test_without_lerobot_a_real_run_says_how_to_install_it(tmp_path):
                                 "--calibration", str(VIRTUAL_CALIBRATION)])
     assert run.returncode == 2
     assert "pip install -e '.[hw]'" in run.stderr
+
+
+def test_bus_failures_while_setting_up_say_what_to_do():
+    with pytest.raises(hw.ConnectionFailed) as info:
+        with hw.bus_errors("configuring the servos"):
+            raise RuntimeError("Failed to write 'P_Coefficient' on id_=3 after 1 tries.")
+    assert "configuring the servos" in str(info.value) and "id_=3" in str(info.value)
+    assert "power supply" in str(info.value)
+    with pytest.raises(hw.CalibrationError):  # our own errors pass through unchanged
+        with hw.bus_errors("reading"):
+            raise hw.CalibrationError("mismatch")
