@@ -40,7 +40,8 @@ Design
 
 Registers (STS3215 control table, sizes and sign-magnitude as lerobot's
 tables): Present_Position = encoder - Homing_Offset (mod 4096); Goal_Position
-is in the same frame and is clamped to [Min_Position_Limit,
+is in the same frame (so a new Homing_Offset written with torque on moves the
+joint; lerobot writes it with torque off) and is clamped to [Min_Position_Limit,
 Max_Position_Limit] (silently: the STS status byte has no angle-limit bit;
 its bit 1 is the encoder-sensor error). Torque_Enable = 0 makes the joint
 limp (the position actuator's gains are zeroed; gravity and the joint's
