@@ -10,10 +10,16 @@ simulation at exactly 1/30 s intervals, whatever the physics timestep).
 Speed on a CPU-only machine (Mesa llvmpipe through ``MUJOCO_GL=egl``): the
 upstream meshes (322k triangles), MuJoCo's default 4096 shadow map, 4x
 multisampling and the floor reflection render at about 2 frames/s at 640x480.
-The ``fast`` quality (the default for videos) uses a 1024 shadow map, no
-multisampling, no reflection and render-only meshes decimated to 88k triangles
-at install time (``so101_meshes.install_render_meshes``); measured figures are
-in the README. The robot keeps its shape to within 0.5 mm.
+Measured here (CPU time per 640x480 frame, so it does not depend on what
+else runs): shadows cost about 3x (an extra depth pass and shadow-tested
+lighting), multisampling and the 4096 shadow map about 3x more, the upstream
+meshes 2x-3x over render-only copies decimated at install time
+(``so101_meshes.install_render_meshes``, 1 mm vertex clustering, 7x fewer
+triangles), the skybox and the floor texture 10-20 % each. The ``fast``
+quality (the default for videos) therefore draws the decimated meshes
+without shadows, multisampling, reflection or skybox, keeping the floor's
+1 cm grid; ``shadows`` adds the shadows back, ``high`` is MuJoCo's default
+look with the upstream meshes.
 
 Example::
 
@@ -26,6 +32,8 @@ from __future__ import annotations
 
 import logging
 import math
+import queue
+import threading
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,7 +51,8 @@ CUBE_HALFWIDTH = 0.013  # [m] the course's 26 mm cubes
 START_RGBA = (1.0, 0.0, 0.0, 0.2)  # translucent red: where the cube is picked
 FINAL_RGBA = (0.0, 1.0, 0.0, 0.2)  # translucent green: where it is placed
 VIDEO_CODEC = "libx264"
-VIDEO_PARAMS = ("-preset", "veryfast", "-crf", "23")
+# x264's fastest preset: half the encoder CPU of "veryfast", larger files.
+VIDEO_PARAMS = ("-preset", "ultrafast", "-crf", "26")
 
 log = logging.getLogger(__name__)
 
@@ -120,20 +129,23 @@ class RenderQuality:
         multisamples: multisampling (anti-aliasing) samples (default 4).
         shadows: draw shadows.
         reflection: draw reflections of reflective materials.
+        skybox: draw the skybox (else a plain background).
         light_meshes: use the decimated render-only meshes.
     """
 
     shadow_size: int = 1024
     multisamples: int = 0
-    shadows: bool = True
+    shadows: bool = False
     reflection: bool = False
+    skybox: bool = False
     light_meshes: bool = True
 
 
 QUALITY = {
     "fast": RenderQuality(),
-    "noshadow": RenderQuality(shadows=False),
-    "high": RenderQuality(shadow_size=4096, multisamples=4, reflection=True, light_meshes=False),
+    "shadows": RenderQuality(shadows=True, skybox=True),
+    "high": RenderQuality(shadow_size=4096, multisamples=4, shadows=True, reflection=True,
+                          skybox=True, light_meshes=False),
 }
 """Named presets; ``fast`` is the default for videos."""
 
@@ -142,7 +154,7 @@ def use_render_meshes(spec: mujoco.MjSpec) -> mujoco.MjSpec:
     """Point every mesh of an SO-101 spec at its render-only decimated copy.
 
     Use for a model that is only rendered: the geometry of the visual geoms
-    changes (by less than 0.5 mm), masses and contacts do not (visual geoms
+    changes (by less than the 1 mm clustering cell), masses and contacts do not (visual geoms
     have no density and no contact).
 
     Args:
@@ -211,7 +223,7 @@ class FrameRenderer:
         """Render the current state of ``d``.
 
         Returns:
-            (height, width, 3) uint8 RGB image (a buffer reused by the next call).
+            (height, width, 3) uint8 RGB image (a new array).
         """
         if self.d_render is not self.d:
             self.d_render.qpos[:] = self.d.qpos
@@ -221,6 +233,7 @@ class FrameRenderer:
         flags = self._renderer.scene.flags
         flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.quality.shadows
         flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = self.quality.reflection
+        flags[mujoco.mjtRndFlag.mjRND_SKYBOX] = self.quality.skybox
         add_overlays(self._renderer.scene, self.overlays)
         return self._renderer.render()
 
@@ -234,7 +247,9 @@ class VideoRecorder:
 
     A frame is written at the start and then each time simulation time
     crosses the next multiple of ``1 / fps`` [s], so the video plays in real
-    time: ``frames_written == 1 + floor(simulated seconds * fps)``.
+    time: ``frames_written == 1 + floor(simulated seconds * fps)``. Frames go
+    to the encoder (an ffmpeg process) from a background thread, so rendering
+    the next frame overlaps with handing over the last one.
 
     Args:
         m: the physics model.
@@ -283,6 +298,10 @@ class VideoRecorder:
         self._writer = imageio.get_writer(
             str(path), fps=self.fps, codec=VIDEO_CODEC, pixelformat="yuv420p", quality=None,
             macro_block_size=1, ffmpeg_params=list(VIDEO_PARAMS), ffmpeg_log_level="error")
+        self._queue: queue.Queue = queue.Queue(maxsize=8)
+        self._write_error: BaseException | None = None
+        self._thread = threading.Thread(target=self._write_loop, name="video-writer", daemon=True)
+        self._thread.start()
         expected = None if total_time is None else 1 + int(total_time * self.fps + 1e-9)
         self._bar = tqdm(total=expected, unit="frame", desc=f"Recording {path.name}",
                          disable=not progress, leave=False)
@@ -299,15 +318,34 @@ class VideoRecorder:
 
     def capture(self) -> None:
         """Render the current state and append it to the video."""
-        self._writer.append_data(self._frames.render())
+        if self._write_error is not None:
+            raise RenderError(f"Writing '{self.path}' failed: {self._write_error}")
+        self._queue.put(self._frames.render())
         self.frames_written += 1
         self._bar.update(1)
 
+    def _write_loop(self) -> None:
+        """Background thread: hand frames to the encoder until the ``None`` sentinel."""
+        while (frame := self._queue.get()) is not None:
+            if self._write_error is None:
+                try:
+                    self._writer.append_data(frame)
+                except Exception as error:  # reported by capture() / close()
+                    self._write_error = error
+
     def close(self) -> None:
-        """Finish the MP4 file and free the renderer."""
+        """Finish the MP4 file and free the renderer.
+
+        Raises:
+            RenderError: the encoder failed.
+        """
         self._bar.close()
+        self._queue.put(None)
+        self._thread.join()
         self._writer.close()
         self._frames.close()
+        if self._write_error is not None:
+            raise RenderError(f"Writing '{self.path}' failed: {self._write_error}")
         log.info("Wrote %d frames (%.2f s at %g fps) to %s", self.frames_written,
                  self.frames_written / self.fps, self.fps, self.path)
 
