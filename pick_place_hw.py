@@ -53,6 +53,7 @@ TRACKING_TOLERANCE_DEG = 15.0      # measured vs commanded, arm joints [deg] ...
 TRACKING_TIMEOUT_S = 0.3           # ... beyond it for this long [s] is a stall or a collision
 MAX_MISSED_READS = 2               # consecutive failed Present_Position reads tolerated
 SPIN_S = 0.0005                    # busy-wait this last part of each period [s]
+IDLE_RESTART_S = 0.25              # a loop idle for longer starts a fresh deadline grid [s]
 PORT_SETTLE_S = 0.06               # a late reply dies out within the SDK's 50 ms timeout [s]
 TEACH_RATE_HZ = 5.0                # live pose printing in --teach [Hz]
 LIMIT_SLACK_DEG = 2.0              # a start this far outside the calibration is clamped [deg]
@@ -408,9 +409,20 @@ class RateLoop:
         return self.deadline
 
     def resume(self) -> float:
-        """Start, unless the last deadline is less than a period ago (a continuing run)."""
-        if self.deadline is None or self.clock() - self.deadline > self.period:
+        """The grid point a new segment starts from: the latest deadline not in the future.
+
+        Continues the grid (skipping missed deadlines) when the loop was busy
+        until now; starts afresh after an idle gap longer than ``IDLE_RESTART_S``.
+        """
+        if self.deadline is None:
             return self.start()
+        behind = self.clock() - self.deadline
+        if behind > IDLE_RESTART_S:
+            return self.start()
+        if behind >= self.period:
+            missed = int(behind // self.period)
+            self.skipped += missed
+            self.deadline += missed * self.period
         return self.deadline
 
     def wait(self) -> float:

@@ -555,3 +555,14 @@ def test_bus_failures_while_setting_up_say_what_to_do():
     with pytest.raises(hw.CalibrationError):  # our own errors pass through unchanged
         with hw.bus_errors("reading"):
             raise hw.CalibrationError("mismatch")
+
+
+def test_a_new_segment_continues_the_grid_after_a_late_cycle(clock):
+    loop = hw.RateLoop(100.0, clock.clock, clock.sleep)
+    t0 = loop.start()
+    loop.wait()
+    clock.now += 0.025  # the last cycle of a move ran long
+    assert loop.resume() == pytest.approx(t0 + 0.03)  # same grid, missed deadlines skipped
+    assert loop.skipped == 2
+    clock.now += 1.0  # idle (e.g. a prompt): a fresh grid
+    assert loop.resume() == pytest.approx(clock.now, abs=1e-5)

@@ -65,8 +65,13 @@ def full_run():
     """The course's plan, durations shortened, on a fresh virtual arm."""
     with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as arm:
         plan = default_plan(move_duration=0.6, hold_duration=0.1)
+        before = arm.reply_stats()
         result = hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, plan)
-        yield {"plan": plan, "result": result, "goals": arm.goal_log(),
+        after = arm.reply_stats()
+        # real time the emulator's physics could not keep up with (it drops it) [s]
+        slip = (after["wall_time_s"] - before["wall_time_s"]) - (
+            after["sim_time_s"] - before["sim_time_s"])
+        yield {"plan": plan, "result": result, "goals": arm.goal_log(), "slip": slip,
                "final": arm.joint_positions(), "torque": arm.torque_enabled()}
 
 
@@ -138,30 +143,71 @@ def _simulate_segments(segments, start_pose):
     return np.array(times), np.array(poses)
 
 
-def test_measured_trajectory_matches_the_simulator(full_run):
-    """Sim-to-"real": the virtual arm's measured joints follow the simulator's within 3 deg.
+def on_schedule(cycles, period=0.01, late=0.003, window=0.2) -> np.ndarray:
+    """Cycles before which the loop kept its schedule for ``window`` [s].
 
-    Tolerance: both are the same MuJoCo model driven along the same path, so
-    what separates them is time. The arm receives a new goal every 10 ms and
-    holds it in between (a 5 ms lag on average; at the 100 deg/s speed cap
-    that is 0.5 deg), its Present_Position is read about 1 ms after the goal
-    (0.1 deg), ticks are 0.088 deg, and on this noisy 2-core machine a late
-    cycle (a few ms) or a real-time physics step of the emulator that slips
-    adds about 1 deg per 10 ms at full speed. 3 deg peak and 1 deg RMS bound
-    these with margin; a wrong unit, offset, calibration or interpolation
-    produces errors of tens of degrees.
+    A cycle is off schedule when it started more than ``late`` [s] after its
+    deadline or deadlines before it were skipped (the host did not run us).
     """
+    t = np.array([c.t_s for c in cycles])
+    wall = np.array([c.wall_s for c in cycles])
+    bad = wall - t > late
+    bad[1:] |= np.diff(t) > 1.5 * period
+    bad_times = t[bad]
+    return np.array([not np.any((bad_times <= ti) & (bad_times >= ti - window)) for ti in t])
+
+
+@pytest.fixture(scope="module")
+def sim_comparison(full_run):
+    """|measured - simulated| per cycle and joint, and which cycles were on schedule."""
     result = full_run["result"]
     times, poses = _simulate_segments(result.segments, result.start_pose)
     cycles = [c for c in result.cycles if c.measured is not None]
     t = np.array([c.t_s for c in cycles])
     measured = np.array([[c.measured[j] for j in JOINTS] for c in cycles])
     simulated = np.stack([np.interp(t, times, poses[:, k]) for k in range(len(JOINTS))], axis=1)
-    error = np.abs(measured - simulated)
+    return {"error": np.abs(measured - simulated), "measured": measured,
+            "on_schedule": on_schedule(cycles)}
+
+
+def test_measured_trajectory_follows_the_simulator(sim_comparison):
+    """Always (even on a loaded host): the median error is below 1.5 deg on every joint.
+
+    A wrong unit, sign, offset or calibration, or a different interpolation,
+    gives errors of tens of degrees over most of the run; transient lags when
+    the host deschedules the loop or the emulator do not move the median.
+    """
+    error = sim_comparison["error"]
+    assert np.median(error, axis=0).max() <= 1.5, np.median(error, axis=0).round(2)
+    pan = sim_comparison["measured"][:, JOINTS.index("shoulder_pan")]
+    assert np.ptp(pan) > 80.0  # it really moved
+
+
+def test_measured_trajectory_matches_the_simulator(full_run, sim_comparison):
+    """Sim-to-"real": the virtual arm's measured joints follow the simulator's within 3 deg.
+
+    Tolerance: both are the same MuJoCo model driven along the same path, so
+    what separates them is time. The arm receives a new goal every 10 ms and
+    holds it in between (a 5 ms lag on average; at the 100 deg/s speed cap
+    that is 0.5 deg), its Present_Position is read about 1 ms after the goal
+    (0.1 deg), ticks are 0.088 deg, and a cycle up to 3 ms late adds 0.3 deg.
+    3 deg peak and 1 deg RMS bound these with margin (measured on a quiet
+    host: 1.1 deg peak, 0.2 deg RMS).
+
+    Compared only on cycles where the loop kept its schedule for the 200 ms
+    before: when the host does not run the loop (or the emulator) for tens of
+    ms, the arm lags by speed x delay, which says nothing about sim-to-real.
+    If the host was too loaded to judge (under half the cycles on schedule, or
+    the emulator's physics lost more than 20 ms of real time), the test skips.
+    """
+    error, ok = sim_comparison["error"], sim_comparison["on_schedule"]
+    if ok.mean() < 0.5 or full_run["slip"] > 0.02:
+        pytest.skip(f"host too loaded to compare timing: {ok.mean():.0%} of cycles on schedule, "
+                    f"emulator lost {1e3 * full_run['slip']:.0f} ms")
+    error = error[ok]
     worst = {j: round(float(error[:, k].max()), 2) for k, j in enumerate(JOINTS)}
     assert error.max() <= 3.0, worst
     assert np.sqrt((error ** 2).mean(axis=0)).max() <= 1.0, worst
-    assert np.ptp(measured[:, JOINTS.index("shoulder_pan")]) > 80.0  # it really moved
 
 
 def test_cli_run_writes_log_and_plot(arm, tmp_path, capsys):
