@@ -244,6 +244,9 @@ def _pan(rel: tuple, alpha0: float, yaw_tied: bool, backwards: bool):
     r = math.hypot(rel[0], rel[1])
     azimuth = math.atan2(rel[1], rel[0])
     theta1 = math.pi - azimuth if backwards else -azimuth
+    if r < 1e-9 and not yaw_tied and abs(_LATERAL0 + _T[0] * math.sin(alpha0)
+                                         + _T[1] * math.cos(alpha0)) < 1e-9:
+        return _wrap(theta1), alpha0, None  # on the pan axis: any pan will do
     # theta1 = beta(L(alpha(theta1))) - azimuth, by Newton's method.
     for _ in range(12):
         alpha = alpha0 + theta1 if yaw_tied else alpha0
@@ -349,6 +352,7 @@ class _Search:
         self.best: list[float] | None = None
         self.best_cost = math.inf
         self.reach_failures: list[tuple[str, float]] = []
+        self.axis_failures: list[tuple[str, float]] = []
         self.limit_failures: list[tuple[float, int, float, float, list[float]]] = []
 
     def try_pitch(self, rel: tuple, theta1: float, alpha: float, psi: float) -> bool:
@@ -387,7 +391,7 @@ class _Search:
         """Try a target with a given approach pitch ``psi`` [rad] from the radial direction."""
         theta1, alpha, failure = _pan(rel, alpha0, yaw_tied, backwards)
         if failure is not None:
-            self.reach_failures.append(failure)
+            self.axis_failures.append(failure)
             return False
         # Reaching backwards, the arm's plane faces away from the target.
         return self.try_pitch(rel, theta1, alpha, math.pi - psi if backwards else psi)
@@ -402,16 +406,22 @@ class _Search:
                 f"{math.degrees(limit):.2f} deg by {math.degrees(excess):.2f} deg (every other "
                 "solution is further off). Fix: move the target, or change the approach or yaw.",
                 "joint_limit", math.degrees(excess), joint)
-        reason, excess = min(self.reach_failures, key=lambda failure: failure[1])
-        if reason == "too_far":
+        if self.reach_failures:
+            reason, excess = min(self.reach_failures, key=lambda failure: failure[1])
+            if reason == "too_far":
+                return UnreachableError(
+                    f"{what} is {excess * 1e3:.1f} mm beyond the arm's reach (the two links span "
+                    f"at most {_REACH_MAX * 1e3:.1f} mm from the shoulder_lift axis to the "
+                    "wrist_flex axis). Fix: move the target closer to the base.", "too_far", excess)
+            excess = max(excess, 0.0)
             return UnreachableError(
-                f"{what} is {excess * 1e3:.1f} mm beyond the arm's reach (the two links span at "
-                f"most {_REACH_MAX * 1e3:.1f} mm from the shoulder_lift axis to the wrist_flex "
-                "axis). Fix: move the target closer to the base.", "too_far", excess)
-        excess = max(excess, 0.0)
+                f"{what} is {excess * 1e3:.1f} mm too close to the shoulder for the arm to fold "
+                "onto. Fix: move the target away from the base.", "too_close", excess)
+        _, excess = min(self.axis_failures, key=lambda failure: failure[1])
         return UnreachableError(
-            f"{what} is {excess * 1e3:.1f} mm too close to the base (the arm cannot fold that "
-            "tightly). Fix: move the target away from the base.", "too_close", excess)
+            f"{what} is {excess * 1e3:.3f} mm too close to the shoulder_pan axis: the arm's plane "
+            f"passes up to {(abs(_LATERAL0) + math.hypot(_T[0], _T[1])) * 1e3:.1f} mm beside the "
+            "axis. Fix: move the target away from the axis.", "too_close", excess)
 
 
 # ---------------------------------------------------------------------------
@@ -522,7 +532,7 @@ def _solve(p: tuple, psi: float | None, yaw: float | None, reference: list[float
         for fine in (False, True):
             if fine and not _worth_fine_search(search):
                 break
-            for roll in _roll_candidates(reference[_ROLL], fine):
+            for roll in _roll_candidates(reference[_ROLL], rel, fine):
                 for backwards in (False, True):
                     if search.try_approach(rel, roll + _TILT, False, psi, backwards):
                         break
@@ -551,11 +561,13 @@ def _solve(p: tuple, psi: float | None, yaw: float | None, reference: list[float
     return _check(theta, p, psi, yaw)
 
 
-def _roll_candidates(roll0: float, fine: bool = False) -> list[float]:
+def _roll_candidates(roll0: float, rel: tuple, fine: bool = False) -> list[float]:
     """Wrist_roll values [rad] to try when the roll is free.
 
     Coarse: ``roll0``, then every 10 deg by distance from it. Fine (for targets
-    at the edge of the workspace): every 1 deg and both limits.
+    at the edge of the workspace): every 1 deg and both limits. For a target
+    within a few mm of the pan axis, first the two rolls that put the arm's
+    plane through the axis (sideways offset ``L = 0``).
     """
     lower, upper = _LIMITS[_ROLL]
     if fine:
@@ -563,44 +575,52 @@ def _roll_candidates(roll0: float, fine: bool = False) -> list[float]:
     else:
         grid = [math.radians(a) for a in range(-180, 180, 10)]
         rolls = [roll0] + sorted(grid, key=lambda roll: abs(roll - roll0))
+    if math.hypot(rel[0], rel[1]) < 0.006:
+        # L = _LATERAL0 + _T[0] sin(alpha) + _T[1] cos(alpha) = 0.
+        amplitude, phase = math.hypot(_T[0], _T[1]), math.atan2(_T[1], _T[0])
+        beta = math.asin(-_LATERAL0 / amplitude)
+        rolls = [_wrap(beta - phase - _TILT), _wrap(math.pi - beta - phase - _TILT)] + rolls
     return [roll for roll in rolls if lower <= roll <= upper]
 
 
 def _worth_fine_search(search: _Search) -> bool:
-    """Whether a finer roll search could succeed: a limit was hit, or reach missed by < 6 mm.
+    """Whether a finer roll search could succeed: a near miss of the reach or of a limit.
 
-    The roll moves the object frame by at most |(0.0051, -0.000218)| = 5.1 mm.
+    The roll moves the object frame by at most |(0.0051, -0.000218)| = 5.1 mm
+    (a few degrees of joint angle unless the target is near the pan axis).
     """
-    return bool(search.limit_failures) or any(
-        excess < 0.006 for _, excess in search.reach_failures)
+    return (bool(search.axis_failures)
+            or any(excess < 0.006 for _, excess in search.reach_failures)
+            or any(failure[0] < math.radians(10.0) for failure in search.limit_failures))
 
 
 def _search_position_only(rel: tuple, reference: list[float], search: _Search) -> None:
-    """Fill ``search`` for a position-only target: wrist_roll and pitch nearest the reference's."""
+    """Fill ``search`` for a position-only target: wrist_roll and pitch nearest the reference's.
+
+    Rolls every 10 deg, pitches every 2 deg inside the reach windows; targets
+    whose in-limit solutions fall between these samples (thin slivers at the
+    joint limits) are left to :func:`_rescue`.
+    """
     psi0 = reference[1] + reference[2] + reference[3]
-    for fine in (False, True):
-        if fine and not _worth_fine_search(search):
-            return
-        for roll in _roll_candidates(reference[_ROLL], fine):
-            alpha = roll + _TILT
-            for backwards in (False, True):
-                theta1, _, failure = _pan(rel, alpha, False, backwards)
-                if failure is not None:
-                    search.reach_failures.append(failure)
-                    continue
-                lower, upper = _LIMITS[_PAN]
-                if not lower <= theta1 <= upper:
-                    limit = lower if theta1 < lower else upper
-                    search.limit_failures.append((abs(theta1 - limit), _PAN, theta1, limit, None))
-                    continue
-                windows, failure = _pitch_windows(rel, theta1, alpha)
-                if failure is not None:
-                    search.reach_failures.append(failure)
-                    continue
-                step = math.radians(0.25 if fine else 2.0)
-                for psi in _pitch_candidates(windows, psi0, step):
-                    if search.try_pitch(rel, theta1, alpha, psi):
-                        return
+    for roll in _roll_candidates(reference[_ROLL], rel):
+        alpha = roll + _TILT
+        for backwards in (False, True):
+            theta1, _, failure = _pan(rel, alpha, False, backwards)
+            if failure is not None:
+                search.axis_failures.append(failure)
+                continue
+            windows, failure = _pitch_windows(rel, theta1, alpha)
+            if failure is not None:
+                search.reach_failures.append(failure)
+                continue
+            lower, upper = _LIMITS[_PAN]
+            if not lower <= theta1 <= upper:
+                limit = lower if theta1 < lower else upper
+                search.limit_failures.append((abs(theta1 - limit), _PAN, theta1, limit, None))
+                continue
+            for psi in _pitch_candidates(windows, psi0):
+                if search.try_pitch(rel, theta1, alpha, psi):
+                    return
 
 
 def _rescue(p: tuple, psi: float | None, yaw: float | None, search: _Search) -> list[float] | None:
@@ -609,8 +629,10 @@ def _rescue(p: tuple, psi: float | None, yaw: float | None, search: _Search) -> 
     For a free roll or pitch, in-limit solutions can lie between the samples
     of the closed-form search (near the edges of the workspace).
     """
-    tried = sorted((f for f in search.limit_failures if f[4] is not None), key=lambda f: f[0])
-    for *_, theta in tried[:8]:
+    near = math.radians(10.0)  # further off, the roll or pitch cannot make up for it
+    tried = sorted((f for f in search.limit_failures if f[4] is not None and f[0] < near),
+                   key=lambda f: f[0])
+    for *_, theta in tried[:3]:
         start = [min(max(v, lo), hi) for v, (lo, hi) in zip(theta, _LIMITS, strict=True)]
         refined, residual = _refine(start, p, psi, yaw)
         if residual <= SOLVE_TOL:
@@ -664,7 +686,7 @@ def _task(chain: np.ndarray, p: np.ndarray, psi: float | None, yaw: float | None
 
 
 def _refine(theta: Sequence[float], p: tuple, psi: float | None, yaw: float | None,
-            max_iterations: int = 200, damping: float = 1e-5) -> tuple[list[float], float]:
+            max_iterations: int = 100, damping: float = 1e-5) -> tuple[list[float], float]:
     """Damped least squares on the analytic Jacobian, joint limits enforced by clipping.
 
     Args:
@@ -683,11 +705,13 @@ def _refine(theta: Sequence[float], p: tuple, psi: float | None, yaw: float | No
     upper = np.array([hi for _, hi in _LIMITS])
     target = np.array(p)
     residual = math.inf
+    history = []
     for _ in range(max_iterations):
         error, jac = _task(_chain(theta), target, psi, yaw)
         residual = float(np.max(np.abs(error)))
-        if residual < REFINE_TOL:
-            break
+        history.append(residual)
+        if residual < REFINE_TOL or (len(history) > 20 and residual > 0.5 * history[-11]):
+            break  # converged, or stuck (at a limit, or on an unreachable target)
         # Joints at a limit that the step would push further out leave the
         # task (active set), so the others can slide along the limit.
         free = np.ones(len(theta), dtype=bool)
