@@ -333,15 +333,24 @@ def _pitch_windows(rel: tuple, theta1: float, alpha: float):
     return [(d_lo + shift, d_hi + shift), (shift - d_hi, shift - d_lo)], None
 
 
-def _pitch_candidates(windows, psi0: float, step: float = math.radians(2.0)) -> list[float]:
-    """Pitches inside ``windows`` [rad] (a grid and the points nearest ``psi0``), nearest first."""
-    candidates = []
+def _pitch_candidates(windows, psi0: float, step: float = math.radians(2.0)):
+    """Pitches inside ``windows`` [rad], nearest ``psi0`` first.
+
+    ``psi0`` itself if a window holds it, then the points of the windows
+    nearest to it and a grid over them, sorted by distance.
+    """
+    nearest = []
     for low, high in windows:
         centre = 0.5 * (low + high)
-        candidates.append(min(max(centre + _wrap(psi0 - centre), low), high))
+        psi = centre + _wrap(psi0 - centre)
+        if low <= psi <= high:
+            yield psi
+        nearest.append(min(max(psi, low), high))
+    candidates = list(nearest)
+    for low, high in windows:
         n = int((high - low) / step) + 1
         candidates += [low + (k + 0.5) * (high - low) / n for k in range(n)]
-    return sorted(candidates, key=lambda psi: abs(_wrap(psi - psi0)))
+    yield from sorted(candidates, key=lambda psi: abs(_wrap(psi - psi0)))
 
 
 class _Search:
