@@ -134,7 +134,6 @@ RESOLUTION = 4096  # encoder ticks per turn
 TICKS_PER_RAD = (RESOLUTION - 1) / (2.0 * math.pi)  # lerobot's scale (360 deg = 4095 ticks)
 BAUD_RATES = {0: 1_000_000, 1: 500_000, 2: 250_000, 3: 128_000, 4: 115_200, 5: 57_600,
               6: 38_400, 7: 19_200}
-STALL_TORQUE = 3.35  # [N m] the model's actuator force range = Present_Load 1000
 STALL_LOAD_RATE = 2000.0  # [0.1 % per s] Present_Load rise of a stalled servo
 LATE_REPLY = 0.045  # [s] after this, lerobot (50 ms timeout) may have given up
 BITS_PER_BYTE = 10
@@ -415,6 +414,7 @@ class _Servo:
         self.act = int(m.actuator(joint).id)
         self.kp = float(m.actuator_gainprm[self.act, 0])
         self.kv = float(-m.actuator_biasprm[self.act, 2])
+        self.max_force = float(m.actuator_forcerange[self.act, 1])  # [N m] = Present_Load 1000
         # present = base + scale * angle (calibration frame), exactly lerobot's mapping
         self.base = radians_to_present(self.cal, joint, 0.0, self.range)
         self.scale = radians_to_present(self.cal, joint, 1.0, self.range) - self.base
@@ -494,7 +494,6 @@ class _Emulator:
         self.lateness = deque(maxlen=20000)
         self.replies = 0
         self.late = 0
-        self.ignored_broadcast_replies = 0
         self.rx = bytearray()
         self.rx_partial_since = 0.0
         self.wire_free = 0.0
@@ -535,7 +534,7 @@ class _Emulator:
         m.actuator_gainprm[act, 0] = servo.kp if on else 0.0
         m.actuator_biasprm[act, 1] = -servo.kp if on else 0.0
         m.actuator_biasprm[act, 2] = -servo.kv if on else 0.0
-        force = STALL_TORQUE * min(1000, servo.get("Max_Torque_Limit")) / 1000.0
+        force = servo.max_force * min(1000, servo.get("Max_Torque_Limit")) / 1000.0
         m.actuator_forcerange[act] = (-force, force)
 
     def _hold(self, servo: _Servo) -> None:
@@ -587,7 +586,7 @@ class _Emulator:
         if servo.stalled_at is not None:
             load = servo.load
         else:
-            load = float(d.actuator_force[servo.act]) / STALL_TORQUE * 1000.0
+            load = float(d.actuator_force[servo.act]) / servo.max_force * 1000.0
         load = max(-1000, min(1000, round(load)))
         servo.set("Present_Velocity", max(-32767, min(32767, round(velocity))))
         servo.set("Present_Load", load)
@@ -842,7 +841,9 @@ class _Emulator:
         if name == "power_cycle":
             for servo in self.servos.values():
                 eeprom = servo.saved
+                gains = servo.kp, servo.kv, servo.max_force  # the model's, before any torque change
                 servo.__init__(servo.joint, servo.cal, self.m)
+                servo.kp, servo.kv, servo.max_force = gains
                 servo.regs[:EEPROM_END] = eeprom
                 servo.saved = eeprom
                 servo.sync_cache()

@@ -533,11 +533,15 @@ def test_lock_decides_which_eeprom_writes_survive_a_power_cycle(bus, fresh_arm):
     bus.enable_torque("wrist_roll")  # Torque_Enable = 1, Lock = 1
     bus.write("D_Coefficient", "wrist_roll", 10)  # acts now, not saved (locked)
     assert fresh_arm.registers("wrist_roll")["D_Coefficient"] == 10
+    fresh_arm.set_torque(False, ["wrist_roll"])  # (Lock stays 1)
     fresh_arm.power_cycle()
     registers = fresh_arm.registers("wrist_roll")
     assert (registers["P_Coefficient"], registers["D_Coefficient"]) == (16, 32)
     assert registers["Torque_Enable"] == 0  # a servo powers up limp
     assert bus.is_calibrated  # calibration registers were saved with the arm
+    bus.enable_torque()  # and the servos work again after the power cycle
+    bus.write("Goal_Position", "wrist_roll", 30.0)
+    assert wait_until_reached(bus, {"wrist_roll": 30.0})["wrist_roll"] == pytest.approx(30, abs=1)
 
 
 @pytest.mark.hw
