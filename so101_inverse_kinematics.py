@@ -51,6 +51,7 @@ course's), radians inside. Example (the course's starting position)::
 
 from __future__ import annotations
 
+import argparse
 import math
 from collections.abc import Mapping, Sequence
 
@@ -913,3 +914,54 @@ def cartesian_plan(
     ]
     return Plan([Step(name, dict(cfg), duration, hold) for name, cfg, duration, hold in waypoints],
                 return_duration=move_duration)
+
+
+# ---------------------------------------------------------------------------
+# Command line (shared by pick_place_sim.py and pick_place_hw.py).
+def add_cartesian_arguments(parser: argparse.ArgumentParser, cube_yaw: bool = True) -> None:
+    """Add ``--pick X Y Z``, ``--place X Y Z``, ``--lift-height M`` (and ``--cube-yaw DEG``).
+
+    Args:
+        parser: the script's parser.
+        cube_yaw: also add ``--cube-yaw`` (leave it out if the script has its own,
+            with ``default=None``).
+    """
+    group = parser.add_argument_group(
+        "Cartesian pick-and-place", "give the cube's positions instead of joint angles; the "
+        "waypoints are computed by inverse kinematics (top-down grasps)")
+    group.add_argument("--pick", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                       help="centre of the cube to pick [m] in the base frame (z = 0.013 on "
+                       "the table); needs --place")
+    group.add_argument("--place", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                       help="where to put the cube's centre [m]; needs --pick")
+    if cube_yaw:
+        group.add_argument("--cube-yaw", type=float, default=None, metavar="DEG",
+                           help="the cube's yaw in the world [deg]; the wrist turns to it "
+                           "(default: wrist_roll stays near 0, as in the course's plan)")
+    group.add_argument("--lift-height", type=float, default=DEFAULT_LIFT_HEIGHT, metavar="M",
+                       help="lift and carry this high above pick and place [m] "
+                       "(default %(default)g)")
+
+
+def plan_from_arguments(args: argparse.Namespace) -> Plan | None:
+    """The Cartesian plan if ``--pick`` and ``--place`` were given, else None.
+
+    Reads ``pick``, ``place``, ``cube_yaw``, ``lift_height``, ``move_duration``
+    and ``hold`` from ``args`` (see :func:`add_cartesian_arguments`).
+
+    Raises:
+        PlanError: only one of --pick/--place, or together with --plan.
+        UnreachableError: a waypoint is out of reach (a PlanError too).
+    """
+    pick, place = getattr(args, "pick", None), getattr(args, "place", None)
+    if pick is None and place is None:
+        return None
+    if pick is None or place is None:
+        raise PlanError("--pick and --place go together: give both cube positions "
+                        "(X Y Z [m] each).")
+    if getattr(args, "plan", None):
+        raise PlanError("--plan and --pick/--place both define the plan; give one of them.")
+    return cartesian_plan(pick, place, cube_yaw_deg=getattr(args, "cube_yaw", None),
+                          lift_height=getattr(args, "lift_height", DEFAULT_LIFT_HEIGHT),
+                          move_duration=getattr(args, "move_duration", 2.0),
+                          hold_duration=getattr(args, "hold", 0.5))

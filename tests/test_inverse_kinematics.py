@@ -404,3 +404,40 @@ def test_cartesian_plan_names_the_unreachable_waypoint():
     assert error.value.reason == "too_far"
     with pytest.raises(ValueError, match="lift_height"):
         ik.cartesian_plan((0.22, 0.1, 0.013), (0.22, -0.1, 0.013), lift_height=-0.1)
+
+
+# --- Command line ----------------------------------------------------------------------
+def parse(argv, cube_yaw=True):
+    import argparse
+
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--plan")
+    parser.add_argument("--move-duration", type=float, default=2.0)
+    parser.add_argument("--hold", type=float, default=0.5)
+    ik.add_cartesian_arguments(parser, cube_yaw=cube_yaw)
+    return parser.parse_args(argv)
+
+
+def test_command_line_builds_the_cartesian_plan():
+    pick, place = assignment_positions()
+    argv = ["--pick", *map(str, pick), "--place", *map(str, place), "--hold", "0.25"]
+    plan = ik.plan_from_arguments(parse(argv))
+    expected = ik.cartesian_plan(pick, place, hold_duration=0.25)
+    assert plan.configurations() == expected.configurations()
+    assert [s.hold for s in plan.steps] == [s.hold for s in expected.steps]
+    turned = ik.plan_from_arguments(parse(argv + ["--cube-yaw", "10", "--lift-height", "0.05"]))
+    rotation = get_forward_kinematics(turned.configurations()["start_open"])[1]
+    assert yaw_error(rotation, 10.0) < ANGLE_TOL
+    lift = get_forward_kinematics(turned.configurations()["lift"])[0]
+    assert lift[2] == pytest.approx(pick[2] + 0.05, abs=POSITION_TOL)
+    assert ik.plan_from_arguments(parse([])) is None
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--pick", "0.2", "0.1", "0.013"], "go together"),
+    (["--pick", "0.2", "0.1", "0.013", "--place", "0.2", "-0.1", "0.013", "--plan", "x.json"],
+     "give one of them"),
+])
+def test_command_line_mistakes(argv, match):
+    with pytest.raises(so101_motion.PlanError, match=match):
+        ik.plan_from_arguments(parse(argv))
