@@ -24,6 +24,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from so101_forward_kinematics import ARM_JOINTS, JOINTS
 
 Configuration = dict[str, float]
@@ -124,6 +126,13 @@ class Trajectory:
         """Fraction of the way from start to goal at time ``t`` [s] (0 before, 1 after)."""
         s = 1.0 if self.duration <= 0.0 else min(max(t / self.duration, 0.0), 1.0)
         return PROFILES[self.profile](s)
+
+    def fractions(self, times: np.ndarray) -> np.ndarray:
+        """:meth:`fraction` for an array of times [s] at once."""
+        if self.duration <= 0.0:
+            return np.ones(np.shape(times))
+        return PROFILES[self.profile](np.clip(np.asarray(times, dtype=float) / self.duration,
+                                              0.0, 1.0))
 
     def at(self, t: float) -> Configuration:
         """Configuration at time ``t`` [s] after the start (held at the ends)."""

@@ -158,36 +158,46 @@ def send_position_command(d: mujoco.MjData, cfg: Mapping[str, float]) -> None:
 def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> None:
     """Step the simulation to time ``until`` [s], following ``path`` if given.
 
-    The command is updated before every physics step of a move. While the
-    command is constant (a hold), the steps between two viewer updates run in
-    one ``mj_step(m, d, n)`` call: the same physics without Python in the loop.
+    A move's commands are computed for all its steps up front (one numpy
+    evaluation of the profile) and set before each physics step; a hold keeps
+    the command, so the steps between two viewer updates run in one
+    ``mj_step(m, d, n)`` call. Same physics as a per-step Python loop, with
+    about 1 us of Python per step instead of about 10.
     """
     realtime = viewer is not None and not getattr(viewer, "offscreen", False)
     every_step = viewer is not None and getattr(viewer, "sync_every_step", False)
     dt = m.opt.timestep
+    n_steps = round((until - d.time) / dt)
+    if n_steps <= 0:
+        return
     if path is not None:
         # The unit conversion is affine per joint, so interpolating in radians
         # is the same path as interpolating in user units.
         actuators = np.array([act for name, _, act, *_ in _joint_table(m) if name in path.goal])
         start = np.array(list(to_radians(m, {j: path.start[j] for j in path.goal}).values()))
         delta = np.array(list(to_radians(m, path.goal).values())) - start
+        elapsed = d.time - t0 + dt * np.arange(n_steps)  # [s] at the start of each step
+        commands = start + path.fractions(elapsed)[:, None] * delta  # [rad], one row per step
         ctrl = d.ctrl
+        if np.array_equal(actuators, np.arange(m.nu)):
+            actuators = slice(None)  # all of them, in order: plain row copies
     wall0, sim0 = time.perf_counter(), d.time
     next_sync = d.time
-    while True:
-        remaining = round((until - d.time) / dt)  # steps left [-]
-        if remaining <= 0:
-            break
-        if path is not None:
-            ctrl[actuators] = start + path.fraction(d.time - t0) * delta
-            mujoco.mj_step(m, d)
-        elif viewer is None:
-            mujoco.mj_step(m, d, remaining)
+    done = 0
+    while done < n_steps:
+        if viewer is None:
+            chunk = n_steps - done
         elif every_step:
-            mujoco.mj_step(m, d)
+            chunk = 1
         else:
-            to_sync = math.ceil((next_sync - d.time) / dt - 1e-6)
-            mujoco.mj_step(m, d, max(1, min(remaining, to_sync)))
+            chunk = max(1, min(n_steps - done, math.ceil((next_sync - d.time) / dt - 1e-6)))
+        if path is None:
+            mujoco.mj_step(m, d, chunk)
+        else:
+            for row in commands[done:done + chunk]:
+                ctrl[actuators] = row
+                mujoco.mj_step(m, d)
+        done += chunk
         if viewer is None:
             continue
         if every_step or d.time >= next_sync - 1e-9:
