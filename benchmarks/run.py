@@ -133,14 +133,19 @@ def bench_fk(quick: bool) -> dict:
     return out
 
 
+from benchmarks.bench_pick_place import bench_pick_place  # noqa: E402
+
 BENCHMARKS: dict[str, Callable[[bool], dict]] = {
     "fk": bench_fk,
+    "pick_place": bench_pick_place,
 }
 
 GOALS = {
     # key: (comparison, bound, what)
     "fk_single_vs_mujoco": ("<=", 3.0, "single FK <= 3x MuJoCo per call"),
     "fk_batch_ns_per_config": ("<=", 300.0, "batch FK <= 0.3 us per configuration"),
+    "pick_place_realtime_factor": (">=", 100.0, "headless pick-and-place >= 100x real time"),
+    "record_wall_vs_video": ("<=", 1.0, "recording no slower than the video's duration"),
 }
 
 

@@ -1,0 +1,74 @@
+"""Benchmark group "pick_place": headless speed of the simulated pick-and-place and video recording.
+
+Figures (medians over repeats, with spread):
+  - pick_place_realtime_factor: simulated seconds per wall second of the whole
+    default plan with the free cube, headless (goal >= 100);
+  - pick_place_us_per_step: the same as wall time per 2 ms physics step;
+  - record_wall_vs_video: wall time to record the full 640x480 30 fps video
+    divided by the video's duration (goal <= 1: recording keeps up with real time);
+  - record_cpu_ms_per_frame: CPU time (this process, its render threads and
+    the encoder) per frame, which does not depend on what else runs;
+  - render_fps_<quality>: frames per second of FrameRenderer alone, per preset.
+"""
+
+from __future__ import annotations
+
+import resource
+import tempfile
+import time
+from pathlib import Path
+
+
+def _children_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def bench_pick_place(quick: bool) -> dict:
+    """Run the group; ``quick`` uses fewer repeats."""
+    import mujoco
+
+    from benchmarks.run import summarize
+    from pick_place_sim import CubeStart, build_model, run_pick_place
+    from so101_motion import FINAL_CONFIGURATION, STARTING_CONFIGURATION
+    from so101_render import QUALITY, FrameRenderer, target_cubes
+
+    out: dict = {}
+    run_pick_place()  # warm-up: compile caches, meshes
+    factors, per_step = [], []
+    for _ in range(3 if quick else 7):
+        report = run_pick_place()
+        factors.append(report.realtime_factor)
+        per_step.append(report.wall_time_s / round(report.sim_time_s / 0.002) * 1e6)
+    out["pick_place_realtime_factor"] = summarize(factors)
+    out["pick_place_us_per_step"] = summarize(per_step)
+
+    ratios, cpu_per_frame = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(1 if quick else 3):
+            cpu0, child0 = time.process_time(), _children_cpu()
+            report = run_pick_place(mode="record", video=Path(tmp) / "v.mp4", progress=False)
+            cpu = time.process_time() - cpu0 + _children_cpu() - child0
+            ratios.append(report.wall_time_s / (report.frames_written / 30.0))
+            cpu_per_frame.append(cpu / report.frames_written * 1e3)
+    out["record_wall_vs_video"] = summarize(ratios)
+    out["record_cpu_ms_per_frame"] = summarize(cpu_per_frame)
+
+    frames = {"fast": 30, "shadows": 15, "high": 5} if quick else {"fast": 90, "shadows": 30,
+                                                                   "high": 10}
+    for name, count in frames.items():
+        m = build_model(cube=CubeStart(), render_meshes=QUALITY[name].light_meshes)
+        d = mujoco.MjData(m)
+        mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
+        mujoco.mj_forward(m, d)
+        renderer = FrameRenderer(m, d, overlays=target_cubes(STARTING_CONFIGURATION,
+                                                             FINAL_CONFIGURATION),
+                                 quality=QUALITY[name])
+        renderer.render()
+        start = time.perf_counter()
+        for i in range(count):
+            d.qpos[m.joint("shoulder_pan").qposadr[0]] = -0.8 + 1.6 * i / count
+            renderer.render()
+        out[f"render_fps_{name}"] = count / (time.perf_counter() - start)
+        renderer.close()
+    return out
