@@ -318,8 +318,8 @@ def test_jacobian_matches_finite_differences_of_the_fk():
             linear = (p_plus - p_minus) / (2 * step)
             angular = (rotation_log(r_plus @ rotation.T)
                        - rotation_log(r_minus @ rotation.T)) / (2 * step)
-            np.testing.assert_allclose(jac[:3, j], linear, atol=1e-7, err_msg=joint)
-            np.testing.assert_allclose(jac[3:, j], angular, atol=1e-7, err_msg=joint)
+            np.testing.assert_allclose(jac[:3, j], linear, atol=1e-8, err_msg=joint)
+            np.testing.assert_allclose(jac[3:, j], angular, atol=1e-8, err_msg=joint)
 
 
 def test_jacobian_matches_mujoco(model, data):
@@ -337,9 +337,8 @@ def test_jacobian_matches_mujoco(model, data):
         mujoco.mj_comPos(model, data)
         mujoco.mj_jacSite(model, data, jacp, jacr, site)
         jac = ik.get_jacobian(cfg_from(angles))
-        # The model's quaternions carry ~6 digits, as upstream publishes them.
-        np.testing.assert_allclose(jac[:3], jacp[:, dofs], atol=2e-5)
-        np.testing.assert_allclose(jac[3:], jacr[:, dofs], atol=2e-5)
+        np.testing.assert_allclose(jac[:3], jacp[:, dofs], atol=1e-12)
+        np.testing.assert_allclose(jac[3:], jacr[:, dofs], atol=1e-12)
 
 
 # --- Cartesian pick-and-place ------------------------------------------------------------
