@@ -52,6 +52,7 @@ course's), radians inside. Example (the course's starting position)::
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 from collections.abc import Mapping, Sequence
 
@@ -121,6 +122,8 @@ SOLVE_TOL = 1e-9
 REFERENCE_CONFIGURATION = dict(STARTING_CONFIGURATION)
 """Configuration [deg] the solver stays closest to when no ``initial`` is given."""
 
+log = logging.getLogger(__name__)
+
 _LIMIT_SLACK = 1e-9  # [rad]: a solution this close outside a limit is clipped onto it
 _DEFAULT_REFERENCE = [math.radians(REFERENCE_CONFIGURATION[joint]) for joint in ARM_JOINTS]
 
@@ -149,6 +152,8 @@ class UnreachableError(PlanError):
 # down, y2 backwards and z2 sideways along the lift axis (for pan = 0); the
 # world before the pan is (forward, sideways, up) = (-y2, z2, -x2) from _C.
 _C = tuple(float(v) for v in _FIXED["w1"][0])        # a point on the pan axis [m]
+PAN_AXIS_POINT = _C
+"""A point of the shoulder_pan axis (vertical) in the base frame [m]: where the arm turns."""
 _D12 = _FIXED["12"][0]
 _H0 = -_D12[0]                                       # lift axis: forward of the pan axis [m]
 _Z0 = -_D12[2]                                       # lift axis: above _C [m]
@@ -459,9 +464,11 @@ def get_inverse_kinematics(
 ) -> dict[str, float]:
     """Joint configuration that puts the object frame at ``position``.
 
-    Of the solutions within the joint limits (shoulder_pan facing the target
-    or reaching back over the base, elbow up or down, the four grasps of the
-    cube 90 deg apart, the free roll or pitch) the one nearest ``initial`` in
+    The solutions within the joint limits differ in shoulder_pan (facing the
+    target, or reaching back over the base), elbow (up or down), the grasp
+    (the cube's four sides, 90 deg of roll apart) and, when free, the roll or
+    pitch. They are tried from the one nearest ``initial`` outwards; of the
+    first set that fits (both elbow branches), the one nearest ``initial`` in
     joint space is returned.
 
     Args:
@@ -643,6 +650,8 @@ def _rescue(p: tuple, psi: float | None, yaw: float | None, search: _Search) -> 
     tried = sorted((f for f in search.limit_failures if f[4] is not None and f[0] < near),
                    key=lambda f: f[0])
     for *_, theta in tried[:3]:
+        log.debug("No sampled solution within limits at %s; damped least squares from %s [rad].",
+                  p, [round(v, 4) for v in theta])
         start = [min(max(v, lo), hi) for v, (lo, hi) in zip(theta, _LIMITS, strict=True)]
         refined, residual = _refine(start, p, psi, yaw)
         if residual <= SOLVE_TOL:
@@ -757,6 +766,7 @@ def _check(theta: list[float], p: tuple, psi: float | None, yaw: float | None) -
             error = max(error, abs((angle + math.pi / 4) % _QUARTER - math.pi / 4))
     if error <= REFINE_TOL:
         return theta
+    log.debug("Closed form off by %.3g at %s; refining by damped least squares.", error, p)
     refined, norm = _refine(theta, p, psi, yaw)
     if norm > SOLVE_TOL:
         raise UnreachableError(

@@ -89,7 +89,7 @@ def plot(output: Path, step: float, draws: int) -> None:
               cmap=ListedColormap(["#f4f4f4", "#9fd89f"]), vmin=0, vmax=1)
     ax.contour(xs, ys, yaw_zero.astype(float), levels=[0.5], colors="tab:blue", linewidths=1.2)
     ax.scatter(positions[:, 0], positions[:, 1], s=0.5, c="black", alpha=0.35, linewidths=0)
-    base = ik._C  # the shoulder_pan axis
+    base = ik.PAN_AXIS_POINT  # the shoulder_pan axis
     ax.plot(base[0], base[1], marker="+", color="k", markersize=14, mew=2)
     ax.annotate("shoulder_pan axis", (base[0], base[1]), textcoords="offset points",
                 xytext=(8, -14), fontsize=8)

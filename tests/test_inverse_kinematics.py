@@ -129,7 +129,7 @@ def test_top_down_round_trip_over_the_table(height):
 def test_a_ring_around_the_base_is_reachable_top_down():
     """The course's working area: 14-26 cm from the pan axis, within 100 deg of straight ahead."""
     rng = np.random.default_rng(3)
-    centre = np.array(ik._C[:2])
+    centre = np.array(ik.PAN_AXIS_POINT[:2])
     for _ in range(300):
         radius, azimuth = rng.uniform(0.14, 0.26), math.radians(rng.uniform(-100.0, 100.0))
         point = (*(centre + radius * np.array([math.cos(azimuth), math.sin(azimuth)])),
@@ -168,7 +168,7 @@ def test_every_reachable_position_is_solved():
 
 def test_every_reachable_pitched_target_is_solved():
     """Position plus the approach's pitch (from the arm's own pitch and facing)."""
-    centre = np.array(ik._C[:2])
+    centre = np.array(ik.PAN_AXIS_POINT[:2])
     for angles in random_configurations(3000, seed=4):
         cfg = cfg_from(angles)
         position, rotation = get_forward_kinematics(cfg)
@@ -244,7 +244,7 @@ def test_too_close_to_the_pan_axis():
     # 0.1 mm from the pan axis: the arm's plane, offset sideways by the
     # shoulder, wrist and tool, cannot pass through the target with any of
     # the rolls a cube yaw of 45 deg asks for (about 3.6 mm off the axis).
-    point = (ik._C[0] + 1e-4, ik._C[1], 0.25)
+    point = (ik.PAN_AXIS_POINT[0] + 1e-4, ik.PAN_AXIS_POINT[1], 0.25)
     with pytest.raises(ik.UnreachableError, match="too close to the shoulder_pan axis") as error:
         ik.get_inverse_kinematics(point, "down", 45.0)
     assert error.value.reason == "too_close"
