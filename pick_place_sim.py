@@ -24,6 +24,7 @@ import numpy as np  # noqa: E402
 
 import so101_mujoco_utils as utils  # noqa: E402
 from so101_forward_kinematics import ARM_JOINTS, TOOL_SITE, get_forward_kinematics  # noqa: E402
+from so101_inverse_kinematics import add_cartesian_arguments, plan_from_arguments  # noqa: E402
 from so101_meshes import ensure_meshes  # noqa: E402
 from so101_motion import (  # noqa: E402
     Plan,
@@ -418,12 +419,14 @@ not placed (with --strict), 2 bad input (plan file, options).""")
                         help="put a free 26 mm cube at the pick position (default on)")
     parser.add_argument("--cube-offset", type=float, nargs=2, default=(0.0, 0.0),
                         metavar=("DX", "DY"), help="displace the cube's start [mm], world x, y")
-    parser.add_argument("--cube-yaw", type=float, default=0.0, metavar="DEG",
-                        help="turn the cube's start about z [deg]")
+    parser.add_argument("--cube-turn", type=float, default=0.0, metavar="DEG",
+                        help="turn the cube's start about z [deg] away from where the plan "
+                        "expects it (a perturbation; for --pick/--place see --cube-yaw)")
     parser.add_argument("--move-duration", type=float, default=2.0, help="built-in plan: "
                         "seconds per main move (default %(default)g)")
     parser.add_argument("--hold", type=float, default=0.5, help="built-in plan: seconds held at "
                         "each course configuration (default %(default)g)")
+    add_cartesian_arguments(parser)
     parser.add_argument("--json", type=Path, metavar="PATH", help="write the run report as JSON")
     parser.add_argument("--strict", action="store_true", help="exit 1 unless the cube is placed "
                         "within tolerance")
@@ -437,9 +440,15 @@ not placed (with --strict), 2 bad input (plan file, options).""")
     if mode == "record" and args.record is None:
         print(f"No display: running headless and recording {video}", file=sys.stderr)
     try:
-        plan = load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold)
+        plan = plan_from_arguments(args)
+        if plan is None:
+            if args.cube_yaw is not None:
+                raise PlanError("--cube-yaw sets the cube's yaw for a Cartesian plan: give "
+                                "--pick and --place too (--cube-turn perturbs any plan's cube).")
+            plan = load_plan(args.plan) if args.plan else default_plan(args.move_duration,
+                                                                       args.hold)
         cube = CubeStart((args.cube_offset[0] / 1000.0, args.cube_offset[1] / 1000.0),
-                         args.cube_yaw) if args.cube else None
+                         args.cube_turn) if args.cube else None
         report = run_pick_place(plan, cube=cube, mode=mode, video=video, fps=args.fps,
                                 size=args.size, camera=args.camera, quality=args.quality,
                                 progress=not args.no_progress)

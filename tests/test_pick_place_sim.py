@@ -222,3 +222,19 @@ def test_plan_error_names_the_waypoint_file(tmp_path):
     path.write_text('{"steps": [{"name": "x", "configuration": {}, "speed": 3}]}')
     with pytest.raises(PlanError, match=r"bad.json.*unknown key\(s\) \['speed'\]"):
         load_plan(path)
+
+
+def test_cartesian_pick_and_place_elsewhere_on_the_table(tmp_path):
+    # IK plan (so101_inverse_kinematics) from cube positions, cube turned 30 deg.
+    path = tmp_path / "r.json"
+    code = pick_place_sim.main(["--headless", "--strict", "--json", str(path),
+                                "--pick", "0.25", "0.10", "0.013", "--place", "0.20", "-0.15",
+                                "0.013", "--cube-yaw", "30"])
+    assert code == 0
+    report = json.loads(path.read_text())
+    np.testing.assert_allclose(report["cube_target_position_m"], [0.20, -0.15, 0.013], atol=1e-6)
+
+
+def test_cube_yaw_without_cartesian_plan_is_refused(capsys):
+    assert pick_place_sim.main(["--headless", "--cube-yaw", "10"]) == 2
+    assert "--cube-turn" in capsys.readouterr().err
