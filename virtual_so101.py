@@ -494,6 +494,7 @@ class _Emulator:
         self.lateness = deque(maxlen=20000)
         self.replies = 0
         self.late = 0
+        self.max_gap = 0.0
         self.rx = bytearray()
         self.rx_partial_since = 0.0
         self.wire_free = 0.0
@@ -859,11 +860,13 @@ class _Emulator:
                 "lateness_median_ms": 1e3 * statistics.median(lateness) if lateness else 0.0,
                 "lateness_p99_ms": 1e3 * p99,
                 "lateness_max_ms": 1e3 * lateness[-1] if lateness else 0.0,
+                "max_loop_delay_ms": 1e3 * self.max_gap,
                 "sim_time_s": self.d.time, "wall_time_s": time.perf_counter() - self.t0,
             }
         if name == "clear_stats":
             self.lateness.clear()
             self.replies = self.late = 0
+            self.max_gap = 0.0
             return None
         raise ValueError(f"unknown command {name!r}")
 
@@ -871,8 +874,11 @@ class _Emulator:
         self.conn.send(("ready", self.port))
         master, conn = self.master, self.conn
         while True:
-            timeout = max(0.0, self.t0 + (self.steps + 1) * self.dt - time.perf_counter())
-            ready, _, _ = select.select([master, conn], [], [], timeout)
+            now = time.perf_counter()
+            wake = max(now, self.t0 + (self.steps + 1) * self.dt)
+            ready, _, _ = select.select([master, conn], [], [], wake - now)
+            # How long past its wake-up time the loop got the CPU back (descheduled).
+            self.max_gap = max(self.max_gap, time.perf_counter() - wake)
             if master in ready:
                 self.on_serial()
             if conn in ready:
@@ -1137,7 +1143,15 @@ class VirtualSO101:
         self._call("power_cycle")
 
     def reply_stats(self) -> dict[str, float]:
-        """Replies sent, replies later than 45 ms, lateness behind each reply's deadline [ms]."""
+        """Emulator health: replies sent, late ones, timing [ms].
+
+        Keys: ``replies``; ``late_replies`` (sent > 45 ms after the request:
+        lerobot may have given up); ``lateness_median_ms`` / ``_p99_ms`` /
+        ``_max_ms`` (behind each reply's due time: the wire time with wire
+        timing, else the request's arrival); ``max_loop_delay_ms`` (longest the
+        emulator process was kept off the CPU past a wake-up); ``sim_time_s``,
+        ``wall_time_s`` (the simulation keeps real time when they agree).
+        """
         return self._call("reply_stats")
 
     def clear_stats(self) -> None:
