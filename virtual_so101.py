@@ -137,6 +137,7 @@ BAUD_RATES = {0: 1_000_000, 1: 500_000, 2: 250_000, 3: 128_000, 4: 115_200, 5: 5
 STALL_LOAD_RATE = 2000.0  # [0.1 % per s] Present_Load rise of a stalled servo
 LATE_REPLY = 0.045  # [s] after this, lerobot (50 ms timeout) may have given up
 BITS_PER_BYTE = 10
+GOAL_LOG_LENGTH = 1_000_000  # Goal_Position writes kept (about 30 min of a 100 Hz loop)
 
 INST_PING, INST_READ, INST_WRITE = 0x01, 0x02, 0x03
 INST_SYNC_READ, INST_SYNC_WRITE = 0x82, 0x83
@@ -490,7 +491,7 @@ class _Emulator:
             self.servos[servo.id] = servo
         self.by_joint = {s.joint: s for s in self.servos.values()}
         self.wire_timing = bool(options["wire_timing"])
-        self.goal_log: list[tuple[float, int, int]] = []
+        self.goal_log: deque[tuple[float, int, int]] = deque(maxlen=GOAL_LOG_LENGTH)
         self.lateness = deque(maxlen=20000)
         self.replies = 0
         self.late = 0
@@ -1091,7 +1092,10 @@ class VirtualSO101:
         return self._call("commanded_positions")
 
     def goal_log(self) -> list[tuple[float, int, int]]:
-        """Every Goal_Position write received, in order: (time.time() [s], servo id, raw ticks)."""
+        """Every Goal_Position write received, in order: (time.time() [s], servo id, raw ticks).
+
+        The last ``GOAL_LOG_LENGTH`` writes are kept.
+        """
         return self._call("goal_log")
 
     def clear_goal_log(self) -> None:
