@@ -348,6 +348,21 @@ def test_calibration_that_does_not_match_the_servos_is_refused(arm, tmp_path):
     assert_near(arm.joint_positions(), before, tol_deg=0.2, tol_gripper=0.5)
 
 
+def test_write_calibration_puts_the_file_into_the_servos(arm, tmp_path):
+    data = json.loads(DEFAULT_CALIBRATION_PATH.read_text())
+    data["wrist_roll"]["homing_offset"] += 40
+    path = tmp_path / "recalibrated.json"
+    path.write_text(json.dumps(data))
+    calibration = hw.load_calibration(path)
+    bus = hw.connect(arm.port, calibration, write_calibration=True)
+    try:
+        assert hw.calibration_mismatch(bus, calibration) == []
+    finally:
+        hw.disconnect(bus)
+    assert arm.registers("wrist_roll")["Homing_Offset"] == data["wrist_roll"]["homing_offset"]
+    assert arm.goal_log() == []
+
+
 def test_malformed_calibration_is_refused_before_connecting(arm, tmp_path):
     data = json.loads(DEFAULT_CALIBRATION_PATH.read_text())
     data["gripper"]["range_max"] = data["gripper"]["range_min"]
@@ -416,6 +431,29 @@ def test_teach_mode_releases_torque_and_prints_the_pose(arm, capsys):
         assert abs(pasted[joint] - measured[joint]) < 5.0
     assert "object x=" in lines[-2] and lines[-2].endswith(" cm")
     assert arm.goal_log() == []
+
+
+def test_teach_from_the_main_script_stops_on_ctrl_c(arm, capsys):
+    import threading
+    import time
+
+    def press_ctrl_c_once_teaching():
+        deadline = time.monotonic() + 60.0
+        while any(arm.torque_enabled().values()) and time.monotonic() < deadline:
+            time.sleep(0.05)  # teach mode releases the torque first
+        time.sleep(0.5)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    presser = threading.Thread(target=press_ctrl_c_once_teaching)
+    presser.start()
+    try:
+        rc = hw.main(["--teach", "--port", arm.port,
+                      "--calibration", str(DEFAULT_CALIBRATION_PATH)])
+    finally:
+        presser.join()
+    out = capsys.readouterr().out
+    assert rc == 0 and "Last pose (paste into a waypoint file)" in out
+    assert not any(arm.torque_enabled().values())
 
 
 def test_loop_timing_measurement_runs():
