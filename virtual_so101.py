@@ -25,9 +25,10 @@ Design
   between. Nothing of the emulator runs in the client's process (lerobot
   busy-polls the port; a Python thread there slows it, and a second thread in
   the emulator would fight for its GIL). The parent object talks to it over a
-  socket pair. Measured on 2 busy cores: a 6-motor sync_read + sync_write
-  cycle costs 0.31 ms median without wire timing, 1.04 ms with it (0.88 ms
-  of wire + 0.16 ms); see :func:`measure_cycle`.
+  socket pair. Measured on 2 busy cores (load 3), a 6-motor sync_read +
+  sync_write cycle of lerobot: 0.36-0.38 ms median without wire timing
+  (lerobot's own cost 0.13 ms, the emulator 0.23-0.25 ms), 1.06-1.24 ms with
+  it (0.88 ms of wire); see :func:`measure_cycle`.
 - Protocol 0 (``FF FF ID LEN INST P.. CHK``): PING (also broadcast: every servo
   answers, in id order), READ, WRITE, SYNC_READ (replies in the request's id
   order), SYNC_WRITE and broadcast WRITE (never answered). Packets with a bad
@@ -1195,12 +1196,65 @@ def cycle_wire_bytes(n_motors: int = 6) -> int:
     return sync_read + sync_write
 
 
+class _LoopbackSerial:
+    """A stand-in for the bus's pyserial port that answers SYNC_READs instantly, in-process.
+
+    Timing lerobot against it gives the host's own cost of a cycle (packing,
+    parsing, decoding), which a real arm costs too.
+    """
+
+    def __init__(self, replies: bytes):
+        self.replies = replies
+        self.buffer = bytearray()
+        self.is_open = True
+
+    def write(self, data) -> int:
+        if len(data) > 4 and data[4] == INST_SYNC_READ:
+            self.buffer += self.replies
+        return len(data)
+
+    def read(self, size: int = 1) -> bytes:
+        out = bytes(self.buffer[:size])
+        del self.buffer[:size]
+        return out
+
+    @property
+    def in_waiting(self) -> int:
+        return len(self.buffer)
+
+    def flush(self) -> None:
+        pass
+
+    def reset_input_buffer(self) -> None:
+        self.buffer.clear()
+
+    def close(self) -> None:
+        self.is_open = False
+
+
+def _time_cycles(bus, n: int, warmup: int, on_warm=None) -> list[float]:
+    """Durations [s] of n sync_read(Present_Position) + sync_write(Goal_Position) cycles."""
+    times = []
+    for i in range(n + warmup):
+        t0 = time.perf_counter()
+        present = bus.sync_read("Present_Position", normalize=False)
+        bus.sync_write("Goal_Position", present, normalize=False)
+        if i == warmup - 1 and on_warm is not None:
+            on_warm()
+        if i >= warmup:
+            times.append(time.perf_counter() - t0)
+    return sorted(times)
+
+
 def measure_cycle(n: int = 1000, wire_timing: bool = True, arm: VirtualSO101 | None = None,
                   warmup: int = 50) -> dict[str, float]:
     """Time lerobot's 6-motor sync_read + sync_write cycle against the virtual arm (needs lerobot).
 
     Each cycle reads Present_Position and writes it back as Goal_Position (raw
-    ticks), as a teleoperation loop does.
+    ticks), as a teleoperation loop does. The same cycles are then timed
+    against an in-process loopback port, which gives lerobot's own (host) cost;
+    what remains of the cycle after the wire time and the host cost is what
+    the emulator adds (its wake-up and processing).
 
     Args:
         n: cycles to time.
@@ -1209,10 +1263,15 @@ def measure_cycle(n: int = 1000, wire_timing: bool = True, arm: VirtualSO101 | N
         warmup: cycles run before timing.
 
     Returns:
-        cycle_median_ms / cycle_p99_ms (client side), wire_ms (bytes x 10 bits
-        at 1 Mbaud), overhead_median_ms / overhead_p99_ms (cycle - wire), and
-        the emulator's own lateness behind each reply's wire deadline
-        (emulator_lateness_median_ms / _p99_ms).
+        ``cycle_median_ms`` / ``cycle_p99_ms`` (client side); ``wire_ms``
+        (88 bytes x 10 bits at the bus's baud rate, 0 without wire timing);
+        ``overhead_median_ms`` / ``_p99_ms`` (cycle - wire); ``host_median_ms``
+        (lerobot's cost, loopback); ``emulator_added_median_ms`` (cycle median -
+        wire - host median: without wire timing, the emulator's whole share,
+        i.e. wake-ups, processing and the pty; with wire timing the host's work
+        partly overlaps the sync_write's wire time, so it reads lower); the
+        emulator's lateness behind each reply's due time
+        (``emulator_lateness_median_ms`` / ``_p99_ms``) and ``late_replies``.
     """
     own = arm is None
     arm = arm or VirtualSO101(wire_timing=wire_timing)
@@ -1221,25 +1280,27 @@ def measure_cycle(n: int = 1000, wire_timing: bool = True, arm: VirtualSO101 | N
         arm.set_wire_timing(wire_timing)
         bus = make_bus(arm)
         bus.connect()
-        times = []
-        for i in range(n + warmup):
-            t0 = time.perf_counter()
-            present = bus.sync_read("Present_Position", normalize=False)
-            bus.sync_write("Goal_Position", present, normalize=False)
-            if i == warmup - 1:
-                arm.clear_stats()
-            if i >= warmup:
-                times.append(time.perf_counter() - t0)
+        times = _time_cycles(bus, n, warmup, on_warm=arm.clear_stats)
         stats = arm.reply_stats()
-        times.sort()
         wire_ms = cycle_wire_bytes() * BITS_PER_BYTE / bus.port_handler.getBaudRate() * 1e3
+        wire_ms = wire_ms if wire_timing else 0.0
+        present = bus.sync_read("Present_Position", normalize=False)
+        replies = b"".join(status_packet(bus.motors[name].id, 0, value.to_bytes(2, "little"))
+                           for name, value in present.items())
+        serial_port = bus.port_handler.ser
+        bus.port_handler.ser = _LoopbackSerial(replies)
+        try:
+            host = _time_cycles(bus, n, warmup)
+        finally:
+            bus.port_handler.ser = serial_port
         median, p99 = 1e3 * statistics.median(times), 1e3 * times[int(0.99 * (len(times) - 1))]
+        host_median = 1e3 * statistics.median(host)
         return {
-            "cycles": n, "wire_timing": wire_timing,
-            "wire_ms": wire_ms if wire_timing else 0.0,
+            "cycles": n, "wire_timing": wire_timing, "wire_ms": wire_ms,
             "cycle_median_ms": median, "cycle_p99_ms": p99,
-            "overhead_median_ms": median - (wire_ms if wire_timing else 0.0),
-            "overhead_p99_ms": p99 - (wire_ms if wire_timing else 0.0),
+            "overhead_median_ms": median - wire_ms, "overhead_p99_ms": p99 - wire_ms,
+            "host_median_ms": host_median,
+            "emulator_added_median_ms": median - wire_ms - host_median,
             "emulator_lateness_median_ms": stats["lateness_median_ms"],
             "emulator_lateness_p99_ms": stats["lateness_p99_ms"],
             "late_replies": stats["late_replies"],

@@ -551,6 +551,7 @@ def test_measure_cycle_reports_wire_time_and_no_late_replies(fresh_arm):
     assert result["wire_ms"] == pytest.approx(0.88)  # 88 bytes at 1 Mbaud, 10 bits a byte
     assert result["cycle_median_ms"] >= result["wire_ms"]  # replies wait for their bytes' time
     assert result["late_replies"] == 0
+    assert result["host_median_ms"] > 0  # lerobot's own cost, timed on the loopback port
 
 
 @pytest.mark.hw
