@@ -4,6 +4,9 @@ Figures (medians over repeats, with spread):
   - pick_place_realtime_factor: simulated seconds per wall second of the whole
     default plan with the free cube, headless (goal >= 100);
   - pick_place_us_per_step: the same as wall time per 2 ms physics step;
+  - mujoco_arm_step_us: reference measured in the same run, one mj_step of the
+    arm alone at rest (no cube, no contacts), and pick_place_step_vs_arm_step,
+    the ratio (load on a shared machine slows both alike);
   - record_wall_vs_video: wall time to record the full 640x480 30 fps video
     divided by the video's duration (goal <= 1: recording keeps up with real time);
   - record_cpu_ms_per_frame: CPU time (this process, its render threads and
@@ -42,6 +45,18 @@ def bench_pick_place(quick: bool) -> dict:
         per_step.append(report.wall_time_s / round(report.sim_time_s / 0.002) * 1e6)
     out["pick_place_realtime_factor"] = summarize(factors)
     out["pick_place_us_per_step"] = summarize(per_step)
+    arm = build_model(render_meshes=True)
+    d = mujoco.MjData(arm)
+    mujoco.mj_resetDataKeyframe(arm, d, arm.key("home").id)
+    reference = []
+    for _ in range(3 if quick else 7):
+        start = time.perf_counter()
+        for _ in range(2000):
+            mujoco.mj_step(arm, d)
+        reference.append((time.perf_counter() - start) / 2000 * 1e6)
+    out["mujoco_arm_step_us"] = summarize(reference)
+    out["pick_place_step_vs_arm_step"] = (out["pick_place_us_per_step"]["median"]
+                                          / out["mujoco_arm_step_us"]["median"])
 
     ratios, cpu_per_frame = [], []
     with tempfile.TemporaryDirectory() as tmp:
