@@ -53,7 +53,9 @@ the image restored by :meth:`VirtualSO101.power_cycle`; with Lock = 1 they act
 until the next power cycle. Present_Velocity [ticks/s] and Present_Load
 [0.1 % of the stall torque, sign bit 10] come from the simulation. Acceleration,
 speed limits and the PID coefficients are stored but do not shape the motion:
-the MuJoCo position actuator (upstream's sts3215 gains) does.
+the MuJoCo position actuator (upstream's sts3215 gains) does. Only
+Operating_Mode 0 (position) is emulated; in other modes goals are stored but
+the joint keeps its last target.
 
 Ticks <-> joint angles go through the lerobot calibration, so they agree with
 ``so101_mujoco_utils.to_radians``:
