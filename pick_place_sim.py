@@ -66,6 +66,9 @@ PLACEMENT_TOLERANCE = 0.010  # [m] horizontal distance from the FK final positio
 TILT_TOLERANCE = 10.0  # [deg] angle of the cube's up axis from the vertical
 MIN_LIFT = 0.020  # [m] the cube must rise at least this much to count as carried
 HELD_DISTANCE = 0.015  # [m] cube centre this close to the object frame = in the grip
+# A cube whose centre is this high above its start and not in the grip is
+# falling (a cube tipping over on the table rises at most 5.4 mm).
+AIRBORNE_HEIGHT = 0.010  # [m]
 MONITOR_PERIOD = 0.01  # [s] of simulation time between checks of the cube
 
 log = logging.getLogger("pick_place_sim")
@@ -172,7 +175,7 @@ class CubeMonitor:
         lift = float(self._cube.xpos[2]) - self.start_height
         self.max_lift = max(self.max_lift, lift)
         held = np.linalg.norm(self._cube.xpos - self._site.xpos) <= HELD_DISTANCE
-        if lift > 0.005 and not held:
+        if lift > AIRBORNE_HEIGHT and not held:
             self.dropped = True
 
 

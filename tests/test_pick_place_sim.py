@@ -238,3 +238,13 @@ def test_cartesian_pick_and_place_elsewhere_on_the_table(tmp_path):
 def test_cube_yaw_without_cartesian_plan_is_refused(capsys):
     assert pick_place_sim.main(["--headless", "--cube-yaw", "10"]) == 2
     assert "--cube-turn" in capsys.readouterr().err
+
+
+def test_opening_the_jaws_in_the_air_is_reported_as_a_drop():
+    plan = default_plan()
+    carry = plan.configurations()["carry"]
+    carry["gripper"] = 50.0  # the jaws open while carrying
+    report = run_pick_place(plan)
+    assert report.dropped and not report.success
+    assert report.max_lift_m > 0.10  # it was lifted first
+    assert "fell out of the gripper" in report.summary()
