@@ -1,0 +1,77 @@
+"""The SO-101 model: loads as the course does, named as lerobot names it, steps cleanly."""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import pytest
+from conftest import REPO
+
+from so101_forward_kinematics import BODY_OF_FRAME, JOINTS, TOOL_SITE
+from so101_meshes import read_manifest
+
+SIM_SECONDS = 3.0  # [s] of random commands
+COMMAND_PERIOD = 0.1  # [s] between new random targets
+
+
+def test_course_loading_line_works_from_the_repo_root(monkeypatch):
+    monkeypatch.chdir(REPO)
+    m = mujoco.MjModel.from_xml_path("model/scene.xml")
+    assert m.nmesh == len(read_manifest())
+
+
+def test_joints_and_actuators_are_named_as_lerobot(model):
+    joints = [model.joint(i).name for i in range(model.njnt)]
+    actuators = [model.actuator(i).name for i in range(model.nu)]
+    assert joints == list(JOINTS)
+    assert actuators == list(JOINTS)
+    for name in JOINTS:
+        # Each actuator drives the joint of the same name, within that joint's range.
+        actuator = model.actuator(name)
+        assert actuator.trntype == mujoco.mjtTrn.mjTRN_JOINT
+        assert model.joint(actuator.trnid[0]).name == name
+        np.testing.assert_allclose(actuator.ctrlrange, model.joint(name).range)
+        assert model.joint(name).type == mujoco.mjtJoint.mjJNT_HINGE
+        np.testing.assert_array_equal(model.joint(name).axis, [0.0, 0.0, 1.0])
+
+
+def test_fk_bodies_sites_and_cameras_exist(model):
+    for body in BODY_OF_FRAME.values():
+        assert model.body(body).id > 0
+    assert model.body(model.site(TOOL_SITE).bodyid[0]).name == "gripper"
+    for camera in ("pick_place", "gripper_closeup"):
+        assert model.camera(camera).id >= 0
+
+
+def test_home_keyframe_is_within_the_limits(model):
+    key = model.key("home")
+    for name in JOINTS:
+        lower, upper = model.joint(name).range
+        assert lower <= key.qpos[model.joint(name).qposadr[0]] <= upper
+        assert lower <= key.ctrl[model.actuator(name).id] <= upper
+
+
+def test_steps_under_random_commands_without_warnings(model):
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    rng = np.random.default_rng(3)
+    lower, upper = model.actuator_ctrlrange.T
+    steps_per_command = round(COMMAND_PERIOD / model.opt.timestep)
+    for _ in range(round(SIM_SECONDS / COMMAND_PERIOD)):
+        data.ctrl[:] = rng.uniform(lower, upper)
+        mujoco.mj_step(model, data, nstep=steps_per_command)
+    counts = {mujoco.mjtWarning(i).name: data.warning[i].number for i in range(len(data.warning))}
+    assert not any(counts.values()), f"MuJoCo warnings: {counts}"
+    assert np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))
+    assert data.time == pytest.approx(SIM_SECONDS, abs=model.opt.timestep)
+
+
+def test_arm_settles_at_the_commanded_pose(model):
+    # Position servos hold a pose: after 2 s the arm is within a degree of the command.
+    data = mujoco.MjData(model)
+    target = np.array([0.3, -0.5, 0.6, 0.4, -0.8, 0.2])  # [rad], joints in JOINTS order
+    for name, value in zip(JOINTS, target, strict=True):
+        data.ctrl[model.actuator(name).id] = value
+    mujoco.mj_step(model, data, nstep=round(2.0 / model.opt.timestep))
+    reached = np.array([data.qpos[model.joint(name).qposadr[0]] for name in JOINTS])
+    np.testing.assert_allclose(reached, target, atol=np.radians(1.0))
