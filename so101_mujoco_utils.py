@@ -209,6 +209,10 @@ def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> 
                 lag = (d.time - sim0) - (time.perf_counter() - wall0)
                 if lag > 0:
                     time.sleep(lag)
+    if path is not None:
+        # The last step's command is the profile one step before the end; a move
+        # ends commanding its goal exactly (a linear move would stay short of it).
+        ctrl[actuators] = start + delta
 
 
 def move_to_pose(
