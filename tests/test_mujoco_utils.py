@@ -1,0 +1,156 @@
+"""MuJoCo utils: the one unit conversion, limit checks before motion, and simulation timing."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+
+import so101_mujoco_utils as utils
+from so101_forward_kinematics import ARM_JOINTS, JOINTS
+from so101_motion import JointLimitError, PlanError
+
+START = {"shoulder_pan": -45.0, "shoulder_lift": 45.0, "elbow_flex": -45.0, "wrist_flex": 90.0,
+         "wrist_roll": 0.0, "gripper": 50.0}
+
+
+def random_configuration(model, rng) -> dict[str, float]:
+    limits = utils.joint_limits(model)
+    return {j: float(rng.uniform(*limits[j])) for j in JOINTS}
+
+
+def test_conversion_round_trips(model):
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        cfg = random_configuration(model, rng)
+        back = utils.from_radians(model, utils.to_radians(model, cfg))
+        assert back.keys() == cfg.keys()
+        for joint in JOINTS:
+            assert back[joint] == pytest.approx(cfg[joint], abs=1e-10)
+        angles = utils.to_radians(model, cfg)
+        for joint in ARM_JOINTS:
+            assert angles[joint] == pytest.approx(math.radians(cfg[joint]), abs=1e-15)
+
+
+def test_gripper_mapping_endpoints_are_the_joint_range(model):
+    lower, upper = model.joint("gripper").range
+    assert utils.gripper_to_radians(model, 0.0) == pytest.approx(lower, abs=1e-15)
+    assert utils.gripper_to_radians(model, 100.0) == pytest.approx(upper, abs=1e-15)
+    assert utils.gripper_to_radians(model, 50.0) == pytest.approx((lower + upper) / 2, abs=1e-15)
+    assert utils.gripper_from_radians(model, lower) == pytest.approx(0.0, abs=1e-12)
+    assert utils.gripper_from_radians(model, upper) == pytest.approx(100.0, abs=1e-12)
+    assert utils.joint_limits(model)["gripper"] == (0.0, 100.0)
+
+
+def test_arm_limits_are_the_model_ranges_in_degrees(model):
+    limits = utils.joint_limits(model)
+    for joint in ARM_JOINTS:
+        np.testing.assert_allclose(limits[joint], np.degrees(model.joint(joint).range))
+
+
+def test_set_initial_pose_places_and_commands_the_arm(model, data):
+    utils.set_initial_pose(data, START)
+    measured, commanded = utils.get_configuration(model, data), utils.get_command(model, data)
+    for joint in JOINTS:
+        assert measured[joint] == pytest.approx(START[joint], abs=1e-9)
+        assert commanded[joint] == pytest.approx(START[joint], abs=1e-9)
+    assert not np.any(data.qvel)
+
+
+def state(data):
+    return data.time, data.qpos.copy(), data.ctrl.copy()
+
+
+def assert_untouched(data, before):
+    time, qpos, ctrl = before
+    assert data.time == time
+    np.testing.assert_array_equal(data.qpos, qpos)
+    np.testing.assert_array_equal(data.ctrl, ctrl)
+
+
+@pytest.mark.parametrize("joint", JOINTS)
+@pytest.mark.parametrize("side", [-1, 1])
+def test_out_of_limit_targets_are_refused_before_any_step(model, data, joint, side):
+    utils.set_initial_pose(data, START)
+    utils.hold_position(model, data, None, 0.01)
+    lower, upper = utils.joint_limits(model)[joint]
+    value = upper + 5.0 if side > 0 else lower - 5.0
+    limit = upper if side > 0 else lower
+    bad = dict(START, **{joint: value})
+    unit = "%" if joint == "gripper" else "deg"
+    pattern = rf"{joint} = {value:g} {unit} is outside its limits .*{limit:g}"
+    for call in (lambda: utils.move_to_pose(model, data, None, bad, 1.0),
+                 lambda: utils.set_initial_pose(data, bad),
+                 lambda: utils.send_position_command(data, {joint: value})):
+        before = state(data)
+        with pytest.raises(JointLimitError, match=pattern):
+            call()
+        assert_untouched(data, before)
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), "10", None])
+def test_non_numeric_targets_are_refused_naming_the_joint(model, data, value):
+    utils.set_initial_pose(data, START)
+    before = state(data)
+    with pytest.raises(PlanError, match="'wrist_flex'"):
+        utils.move_to_pose(model, data, None, dict(START, wrist_flex=value), 1.0)
+    assert_untouched(data, before)
+
+
+def test_missing_and_unknown_joints_are_refused(model, data):
+    incomplete = {k: v for k, v in START.items() if k != "elbow_flex"}
+    with pytest.raises(PlanError, match="'elbow_flex'"):
+        utils.set_initial_pose(data, incomplete)
+    with pytest.raises(PlanError, match="'elbow'.*elbow_flex"):
+        utils.move_to_pose(model, data, None, dict(incomplete, elbow=0.0), 1.0)
+
+
+def test_move_to_pose_is_timed_on_simulation_time_and_ends_at_the_goal(model, data):
+    utils.set_initial_pose(data, START)
+    goal = dict(START, shoulder_pan=0.0, wrist_roll=30.0, gripper=20.0)
+    t0 = data.time
+    utils.move_to_pose(model, data, None, goal, 0.5, profile="linear")
+    assert data.time == pytest.approx(t0 + 0.5, abs=model.opt.timestep)
+    command = utils.get_command(model, data)
+    for joint in JOINTS:
+        assert command[joint] == pytest.approx(goal[joint], abs=1e-9)
+    utils.hold_position(model, data, None, 1.5)
+    measured = utils.get_configuration(model, data)
+    for joint in ARM_JOINTS:
+        assert measured[joint] == pytest.approx(goal[joint], abs=1.0)
+
+
+class ClosingViewer:
+    """A viewer stub whose window closes after a few syncs."""
+
+    offscreen = True
+
+    def __init__(self, open_syncs: int):
+        self.syncs, self.open_syncs = 0, open_syncs
+
+    def is_running(self) -> bool:
+        return self.syncs < self.open_syncs
+
+    def sync(self) -> None:
+        self.syncs += 1
+
+
+def test_closing_the_viewer_stops_the_motion(model, data):
+    utils.set_initial_pose(data, START)
+    viewer = ClosingViewer(open_syncs=3)
+    with pytest.raises(utils.ViewerClosed):
+        utils.hold_position(model, data, viewer, 10.0)
+    assert viewer.syncs == 3
+    assert data.time < 1.0
+
+
+def test_headless_runs_are_deterministic(model):
+    finals = []
+    for _ in range(2):
+        data = mujoco.MjData(model)
+        utils.set_initial_pose(data, START)
+        utils.move_to_pose(model, data, None, dict(START, shoulder_pan=30.0), 0.4)
+        finals.append(data.qpos.copy())
+    np.testing.assert_array_equal(finals[0], finals[1])
