@@ -77,3 +77,16 @@ def test_only_the_cylinder_is_red(screenshot):
     rows, columns = np.nonzero(red)
     assert red.sum() > 1000
     assert np.ptp(columns) < screenshot.shape[1] / 2 and np.ptp(rows) < screenshot.shape[0] / 2
+
+
+def test_committed_fk_table_is_up_to_date():
+    committed = (script.TABLE_PATH).read_text()
+    assert committed == script.fk_table_markdown(), "regenerate: python test_fk_mujoco.py --table"
+    assert committed.count("| `get_g") == 6
+
+
+def test_frames_picture_renders(tmp_path):
+    path = script.render_frames(tmp_path / "frames.png", size=(400, 300))
+    image = iio.imread(path)
+    assert image.shape[:2] == (300, 400)
+    assert np.ptp(image[..., :3]) > 100  # not a blank image
