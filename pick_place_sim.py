@@ -333,14 +333,22 @@ def run_pick_place(
             completed = False
         if mode == "record":
             frames = inner.frames_written
+        wall = time.perf_counter() - wall0
+        if monitor.has_cube:
+            monitor.check()
+        report = _report(m, d, plan, monitor, wall, frames, completed, errors,
+                         str(video or DEFAULT_VIDEO) if mode == "record" else None)
+        if mode == "viewer" and completed:
+            print("Done: close the viewer window to see the report.", file=sys.stderr)
+            try:
+                while True:  # the arm keeps holding its pose, in real time
+                    utils.hold_position(m, d, monitor, 0.1)
+            except utils.ViewerClosed:
+                pass
     finally:
         if inner is not None:
             inner.close()
-    wall = time.perf_counter() - wall0
-    if monitor.has_cube:
-        monitor.check()
-    return _report(m, d, plan, monitor, wall, frames, completed, errors,
-                   str(video or DEFAULT_VIDEO) if mode == "record" else None)
+    return report
 
 
 def _report(m, d, plan, monitor, wall, frames, completed, errors, video) -> RunReport:

@@ -252,3 +252,47 @@ def test_opening_the_jaws_in_the_air_is_reported_as_a_drop():
     assert report.dropped and not report.success
     assert report.max_lift_m > 0.10  # it was lifted first
     assert "fell out of the gripper" in report.summary()
+
+
+class FakePassiveViewer:
+    """Stands in for mujoco.viewer's passive viewer: closes after ``syncs`` updates."""
+
+    def __init__(self, model, syncs):
+        import contextlib
+
+        import mujoco
+
+        self.user_scn = mujoco.MjvScene(model, maxgeom=10)
+        self.lock = contextlib.nullcontext
+        self.syncs, self.closed = syncs, False
+
+    def is_running(self):
+        return self.syncs > 0
+
+    def sync(self):
+        self.syncs -= 1
+
+    def close(self):
+        self.closed = True
+
+
+@pytest.mark.parametrize("syncs", [30, 1300])  # a whole run syncs about 1000 times
+def test_viewer_mode_shows_the_target_cubes_and_stops_when_closed(monkeypatch, syncs):
+    from mujoco import viewer
+
+    opened = []
+
+    def launch_passive(m, d):
+        opened.append(FakePassiveViewer(m, syncs))
+        return opened[-1]
+
+    monkeypatch.setattr(viewer, "launch_passive", launch_passive)
+    monkeypatch.setattr(utils.time, "sleep", lambda seconds: None)  # no real-time pacing here
+    report = run_pick_place(mode="viewer")
+    (shown,) = opened
+    assert shown.user_scn.ngeom == 2 and shown.closed
+    if syncs == 30:  # closed after half a second: a partial run, not a success
+        assert not report.completed and not report.success
+        assert report.sim_time_s < 1.0
+    else:  # the window stays open after the plan until it is closed
+        assert report.completed and report.success
