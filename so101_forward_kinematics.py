@@ -17,6 +17,10 @@ the moving jaw, so it does not enter the object pose.
 Each ``get_gxx`` is a fixed displacement and rotation taken from the
 upstream SO-101 model (``so101_new_calib``), followed by the joint rotation
 ``Rz(theta)``. Angles are in degrees at this module's boundary.
+:func:`get_frame_chain` multiplies the ``get_gxx`` factors as the assignment
+does; :func:`get_forward_kinematics` and :func:`get_forward_kinematics_batch`
+evaluate the same product in closed form, for speed (derivation above
+``_closed_form_assumptions``). All three agree with MuJoCo to ~1e-15.
 
 Example (the course's test configuration)::
 
@@ -259,7 +263,7 @@ def get_frame_chain(position_dict: Mapping[str, float]) -> dict[str, np.ndarray]
 #      and R_45 = D Rz(tilt) with D = Rz(180) Rx(90); the tilt adds to wrist_roll:
 #      psi = th5 + GRIPPER_MOUNT_TILT_DEG.
 # Then R_wt = diag(-1, 1, -1) Rz(th1) P Rz(phi) D Rz(psi) diag(-1, 1, -1), whose
-# entries are the short products written out in _closed_form, and
+# entries are the short products written out in get_forward_kinematics, and
 #   p_wt = p_w1 + diag(-1, 1, -1) Rz(th1) (p_12 + P r), with
 #   r = Rz(th2) p_23 + Rz(th2 + th3 + 90) p_34 + Rz(phi) (p_45 + D Rz(psi) p_5t).
 _P_W1, _P_12, _P_23, _P_34, _P_45, _P_5T = (
@@ -274,7 +278,7 @@ _HALF_DEG = math.pi / 360.0
 _TILT_DEG = GRIPPER_MOUNT_TILT_DEG
 
 
-def _check_closed_form_assumptions() -> None:
+def _closed_form_assumptions() -> None:
     """Fail loudly if ``_FIXED`` no longer has the structure the closed form assumes."""
     flip = np.diag([1.0, -1.0, 1.0]) * -1.0  # diag(-1, 1, -1)
     expected = {
@@ -293,7 +297,7 @@ def _check_closed_form_assumptions() -> None:
             )
 
 
-_check_closed_form_assumptions()
+_closed_form_assumptions()
 
 
 def get_forward_kinematics(position_dict: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
