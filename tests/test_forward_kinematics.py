@@ -303,3 +303,10 @@ def test_module_docstring_example_runs():
     result = doctest.testmod(fk, verbose=False)
     assert result.attempted >= 2
     assert result.failed == 0
+
+
+def test_closed_form_guard_notices_a_changed_fixed_rotation(monkeypatch):
+    changed = dict(fk._FIXED_ROTATION, **{"34": fk.Rz(-90.0) @ fk.Rx(1.0)})
+    monkeypatch.setattr(fk, "_FIXED_ROTATION", changed)
+    with pytest.raises(RuntimeError, match="g_34"):
+        fk._closed_form_assumptions()
