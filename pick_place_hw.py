@@ -595,11 +595,27 @@ def enable_torque_in_place(bus) -> None:
     bus.enable_torque()
 
 
+def discard_stale_input(bus) -> int:
+    """Drop bytes waiting on the port before a request: late replies that would poison it.
+
+    The Feetech SDK matches replies by servo id only, so a reply that arrived
+    after its transaction timed out is taken for the next transaction's (the
+    read then returns values one cycle old, silently). lerobot flushes input
+    only when opening the port (its clearPort() flushes output). Returns the
+    number of bytes dropped.
+    """
+    serial_port = getattr(bus.port_handler, "ser", None)
+    waiting = getattr(serial_port, "in_waiting", 0)
+    if waiting:
+        serial_port.reset_input_buffer()
+    return waiting
+
+
 def _recover_port(bus) -> None:
-    """After an interrupted transaction: let late replies arrive, flush them, free the port."""
+    """After an interrupted transaction: let late replies arrive, drop them, free the port."""
     try:
         time.sleep(PORT_SETTLE_S)
-        bus.port_handler.clearPort()
+        discard_stale_input(bus)
         bus.port_handler.is_using = False
     except Exception:  # noqa: BLE001 - best effort on a failing port
         logger.debug("could not flush the port", exc_info=True)
@@ -737,6 +753,7 @@ class ArmSession:
         self._t0: float | None = None
         self._beyond: dict[str, float] = {}
         self._missed = 0
+        self.stale_bytes = 0  # late-reply bytes dropped before reads
         _SESSIONS[bus] = self
 
     # measurement and command
@@ -774,6 +791,10 @@ class ArmSession:
             raise BusError(f"Cannot send Goal_Position: {error}") from error
         self.command = command
         try:
+            stale = discard_stale_input(self.bus)
+            if stale:
+                self.stale_bytes += stale
+                logger.debug("dropped %d stale bytes (a late reply)", stale)
             raw = self.bus.sync_read("Present_Position")
             measured = {j: float(raw[j]) for j in JOINTS}
             self._missed = 0
@@ -956,6 +977,7 @@ class RunResult:
     returned_to_start: bool = False
     unreleased: list[str] = field(default_factory=list)
     timing: dict[str, float] = field(default_factory=dict)
+    stale_bytes: int = 0  # late-reply bytes dropped before reads (see discard_stale_input)
 
 
 def _describe(error: BaseException, step: str) -> str:
@@ -1032,6 +1054,7 @@ def execute(session: ArmSession, plan: Plan, start_pose: Configuration,
         result.unreleased = release_torque(bus)
         result.cycles, result.segments = session.cycles, session.segments
         result.stretched = session.stretched
+        result.stale_bytes = session.stale_bytes
         if len(session.cycles) >= 3:
             result.timing = session.timing()
     if result.aborted is not None:
