@@ -280,7 +280,7 @@ def main() -> int:
             verify_meshes()
         else:
             install_meshes()
-            install_render_meshes()
+            ensure_render_meshes()
     except MeshError as error:
         print(f"error: {error}", file=sys.stderr)
         return 1
