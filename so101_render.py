@@ -8,14 +8,14 @@ time simulation time crosses the next frame time, so a 30 fps video shows the
 simulation at exactly 1/30 s intervals, whatever the physics timestep).
 
 Speed on a CPU-only machine (Mesa llvmpipe through ``MUJOCO_GL=egl``): the
-upstream meshes (322k triangles), MuJoCo's default 4096 shadow map, 4x
+upstream meshes (399k triangles drawn), MuJoCo's default 4096 shadow map, 4x
 multisampling and the floor reflection render at about 2 frames/s at 640x480.
 Measured here (CPU time per 640x480 frame, so it does not depend on what
 else runs): shadows cost about 3x (an extra depth pass and shadow-tested
 lighting), multisampling and the 4096 shadow map about 3x more, the upstream
 meshes 2x-3x over render-only copies decimated at install time
 (``so101_meshes.install_render_meshes``, 2 mm vertex clustering, 14x fewer
-triangles; 1 mm clustering renders 30 % slower and looks the same), the
+triangles; 1 mm clustering renders 25 % slower and looks the same), the
 skybox and the floor texture 10-20 % each. Extra llvmpipe threads do not
 help: the frame time goes into single-threaded vertex work. The ``fast``
 quality (the default for videos) therefore draws the decimated meshes
