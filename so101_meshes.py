@@ -24,6 +24,7 @@ import argparse
 import hashlib
 import importlib.util
 import logging
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -247,7 +248,10 @@ def install_render_meshes(cell_size: float = RENDER_CELL_SIZE,
     for name in read_manifest():
         vertices, faces = read_stl(ASSET_DIR / name)
         light_vertices, light_faces = decimate_mesh(vertices, faces, cell_size)
-        write_stl(directory / name, light_vertices, light_faces)
+        # Write then rename: another process may be loading the old file.
+        partial = directory / f".{name}.{os.getpid()}.partial"
+        write_stl(partial, light_vertices, light_faces)
+        os.replace(partial, directory / name)
         before, after = before + len(faces), after + len(light_faces)
     (directory / _STAMP).write_text(_render_stamp(cell_size) + "\n")
     log.info("Render meshes: %d -> %d triangles (cell %.2g m) in %s", before, after, cell_size,
