@@ -71,8 +71,9 @@ def full_run():
         # real time the emulator's physics could not keep up with (it drops it) [s]
         slip = (after["wall_time_s"] - before["wall_time_s"]) - (
             after["sim_time_s"] - before["sim_time_s"])
-        yield {"plan": plan, "result": result, "goals": arm.goal_log(), "slip": slip,
-               "final": arm.joint_positions(), "torque": arm.torque_enabled()}
+        data = {"plan": plan, "result": result, "goals": arm.goal_log(), "slip": slip,
+                "final": arm.joint_positions(), "torque": arm.torque_enabled()}
+    return data  # the virtual arm is closed: no emulator left running during later tests
 
 
 # --- the full sequence ------------------------------------------------------------------
