@@ -24,7 +24,8 @@ def assert_transforms_close(g_actual, g_expected, pos_tol: float = 1e-9, rot_tol
     r_rel = g_actual[:3, :3].T @ g_expected[:3, :3]
     rot_err = np.arccos(np.clip((np.trace(r_rel) - 1.0) / 2.0, -1.0, 1.0))
     # arccos loses precision near 0: use the skew part for small angles.
-    skew = 0.5 * np.array([r_rel[2, 1] - r_rel[1, 2], r_rel[0, 2] - r_rel[2, 0], r_rel[1, 0] - r_rel[0, 1]])
+    skew = 0.5 * np.array([r_rel[2, 1] - r_rel[1, 2], r_rel[0, 2] - r_rel[2, 0],
+                           r_rel[1, 0] - r_rel[0, 1]])
     rot_err = min(rot_err, np.arcsin(min(1.0, np.linalg.norm(skew)))) if rot_err < 0.1 else rot_err
     assert pos_err <= pos_tol, f"{label} position error {pos_err:.3g} m > {pos_tol:.3g} m"
     assert rot_err <= rot_tol, f"{label} rotation error {rot_err:.3g} rad > {rot_tol:.3g} rad"
