@@ -566,3 +566,15 @@ def test_a_new_segment_continues_the_grid_after_a_late_cycle(clock):
     assert loop.skipped == 2
     clock.now += 1.0  # idle (e.g. a prompt): a fresh grid
     assert loop.resume() == pytest.approx(clock.now, abs=1e-5)
+
+
+def test_garbage_collector_is_frozen_during_the_motion(calibration, clock):
+    import gc
+
+    frozen = []
+    session, _ = make_session(calibration, clock,
+                              on_cycle=lambda s, c: frozen.append(gc.get_freeze_count()))
+    plan = hw.validate_plan_for_arm(default_plan(0.2, 0.0), calibration)
+    hw.execute(session, plan, dict(HOME))
+    assert min(frozen) > 1000  # everything alive before the run is skipped by collections
+    assert gc.get_freeze_count() == 0
