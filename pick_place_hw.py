@@ -1262,7 +1262,9 @@ def plot_log(cycles: list[Cycle], path: str | Path,
         ax.plot(t, [c.command[joint] for c in cycles], label="commanded", lw=1.5)
         ax.plot([c.t_s for c in measured], [c.measured[joint] for c in measured],
                 label="measured", lw=1.0, ls="--")
-        ax.set_title(joint)
+        worst = max((abs(c.command[joint] - c.measured[joint]) for c in measured), default=0.0)
+        ax.set_title(f"{joint}  (max |commanded - measured| = {worst:.2f} {unit(joint)})",
+                     fontsize=10)
         ax.set_ylabel("[%]" if joint == "gripper" else "[deg]")
         ax.grid(alpha=0.3)
     for ax in axes[-1]:
