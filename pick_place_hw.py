@@ -40,7 +40,6 @@ from so101_motion import (
     validate_plan,
 )
 
-_HERE = Path(__file__).resolve().parent
 logger = logging.getLogger("pick_place_hw")
 
 # --- Settings ---------------------------------------------------------------
@@ -70,7 +69,7 @@ MOTOR_MODEL = "sts3215"
 TICKS_PER_TURN = 4095  # lerobot's max_res for the sts3215: 4096 positions - 1
 INSTALL_HINT = "pip install -e '.[hw]'  (from the so101-kinematics folder)"
 FIND_PORT_HINT = "lerobot-find-port"
-CALIBRATE_HINT = ("lerobot-calibrate --robot.type=so101_follower --robot.port={port} "
+CALIBRATE_HINT = (f"lerobot-calibrate --robot.type={ROBOT_TYPE} --robot.port={{port}} "
                   "--robot.id={robot_id}")
 
 
