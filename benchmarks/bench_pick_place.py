@@ -1,14 +1,15 @@
 """Benchmark group "pick_place": headless speed of the simulated pick-and-place and video recording.
 
 Figures (medians over repeats, with spread):
-  - pick_place_realtime_factor: simulated seconds per wall second of the whole
+  - sim_realtime_factor: simulated seconds per wall second of the whole
     default plan with the free cube, headless (goal >= 100);
   - pick_place_us_per_step: the same as wall time per 2 ms physics step;
   - mujoco_arm_step_us: reference measured in the same run, one mj_step of the
     arm alone at rest (no cube, no contacts), and pick_place_step_vs_arm_step,
     the ratio (load on a shared machine slows both alike);
-  - record_wall_vs_video: wall time to record the full 640x480 30 fps video
+  - record_wall_over_video_duration: wall time to record the full 640x480 30 fps video
     divided by the video's duration (goal <= 1: recording keeps up with real time);
+  - record_fps: frames rendered and encoded per wall second while recording;
   - record_cpu_ms_per_frame: CPU time (this process, its render threads and
     the encoder) per frame, which does not depend on what else runs;
   - render_fps_<quality>: frames per second of FrameRenderer alone, per preset.
@@ -31,7 +32,7 @@ def bench_pick_place(quick: bool) -> dict:
     """Run the group; ``quick`` uses fewer repeats."""
     import mujoco
 
-    from benchmarks.run import summarize
+    from benchmarks.common import summarize
     from pick_place_sim import CubeStart, build_model, run_pick_place
     from so101_motion import FINAL_CONFIGURATION, STARTING_CONFIGURATION
     from so101_render import QUALITY, FrameRenderer, target_cubes
@@ -43,7 +44,7 @@ def bench_pick_place(quick: bool) -> dict:
         report = run_pick_place()
         factors.append(report.realtime_factor)
         per_step.append(report.wall_time_s / round(report.sim_time_s / 0.002) * 1e6)
-    out["pick_place_realtime_factor"] = summarize(factors)
+    out["sim_realtime_factor"] = summarize(factors)
     out["pick_place_us_per_step"] = summarize(per_step)
     arm = build_model(render_meshes=True)
     d = mujoco.MjData(arm)
@@ -58,15 +59,17 @@ def bench_pick_place(quick: bool) -> dict:
     out["pick_place_step_vs_arm_step"] = (out["pick_place_us_per_step"]["median"]
                                           / out["mujoco_arm_step_us"]["median"])
 
-    ratios, cpu_per_frame = [], []
+    ratios, cpu_per_frame, fps = [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         for _ in range(1 if quick else 3):
             cpu0, child0 = time.process_time(), _children_cpu()
             report = run_pick_place(mode="record", video=Path(tmp) / "v.mp4", progress=False)
             cpu = time.process_time() - cpu0 + _children_cpu() - child0
             ratios.append(report.wall_time_s / (report.frames_written / 30.0))
+            fps.append(report.frames_written / report.wall_time_s)
             cpu_per_frame.append(cpu / report.frames_written * 1e3)
-    out["record_wall_vs_video"] = summarize(ratios)
+    out["record_wall_over_video_duration"] = summarize(ratios)
+    out["record_fps"] = summarize(fps)
     out["record_cpu_ms_per_frame"] = summarize(cpu_per_frame)
 
     frames = {"fast": 30, "shadows": 15, "high": 5} if quick else {"fast": 90, "shadows": 30,

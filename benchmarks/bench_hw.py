@@ -1,0 +1,43 @@
+"""Benchmark group "hw": the hardware control loop and the bus cycle, against the virtual SO-101.
+
+Figures (need the hw extra, lerobot):
+  - hw_loop_hz_<rate>, hw_period_p50_ms_<rate>, hw_period_p99_error_ms_<rate>:
+    pick_place_hw's deadline-scheduled loop at 100 Hz and 200 Hz, talking to
+    the virtual arm with wire timing at 1 Mbaud (goal: p99 period error < 1 ms);
+  - wire_cycle_ms: one 6-motor sync_read + sync_write through lerobot's bus,
+    wire_time_ms: the bytes' time on a 1 Mbaud wire (88 bytes, 10 bits each),
+    wire_cycle_emulator_added_ms: what the virtual arm adds beyond the wire and
+    lerobot's own host cost (goal < 0.3 ms).
+"""
+
+from __future__ import annotations
+
+from benchmarks.common import summarize
+
+
+def bench_hw(quick: bool) -> dict:
+    """Run the group; ``quick`` measures shorter."""
+    try:
+        import lerobot  # noqa: F401
+    except ImportError:
+        return {"_hw_skipped": "lerobot is not installed (pip install -e '.[hw]')"}
+    from pick_place_hw import measure_loop_timing
+    from virtual_so101 import measure_cycle
+
+    out: dict = {}
+    samples: dict[str, list[float]] = {}
+    for _ in range(1 if quick else 3):
+        timing = measure_loop_timing(rates_hz=(100.0, 200.0), seconds=2.0 if quick else 5.0,
+                                     wire_timing=True)
+        for rate, stats in timing.items():
+            tag = f"{rate:.0f}hz"
+            samples.setdefault(f"hw_loop_hz_{tag}", []).append(stats["achieved_hz"])
+            samples.setdefault(f"hw_period_p50_ms_{tag}", []).append(stats["period_p50_ms"])
+            samples.setdefault(f"hw_period_p99_error_ms_{tag}", []).append(stats["period_p99_error_ms"])
+    cycles = [measure_cycle(n=300 if quick else 2000, wire_timing=True) for _ in range(1 if quick else 3)]
+    samples["wire_cycle_ms"] = [c["cycle_median_ms"] for c in cycles]
+    samples["wire_time_ms"] = [c["wire_ms"] for c in cycles]
+    samples["wire_cycle_emulator_added_ms"] = [c["emulator_added_median_ms"] for c in cycles]
+    for key, values in samples.items():
+        out[key] = summarize(values)
+    return out
