@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from so101_forward_kinematics import ARM_JOINTS, JOINTS, get_forward_kinematics
+from so101_inverse_kinematics import add_cartesian_arguments, plan_from_arguments
 from so101_motion import (
     PROFILES,
     Configuration,
@@ -1435,6 +1436,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="CSV of time, commanded and measured joints per cycle")
     parser.add_argument("--plot", type=Path, help="PNG of commanded vs measured per joint")
     parser.add_argument("--verbose", "-v", action="store_true", help="debug logging")
+    add_cartesian_arguments(parser)
     return parser
 
 
@@ -1464,7 +1466,8 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
                         format="%(levelname)s: %(message)s")
     try:
-        plan = load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold)
+        plan = plan_from_arguments(args) or (
+            load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold))
         calibration, source = None, None
         if args.calibration:
             source = args.calibration
