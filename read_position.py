@@ -7,16 +7,18 @@ import logging
 import sys
 from pathlib import Path
 
-import pick_place_hw as hw
+from pick_place_hw import TEACH_RATE_HZ, teach
+from so101_bus import FIND_PORT_HINT, connect, disconnect
+from so101_calibration import HardwareError, find_calibration, load_calibration
 
-RATE_HZ = hw.TEACH_RATE_HZ  # printing rate [Hz]
+RATE_HZ = TEACH_RATE_HZ  # printing rate [Hz]
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 done, 2 refused)."""
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--port", required=True,
-                        help=f"serial port of the arm (find it with `{hw.FIND_PORT_HINT}`)")
+                        help=f"serial port of the arm (find it with `{FIND_PORT_HINT}`)")
     who = parser.add_mutually_exclusive_group(required=True)
     who.add_argument("--id", dest="robot_id", help="robot id given to lerobot-calibrate")
     who.add_argument("--calibration", type=Path, help="lerobot calibration JSON of this arm")
@@ -26,16 +28,16 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s: %(message)s")
     try:
-        path = args.calibration or hw.find_calibration(args.robot_id, args.port)
-        calibration = hw.load_calibration(path, args.robot_id)
-        bus = hw.connect(args.port, calibration, robot_id=args.robot_id)
-    except hw.HardwareError as error:
+        path = args.calibration or find_calibration(args.robot_id, args.port)
+        calibration = load_calibration(path, args.robot_id)
+        bus = connect(args.port, calibration, robot_id=args.robot_id)
+    except HardwareError as error:
         print(f"Refused: {error}", file=sys.stderr)
         return 2
     try:
-        hw.teach(bus, rate_hz=args.rate, duration=args.duration)
+        teach(bus, rate_hz=args.rate, duration=args.duration)
     finally:
-        hw.disconnect(bus)
+        disconnect(bus)
     return 0
 
 

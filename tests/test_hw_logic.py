@@ -1,8 +1,9 @@
-"""pick_place_hw without an arm: calibration, limits, speed cap, scheduler, session logic, CLI.
+"""The hardware code without an arm: calibration, limits, speed cap, scheduler, session, CLI.
 
-These run without lerobot: the session is driven through a small fake bus and
-a fake clock, so they are fast and deterministic. The same behaviour against
-the real lerobot bus and the virtual SO-101 is in test_pick_place_hw.py.
+These cover so101_calibration, so101_bus and pick_place_hw and run without
+lerobot: the session is driven through a small fake bus and a fake clock, so
+they are fast and deterministic. The same behaviour against the real lerobot
+bus and the virtual SO-101 is in test_pick_place_hw.py.
 """
 
 from __future__ import annotations
@@ -18,6 +19,37 @@ import numpy as np
 import pytest
 
 import pick_place_hw as hw
+from so101_bus import (
+    MAX_JOINT_SPEED_DEG_S,
+    MAX_MISSED_READS,
+    RETURN_MIN_DURATION_S,
+    RETURN_SPEED_DEG_S,
+    TRACKING_TIMEOUT_S,
+    ArmSession,
+    BusError,
+    ConnectionFailed,
+    RateLoop,
+    TrackingError,
+    bus_errors,
+    capped_duration,
+    hold_position,
+    loop_timing_stats,
+    make_bus,
+    move_to_pose,
+    peak_speed_factor,
+    session_for,
+    speed_caps,
+)
+from so101_calibration import (
+    MOTOR_IDS,
+    CalibrationError,
+    ServoCalibration,
+    calibrated_limits,
+    find_calibration,
+    lerobot_calibration_root,
+    load_calibration,
+    ticks_to_user,
+)
 from so101_forward_kinematics import JOINTS, get_forward_kinematics
 from so101_motion import JointLimitError, Plan, PlanError, Step, default_plan, pick_and_place_steps
 
@@ -53,7 +85,7 @@ class FakeBus:
 
     def __init__(self, calibration, pose, stalled=()):
         self.calibration = calibration
-        self.motors = {j: types.SimpleNamespace(id=hw.MOTOR_IDS[j]) for j in JOINTS}
+        self.motors = {j: types.SimpleNamespace(id=MOTOR_IDS[j]) for j in JOINTS}
         self.pose = dict(pose)
         self.stalled = set(stalled)
         self.goals: list[dict] = []
@@ -93,7 +125,7 @@ class FakeBus:
 
 @pytest.fixture
 def calibration():
-    return hw.load_calibration(VIRTUAL_CALIBRATION)
+    return load_calibration(VIRTUAL_CALIBRATION)
 
 
 @pytest.fixture
@@ -103,7 +135,7 @@ def clock():
 
 def make_session(calibration, clock, pose=HOME, stalled=(), **kwargs):
     bus = FakeBus(calibration, pose, stalled)
-    return hw.ArmSession(bus, clock=clock.clock, sleep=clock.sleep, **kwargs), bus
+    return ArmSession(bus, clock=clock.clock, sleep=clock.sleep, **kwargs), bus
 
 
 def write_calibration(tmp_path, data, name="arm.json") -> Path:
@@ -132,8 +164,8 @@ def test_virtual_calibration_loads_in_joint_order(calibration):
 def test_malformed_calibration_is_refused_with_the_fix(tmp_path, mutate, words):
     data = json.loads(VIRTUAL_CALIBRATION.read_text())
     mutate(data)
-    with pytest.raises(hw.CalibrationError) as info:
-        hw.load_calibration(write_calibration(tmp_path, data), robot_id="lab_arm")
+    with pytest.raises(CalibrationError) as info:
+        load_calibration(write_calibration(tmp_path, data), robot_id="lab_arm")
     message = str(info.value)
     for word in words:
         assert word in message
@@ -141,19 +173,19 @@ def test_malformed_calibration_is_refused_with_the_fix(tmp_path, mutate, words):
 
 
 def test_missing_and_invalid_calibration_files(tmp_path):
-    with pytest.raises(hw.CalibrationError, match="does not exist.*lerobot-calibrate"):
-        hw.load_calibration(tmp_path / "nope.json")
+    with pytest.raises(CalibrationError, match="does not exist.*lerobot-calibrate"):
+        load_calibration(tmp_path / "nope.json")
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
-    with pytest.raises(hw.CalibrationError, match="not valid JSON"):
-        hw.load_calibration(bad)
+    with pytest.raises(CalibrationError, match="not valid JSON"):
+        load_calibration(bad)
 
 
 def test_calibration_is_found_where_lerobot_keeps_it(tmp_path, monkeypatch):
     monkeypatch.delenv("HF_LEROBOT_HOME", raising=False)
     monkeypatch.setenv("HF_LEROBOT_CALIBRATION", str(tmp_path))
-    with pytest.raises(hw.CalibrationError) as info:
-        hw.find_calibration("lab_arm", "/dev/ttyACM0")
+    with pytest.raises(CalibrationError) as info:
+        find_calibration("lab_arm", "/dev/ttyACM0")
     message = str(info.value)
     assert str(tmp_path / "robots" / "so_follower" / "lab_arm.json") in message
     assert str(tmp_path / "robots" / "so101_follower" / "lab_arm.json") in message
@@ -162,31 +194,31 @@ def test_calibration_is_found_where_lerobot_keeps_it(tmp_path, monkeypatch):
     older = tmp_path / "robots" / "so101_follower" / "lab_arm.json"
     older.parent.mkdir(parents=True)
     older.write_text(VIRTUAL_CALIBRATION.read_text())
-    assert hw.find_calibration("lab_arm") == older
+    assert find_calibration("lab_arm") == older
     newer = tmp_path / "robots" / "so_follower" / "lab_arm.json"
     newer.parent.mkdir(parents=True)
     newer.write_text(VIRTUAL_CALIBRATION.read_text())
-    assert hw.find_calibration("lab_arm") == newer
+    assert find_calibration("lab_arm") == newer
 
 
 def test_calibration_root_follows_lerobot_environment(tmp_path, monkeypatch):
     for name in ("HF_LEROBOT_CALIBRATION", "HF_LEROBOT_HOME", "HF_HOME", "XDG_CACHE_HOME"):
         monkeypatch.delenv(name, raising=False)
     default = Path("~/.cache/huggingface/lerobot/calibration").expanduser()
-    assert hw.lerobot_calibration_root() == default
+    assert lerobot_calibration_root() == default
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     xdg = tmp_path / "xdg" / "huggingface" / "lerobot" / "calibration"
-    assert hw.lerobot_calibration_root() == xdg
+    assert lerobot_calibration_root() == xdg
     monkeypatch.setenv("HF_HOME", str(tmp_path / "hf"))
-    assert hw.lerobot_calibration_root() == tmp_path / "hf" / "lerobot" / "calibration"
+    assert lerobot_calibration_root() == tmp_path / "hf" / "lerobot" / "calibration"
     monkeypatch.setenv("HF_LEROBOT_HOME", str(tmp_path / "home"))
-    assert hw.lerobot_calibration_root() == tmp_path / "home" / "calibration"
+    assert lerobot_calibration_root() == tmp_path / "home" / "calibration"
     monkeypatch.setenv("HF_LEROBOT_CALIBRATION", str(tmp_path / "cal"))
-    assert hw.lerobot_calibration_root() == tmp_path / "cal"
+    assert lerobot_calibration_root() == tmp_path / "cal"
 
 
 def test_calibrated_limits_are_lerobots_normalisation_of_the_range(calibration):
-    limits = hw.calibrated_limits(calibration)
+    limits = calibrated_limits(calibration)
     pan = calibration["shoulder_pan"]
     half = (pan.range_max - pan.range_min) / 2 * 360 / 4095
     assert limits["shoulder_pan"] == pytest.approx((-half, half), abs=1e-12)
@@ -195,17 +227,17 @@ def test_calibrated_limits_are_lerobots_normalisation_of_the_range(calibration):
 
 def test_ticks_to_user_matches_lerobot_bus_normalisation(calibration):
     pytest.importorskip("lerobot")
-    bus = hw.make_bus("/dev/null", calibration)  # constructed, never connected
+    bus = make_bus("/dev/null", calibration)  # constructed, never connected
     rng = np.random.default_rng(5)
     for joint in JOINTS:
         cal = calibration[joint]
-        motor_id = hw.MOTOR_IDS[joint]
+        motor_id = MOTOR_IDS[joint]
         for raw in rng.integers(cal.range_min - 50, cal.range_max + 50, 40):
             expected = bus._normalize({motor_id: int(raw)})[motor_id]
-            assert hw.ticks_to_user(joint, int(raw), cal) == pytest.approx(expected, abs=1e-9)
-    drive = dict(calibration, gripper=hw.ServoCalibration(6, 1, 0, 1000, 2000))
-    bus = hw.make_bus("/dev/null", drive)
-    assert hw.ticks_to_user("gripper", 1200, drive["gripper"]) == pytest.approx(
+            assert ticks_to_user(joint, int(raw), cal) == pytest.approx(expected, abs=1e-9)
+    drive = dict(calibration, gripper=ServoCalibration(6, 1, 0, 1000, 2000))
+    bus = make_bus("/dev/null", drive)
+    assert ticks_to_user("gripper", 1200, drive["gripper"]) == pytest.approx(
         bus._normalize({6: 1200})[6])
 
 
@@ -224,7 +256,7 @@ def test_waypoint_beyond_the_model_limit_names_joint_value_and_limit(calibration
 
 
 def test_waypoint_beyond_a_narrow_calibration_is_refused(calibration):
-    narrow = dict(calibration, shoulder_lift=hw.ServoCalibration(2, 0, 0, 1600, 2500))
+    narrow = dict(calibration, shoulder_lift=ServoCalibration(2, 0, 0, 1600, 2500))
     with pytest.raises(JointLimitError) as info:
         hw.validate_plan_for_arm(default_plan(), narrow, "lab_arm.json")
     message = str(info.value)
@@ -242,23 +274,23 @@ def test_plan_errors_name_the_problem(calibration):
 
 # --- speed cap ---------------------------------------------------------------------------
 def test_peak_speed_factors():
-    assert hw.peak_speed_factor("linear") == pytest.approx(1.0)
-    assert hw.peak_speed_factor("minimum_jerk") == pytest.approx(1.875, rel=1e-4)
+    assert peak_speed_factor("linear") == pytest.approx(1.0)
+    assert peak_speed_factor("minimum_jerk") == pytest.approx(1.875, rel=1e-4)
 
 
 def test_capped_duration_stretches_only_when_needed():
-    caps = hw.speed_caps(100.0, 50.0)
+    caps = speed_caps(100.0, 50.0)
     start, goal = dict(HOME), dict(HOME, shoulder_pan=90.0)
-    assert hw.capped_duration(start, goal, 2.0, "minimum_jerk", caps) == 2.0
-    assert hw.capped_duration(start, goal, 1.0, "minimum_jerk", caps) == pytest.approx(1.6875)
-    assert hw.capped_duration(start, goal, 0.1, "linear", caps) == pytest.approx(0.9)
+    assert capped_duration(start, goal, 2.0, "minimum_jerk", caps) == 2.0
+    assert capped_duration(start, goal, 1.0, "minimum_jerk", caps) == pytest.approx(1.6875)
+    assert capped_duration(start, goal, 0.1, "linear", caps) == pytest.approx(0.9)
     gripper = dict(HOME, gripper=59.0)  # 50 % at 50 %/s
-    assert hw.capped_duration(start, gripper, 0.2, "linear", caps) == pytest.approx(1.0)
+    assert capped_duration(start, gripper, 0.2, "linear", caps) == pytest.approx(1.0)
 
 
 # --- the deadline scheduler ------------------------------------------------------------
 def test_rate_loop_deadlines_do_not_drift_with_varying_work(clock):
-    loop = hw.RateLoop(100.0, clock.clock, clock.sleep, spin=0.0005)
+    loop = RateLoop(100.0, clock.clock, clock.sleep, spin=0.0005)
     t0 = loop.start()
     rng = np.random.default_rng(1)
     wakes = []
@@ -273,7 +305,7 @@ def test_rate_loop_deadlines_do_not_drift_with_varying_work(clock):
 
 
 def test_rate_loop_counts_overruns_and_skips_missed_deadlines(clock):
-    loop = hw.RateLoop(100.0, clock.clock, clock.sleep)
+    loop = RateLoop(100.0, clock.clock, clock.sleep)
     t0 = loop.start()
     clock.now += 0.013  # 3 ms late: run the next cycle at once, keep the grid
     assert loop.wait() == pytest.approx(t0 + 0.01)
@@ -290,12 +322,12 @@ def test_rate_loop_counts_overruns_and_skips_missed_deadlines(clock):
 def test_rate_loop_refuses_impossible_rates():
     for rate in (0, -10, 5000, float("nan")):
         with pytest.raises(ValueError, match="rate"):
-            hw.RateLoop(rate)
+            RateLoop(rate)
 
 
 def test_loop_timing_stats():
     times = [0.0, 0.010, 0.020, 0.031, 0.040, 0.050]
-    stats = hw.loop_timing_stats(times, 100.0)
+    stats = loop_timing_stats(times, 100.0)
     assert stats["period_p50_ms"] == pytest.approx(10.0)
     assert stats["achieved_hz"] == pytest.approx(100.0)
     assert stats["period_max_error_ms"] == pytest.approx(1.0)
@@ -312,7 +344,7 @@ def test_first_move_ramps_from_the_measured_pose_within_the_speed_cap(calibratio
     assert first_step.max() < 0.5  # no jump: the first command is next to the measured pose
     assert commands[-1] == pytest.approx([goal[j] for j in JOINTS])
     speed = np.abs(np.diff(commands, axis=0)).max(axis=0) * 100.0  # [deg/s] at 100 Hz
-    assert speed[:5].max() <= hw.MAX_JOINT_SPEED_DEG_S * 1.01
+    assert speed[:5].max() <= MAX_JOINT_SPEED_DEG_S * 1.01
     assert session.stretched and "stretched" in session.stretched[0]
     assert session.segments[0].duration > session.segments[0].requested == 0.5
 
@@ -331,11 +363,11 @@ def test_move_runs_on_the_rate_grid(calibration, clock):
 
 def test_course_call_shape_with_a_plain_bus(calibration, clock):
     bus = FakeBus(calibration, HOME)
-    hw.ArmSession(bus, clock=clock.clock, sleep=clock.sleep)  # registered for this bus
-    hw.move_to_pose(bus, dict(HOME, gripper=50.0), 1.0)
-    hw.hold_position(bus, 0.2)
+    ArmSession(bus, clock=clock.clock, sleep=clock.sleep)  # registered for this bus
+    move_to_pose(bus, dict(HOME, gripper=50.0), 1.0)
+    hold_position(bus, 0.2)
     assert bus.pose["gripper"] == pytest.approx(50.0)
-    assert hw.session_for(bus).segments[-1].kind == "hold"
+    assert session_for(bus).segments[-1].kind == "hold"
 
 
 def test_command_outside_the_calibrated_range_is_never_sent(calibration, clock):
@@ -347,7 +379,7 @@ def test_command_outside_the_calibrated_range_is_never_sent(calibration, clock):
 
 def test_stalled_joint_aborts_after_the_tracking_timeout(calibration, clock):
     session, bus = make_session(calibration, clock, stalled=["elbow_flex"])
-    with pytest.raises(hw.TrackingError) as info:
+    with pytest.raises(TrackingError) as info:
         session.move(dict(HOME, elbow_flex=30.0), 1.5)
     message = str(info.value)
     assert "elbow_flex does not follow" in message and "tolerance 15" in message
@@ -357,7 +389,7 @@ def test_stalled_joint_aborts_after_the_tracking_timeout(calibration, clock):
            for before, now in zip(cycles, cycles[1:], strict=False)]
     first_beyond = 1 + next(i for i, error in enumerate(lag) if error > 15.0)
     elapsed = cycles[-1].t_s - cycles[first_beyond].t_s
-    assert elapsed == pytest.approx(hw.TRACKING_TIMEOUT_S, abs=0.011)
+    assert elapsed == pytest.approx(TRACKING_TIMEOUT_S, abs=0.011)
     assert all(c.measured["elbow_flex"] == 90.0 for c in cycles)  # the joint never moved
 
 
@@ -370,11 +402,11 @@ def test_gripper_squeezing_a_cube_is_not_a_stall(calibration, clock):
 def test_a_missed_read_is_tolerated_but_a_silent_servo_is_a_bus_error(calibration, clock):
     session, bus = make_session(calibration, clock)
     session.move(dict(HOME, wrist_flex=32.0), 0.2)
-    bus.fail_reads = hw.MAX_MISSED_READS
+    bus.fail_reads = MAX_MISSED_READS
     session.hold(0.1)
-    assert sum(c.measured is None for c in session.cycles) == hw.MAX_MISSED_READS
-    bus.fail_reads = hw.MAX_MISSED_READS + 1
-    with pytest.raises(hw.BusError, match="no status packet"):
+    assert sum(c.measured is None for c in session.cycles) == MAX_MISSED_READS
+    bus.fail_reads = MAX_MISSED_READS + 1
+    with pytest.raises(BusError, match="no status packet"):
         session.hold(0.1)
 
 
@@ -397,9 +429,9 @@ def test_stop_request_returns_slowly_to_the_start_and_releases(calibration, cloc
     assert bus.goals[-1] == pytest.approx(start)
     back = [s for s in result.segments if s.step == "abort_return"]
     assert len(back) == 1
-    slow = hw.speed_caps(hw.RETURN_SPEED_DEG_S, hw.RETURN_SPEED_DEG_S)
+    slow = speed_caps(RETURN_SPEED_DEG_S, RETURN_SPEED_DEG_S)
     distance = max(abs(back[0].goal[j] - back[0].start[j]) / slow[j] for j in JOINTS)
-    expected = max(hw.RETURN_MIN_DURATION_S, distance * 1.875)
+    expected = max(RETURN_MIN_DURATION_S, distance * 1.875)
     assert back[0].duration == pytest.approx(expected, rel=1e-3)
 
 
@@ -426,7 +458,7 @@ def test_pick_and_place_waypoints_and_their_cube_positions(calibration):
     plan = default_plan()
     pick, place = pick_and_place_steps(plan)  # shared with the simulator
     assert (pick.name, place.name) == ("start_open", "final_open")
-    text = hw.format_plan(plan, rate_hz=100.0, profile="minimum_jerk", max_speed=hw.speed_caps())
+    text = hw.format_plan(plan, rate_hz=100.0, profile="minimum_jerk", max_speed=speed_caps())
     for label, step in (("pick ", pick), ("place", place)):
         x, y, _ = get_forward_kinematics(step.configuration)[0] * 100.0
         assert f"{label} ({step.name}): x = {x:.1f} cm, y = {y:.1f} cm" in text
@@ -547,18 +579,18 @@ def test_without_lerobot_a_real_run_says_how_to_install_it(tmp_path):
 
 
 def test_bus_failures_while_setting_up_say_what_to_do():
-    with pytest.raises(hw.ConnectionFailed) as info:
-        with hw.bus_errors("configuring the servos"):
+    with pytest.raises(ConnectionFailed) as info:
+        with bus_errors("configuring the servos"):
             raise RuntimeError("Failed to write 'P_Coefficient' on id_=3 after 1 tries.")
     assert "configuring the servos" in str(info.value) and "id_=3" in str(info.value)
     assert "power supply" in str(info.value)
-    with pytest.raises(hw.CalibrationError):  # our own errors pass through unchanged
-        with hw.bus_errors("reading"):
-            raise hw.CalibrationError("mismatch")
+    with pytest.raises(CalibrationError):  # our own errors pass through unchanged
+        with bus_errors("reading"):
+            raise CalibrationError("mismatch")
 
 
 def test_a_new_segment_continues_the_grid_after_a_late_cycle(clock):
-    loop = hw.RateLoop(100.0, clock.clock, clock.sleep)
+    loop = RateLoop(100.0, clock.clock, clock.sleep)
     t0 = loop.start()
     loop.wait()
     clock.now += 0.025  # the last cycle of a move ran long

@@ -1,4 +1,4 @@
-"""pick_place_hw against the virtual SO-101, through lerobot's real FeetechMotorsBus over a pty.
+"""pick_place_hw and so101_bus against the virtual SO-101, through lerobot's real bus over a pty.
 
 Each test starts its own virtual arm (a MuJoCo arm stepped in real time in a
 subprocess; about 1.5 s to start), so faults and torque states never leak
@@ -22,11 +22,20 @@ pytestmark = pytest.mark.hw
 
 import pick_place_hw as hw  # noqa: E402
 import so101_mujoco_utils as mu  # noqa: E402
+from so101_bus import (  # noqa: E402
+    MAX_MISSED_READS,
+    ConnectionFailed,
+    calibration_mismatch,
+    connect,
+    disconnect,
+    measure_loop_timing,
+)
+from so101_calibration import CalibrationError, load_calibration  # noqa: E402
 from so101_forward_kinematics import ARM_JOINTS, JOINTS  # noqa: E402
 from so101_motion import JointLimitError, Plan, Step, default_plan  # noqa: E402
 from virtual_so101 import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
 
-CALIBRATION = hw.load_calibration(DEFAULT_CALIBRATION_PATH)
+CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
 HOME = {"shoulder_pan": 0.0, "shoulder_lift": -90.0, "elbow_flex": 90.0, "wrist_flex": 30.0,
         "wrist_roll": 0.0, "gripper": 9.0}
 """The virtual arm's power-up pose (the model's home keyframe), rounded."""
@@ -338,7 +347,7 @@ def test_servo_that_stops_answering_aborts_and_releases_the_others(arm):
     assert [j for j, on in arm.torque_enabled().items() if on] == ["wrist_flex"]
     # it stopped: no goal was sent after the failed reads
     failed = [i for i, c in enumerate(result.cycles) if c.measured is None]
-    assert len(failed) == hw.MAX_MISSED_READS and failed[-1] == len(result.cycles) - 1
+    assert len(failed) == MAX_MISSED_READS and failed[-1] == len(result.cycles) - 1
 
 
 def test_a_dropped_reply_is_ridden_through(arm):
@@ -360,7 +369,7 @@ def test_calibration_that_does_not_match_the_servos_is_refused(arm, tmp_path):
     path = tmp_path / "other_arm.json"
     path.write_text(json.dumps(data))
     before = arm.joint_positions()
-    with pytest.raises(hw.CalibrationError) as info:
+    with pytest.raises(CalibrationError) as info:
         hw.run_on_arm(arm.port, path, short_plan(), robot_id="other_arm")
     message = str(info.value)
     assert "shoulder_lift homing_offset: servo" in message and "--write-calibration" in message
@@ -375,12 +384,12 @@ def test_write_calibration_puts_the_file_into_the_servos(arm, tmp_path):
     data["wrist_roll"]["homing_offset"] += 40
     path = tmp_path / "recalibrated.json"
     path.write_text(json.dumps(data))
-    calibration = hw.load_calibration(path)
-    bus = hw.connect(arm.port, calibration, write_calibration=True)
+    calibration = load_calibration(path)
+    bus = connect(arm.port, calibration, write_calibration=True)
     try:
-        assert hw.calibration_mismatch(bus, calibration) == []
+        assert calibration_mismatch(bus, calibration) == []
     finally:
-        hw.disconnect(bus)
+        disconnect(bus)
     assert arm.registers("wrist_roll")["Homing_Offset"] == data["wrist_roll"]["homing_offset"]
     assert arm.goal_log() == []
 
@@ -390,7 +399,7 @@ def test_malformed_calibration_is_refused_before_connecting(arm, tmp_path):
     data["gripper"]["range_max"] = data["gripper"]["range_min"]
     path = tmp_path / "broken.json"
     path.write_text(json.dumps(data))
-    with pytest.raises(hw.CalibrationError, match="gripper.*empty range"):
+    with pytest.raises(CalibrationError, match="gripper.*empty range"):
         hw.run_on_arm(arm.port, path, short_plan())
     assert arm.goal_log() == []
 
@@ -410,10 +419,10 @@ def test_bad_waypoints_refuse_to_start(arm, tmp_path, capsys):
 
 
 def test_missing_port_and_silent_arm_are_refused(arm, tmp_path):
-    with pytest.raises(hw.ConnectionFailed, match="does not exist.*lerobot-find-port"):
+    with pytest.raises(ConnectionFailed, match="does not exist.*lerobot-find-port"):
         hw.run_on_arm(str(tmp_path / "ttyACM9"), DEFAULT_CALIBRATION_PATH, short_plan())
     arm.inject("remove:gripper")
-    with pytest.raises(hw.ConnectionFailed) as info:
+    with pytest.raises(ConnectionFailed) as info:
         hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, short_plan())
     assert "Missing motor IDs" in str(info.value) and "power supply" in str(info.value)
     assert arm.goal_log() == []
@@ -480,7 +489,7 @@ def test_teach_from_the_main_script_stops_on_ctrl_c(arm, capsys):
 
 def test_loop_timing_measurement_runs():
     """Smoke test of the benchmark helper (the figures are benchmarks, not asserted)."""
-    stats = hw.measure_loop_timing(rates_hz=(100.0, 200.0), seconds=0.6, wire_timing=True)
+    stats = measure_loop_timing(rates_hz=(100.0, 200.0), seconds=0.6, wire_timing=True)
     assert set(stats) == {100.0, 200.0}
     for rate, figures in stats.items():
         for key in ("achieved_hz", "period_p50_ms", "period_p99_error_ms", "overruns"):
