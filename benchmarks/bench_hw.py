@@ -2,7 +2,7 @@
 
 Figures (need the hw extra, lerobot):
   - hw_loop_hz_<rate>, hw_period_p50_ms_<rate>, hw_period_p99_error_ms_<rate>:
-    pick_place_hw's deadline-scheduled loop at 100 Hz and 200 Hz, talking to
+    so101_bus's deadline-scheduled loop at 100 Hz and 200 Hz, talking to
     the virtual arm with wire timing at 1 Mbaud (goal: p99 period error < 1 ms);
   - wire_cycle_ms: one 6-motor sync_read + sync_write through lerobot's bus,
     wire_time_ms: the bytes' time on a 1 Mbaud wire (88 bytes, 10 bits each),
@@ -33,8 +33,10 @@ def bench_hw(quick: bool) -> dict:
             tag = f"{rate:.0f}hz"
             samples.setdefault(f"hw_loop_hz_{tag}", []).append(stats["achieved_hz"])
             samples.setdefault(f"hw_period_p50_ms_{tag}", []).append(stats["period_p50_ms"])
-            samples.setdefault(f"hw_period_p99_error_ms_{tag}", []).append(stats["period_p99_error_ms"])
-    cycles = [measure_cycle(n=300 if quick else 2000, wire_timing=True) for _ in range(1 if quick else 3)]
+            samples.setdefault(f"hw_period_p99_error_ms_{tag}", []).append(
+                stats["period_p99_error_ms"])
+    cycles = [measure_cycle(n=300 if quick else 2000, wire_timing=True)
+              for _ in range(1 if quick else 3)]
     samples["wire_cycle_ms"] = [c["cycle_median_ms"] for c in cycles]
     samples["wire_time_ms"] = [c["wire_ms"] for c in cycles]
     samples["wire_cycle_emulator_added_ms"] = [c["emulator_added_median_ms"] for c in cycles]
