@@ -19,6 +19,7 @@ from __future__ import annotations
 import difflib
 import json
 import math
+import numbers
 import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -26,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from so101_forward_kinematics import ARM_JOINTS, JOINTS
+from so101_forward_kinematics import JOINTS
 
 Configuration = dict[str, float]
 Limits = Mapping[str, tuple[float, float]]
@@ -43,6 +44,12 @@ class JointLimitError(PlanError):
 def unit(joint: str) -> str:
     """Unit of a joint's value at the user boundary: "deg" or "%" (gripper)."""
     return "%" if joint == "gripper" else "deg"
+
+
+def _is_finite_number(value) -> bool:
+    """True for a finite int or float (numpy scalars included), False for bools and the rest."""
+    return (not isinstance(value, (bool, np.bool_)) and isinstance(value, numbers.Real)
+            and math.isfinite(value))
 
 
 def check_configuration(cfg: Mapping[str, float], limits: Limits, where: str = "") -> Configuration:
@@ -74,7 +81,7 @@ def check_configuration(cfg: Mapping[str, float], limits: Limits, where: str = "
         if joint not in cfg:
             raise PlanError(f"{prefix}joint '{joint}' is missing; give all of {', '.join(limits)}.")
         value = cfg[joint]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        if not _is_finite_number(value):
             raise PlanError(f"{prefix}joint '{joint}' must be a finite number, got {value!r}.")
         lower, upper = limits[joint]
         if not lower <= value <= upper:
@@ -142,7 +149,7 @@ class Trajectory:
 
 @dataclass
 class Step:
-    """One waypoint of a plan: move to ``configuration`` in ``duration`` [s], then hold ``hold`` [s]."""
+    """One waypoint: move to ``configuration`` in ``duration`` [s], then hold ``hold`` [s]."""
 
     name: str
     configuration: Configuration
@@ -264,9 +271,9 @@ def validate_plan(plan: Plan, limits: Limits) -> Plan:
             raise PlanError(f"{where}: the name is used twice; give each waypoint its own name.")
         seen.add(step.name)
         for label, value in (("duration", step.duration), ("hold", step.hold)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                    or not math.isfinite(value) or value < 0:
-                raise PlanError(f"{where}: {label} must be a number of seconds >= 0, got {value!r}.")
+            if not _is_finite_number(value) or value < 0:
+                raise PlanError(f"{where}: {label} must be a number of seconds >= 0, "
+                                f"got {value!r}.")
         step.configuration = check_configuration(step.configuration, limits, where)
     return plan
 

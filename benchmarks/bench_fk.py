@@ -1,4 +1,4 @@
-"""Benchmark group "fk": forward kinematics per call and in batch, beside MuJoCo's own kinematics."""
+"""Benchmark group "fk": FK per call and in batch, beside MuJoCo's own kinematics."""
 
 from __future__ import annotations
 
@@ -62,7 +62,8 @@ def bench_fk(quick: bool) -> dict:
         mujoco.mj_kinematics(m, d)
         return d.site_xpos[site].copy(), d.site_xmat[site].reshape(3, 3).copy()
 
-    seed = per_call_us(lambda: _seed_style_forward_kinematics(TEST_CONFIGURATION), calls // 4, repeats)
+    seed = per_call_us(lambda: _seed_style_forward_kinematics(TEST_CONFIGURATION), calls // 4,
+                       repeats)
     single = per_call_us(lambda: fk.get_forward_kinematics(TEST_CONFIGURATION), calls, repeats)
     reference = per_call_us(mujoco_fk, calls, repeats)
 
@@ -82,7 +83,8 @@ def bench_fk(quick: bool) -> dict:
         "mujoco_kinematics_us": summarize(reference),
         "fk_batch_ns_per_config": summarize(batch),
     }
-    out["fk_single_vs_mujoco"] = out["fk_single_us"]["median"] / out["mujoco_kinematics_us"]["median"]
+    out["fk_single_vs_mujoco"] = (out["fk_single_us"]["median"]
+                                  / out["mujoco_kinematics_us"]["median"])
     out["fk_batch_speedup_vs_mujoco_loop"] = (
         out["mujoco_kinematics_us"]["median"] * 1e3 / out["fk_batch_ns_per_config"]["median"])
     out["fk_batch_configs"] = n

@@ -9,12 +9,12 @@ from benchmarks.common import SEED, summarize
 
 
 def bench_ik(quick: bool) -> dict:
-    """IK per target (top-down with a yaw; free yaw; position only) and success on reachable ones."""
+    """IK per target (top-down with a yaw; free yaw; position only); success on reachable ones."""
     import so101_inverse_kinematics as ik
 
     _, positions, yaws = ik.sample_top_down_targets(20_000 if quick else 100_000, seed=SEED)
     n = 300 if quick else 1000
-    targets = [(tuple(p), float(y)) for p, y in zip(positions[:n], yaws[:n])]
+    targets = [(tuple(p), float(y)) for p, y in zip(positions[:n], yaws[:n], strict=True)]
     calls = {
         "ik_solve_us": lambda t: ik.get_inverse_kinematics(t[0], "down", t[1]),
         "ik_solve_free_yaw_us": lambda t: ik.get_inverse_kinematics(t[0], "down", None),
@@ -34,7 +34,7 @@ def bench_ik(quick: bool) -> dict:
     # Success on targets known reachable: FK of random in-limit configurations.
     _, positions, yaws = ik.sample_top_down_targets(50_000 if quick else 500_000, seed=SEED + 1)
     solved = 0
-    for position, yaw in zip(positions, yaws):
+    for position, yaw in zip(positions, yaws, strict=True):
         try:
             ik.get_inverse_kinematics(position, "down", float(yaw))
             solved += 1

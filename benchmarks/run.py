@@ -16,7 +16,6 @@ import argparse
 import json
 import os
 import platform
-import statistics
 import sys
 import time
 from collections.abc import Callable
@@ -33,7 +32,6 @@ from benchmarks.bench_fk import bench_fk  # noqa: E402
 from benchmarks.bench_hw import bench_hw  # noqa: E402
 from benchmarks.bench_ik import bench_ik  # noqa: E402
 from benchmarks.bench_pick_place import bench_pick_place  # noqa: E402
-
 
 BENCHMARKS: dict[str, Callable[[bool], dict]] = {
     "fk": bench_fk,
@@ -74,11 +72,14 @@ def format_table(results: dict) -> str:
                   ">=": _value(entry) >= bound}[op]
             goal = f"{op} {bound:g} {'ok' if ok else 'MISSED'}"
         if isinstance(entry, dict):
-            rows.append((key, f"{entry['median']:.4g}", f"{entry['min']:.4g}", f"{entry['max']:.4g}", goal))
+            cells = [f"{entry[part]:.4g}" for part in ("median", "min", "max")]
+            rows.append((key, *cells, goal))
         else:
-            rows.append((key, f"{entry:.4g}" if isinstance(entry, float) else str(entry), "", "", goal))
+            text = f"{entry:.4g}" if isinstance(entry, float) else str(entry)
+            rows.append((key, text, "", "", goal))
     widths = [max(len(row[i]) for row in rows) for i in range(5)]
-    lines = ["  ".join(cell.ljust(w) for cell, w in zip(row, widths)).rstrip() for row in rows]
+    lines = ["  ".join(cell.ljust(w) for cell, w in zip(row, widths, strict=True)).rstrip()
+             for row in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
     return "\n".join(lines)
 
@@ -88,7 +89,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repeats (under 2 minutes)")
     parser.add_argument("--json", type=Path, help="write the results as JSON here")
-    parser.add_argument("--only", nargs="+", choices=sorted(BENCHMARKS), help="run only these groups")
+    parser.add_argument("--only", nargs="+", choices=sorted(BENCHMARKS),
+                        help="run only these groups")
     args = parser.parse_args()
 
     results: dict = {}
