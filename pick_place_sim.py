@@ -100,7 +100,7 @@ class CubeStart:
 
 
 def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
-                render_meshes: bool = False) -> mujoco.MjModel:
+                render_meshes: bool = False, physics_only: bool = False) -> mujoco.MjModel:
     """Compile the course scene, optionally with a free cube at the plan's pick position.
 
     Args:
@@ -108,6 +108,9 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
         cube: the cube's start; ``None`` for no cube.
         render_meshes: use the decimated render-only meshes (for a model that
             is only drawn; see ``so101_render.use_render_meshes``).
+        physics_only: leave out the visual geoms and their meshes (for a run
+            that is never drawn). They have no mass and no contact, so the
+            physics is bit for bit the same; each step skips their poses.
 
     Returns:
         The model. Sleeping is enabled: a cube at rest on the table costs no
@@ -115,7 +118,9 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
     """
     ensure_meshes()
     spec = mujoco.MjSpec.from_file(str(SCENE_PATH))
-    if render_meshes:
+    if physics_only:
+        _remove_visuals(spec)
+    elif render_meshes:
         use_render_meshes(spec)
     if cube is not None:
         pick, _ = pick_and_place_steps(plan or default_plan())
@@ -128,10 +133,21 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
     return spec.compile()
 
 
+def _remove_visuals(spec: mujoco.MjSpec) -> None:
+    """Delete the arm's visual geoms (class "visual": no contact, no mass) and the meshes."""
+    for geom in list(spec.geoms):
+        massless = geom.density == 0 and not geom.mass > 0  # mass is NaN when not given
+        if (geom.type == mujoco.mjtGeom.mjGEOM_MESH and geom.contype == 0
+                and geom.conaffinity == 0 and massless):
+            spec.delete(geom)
+    for mesh in list(spec.meshes):
+        spec.delete(mesh)
+
+
 @functools.lru_cache(maxsize=1)
 def scene_limits() -> dict[str, tuple[float, float]]:
     """Joint limits of the scene's arm in user units ([deg], gripper [0, 100])."""
-    return utils.joint_limits(build_model(render_meshes=True))
+    return utils.joint_limits(build_model(physics_only=True))
 
 
 class CubeMonitor:
@@ -150,11 +166,14 @@ class CubeMonitor:
         self.d, self.inner = d, inner
         self.offscreen = inner is None or getattr(inner, "offscreen", False)
         self.sync_every_step = inner is not None and getattr(inner, "sync_every_step", False)
-        self.has_cube = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "cube") >= 0
+        cube = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "cube")
+        self.has_cube = cube >= 0
         self._next = d.time
         if self.has_cube:
-            self._cube, self._site = d.body("cube"), d.site(TOOL_SITE)
-            self.start_height = float(self._cube.xpos[2])
+            # Views into d (rows of its arrays): they follow the simulation.
+            self._cube = d.xpos[cube]
+            self._site = d.site_xpos[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, TOOL_SITE)]
+            self.start_height = float(self._cube[2])
         self.max_lift = 0.0  # [m]
         self.dropped = False
 
@@ -164,7 +183,7 @@ class CubeMonitor:
 
     def sync(self) -> None:
         """Check the cube (every MONITOR_PERIOD [s]), then forward."""
-        if self.has_cube and self.d.time >= self._next:
+        if self.has_cube and self.d.time >= self._next - 1e-9:
             self._next = self.d.time + MONITOR_PERIOD
             self.check()
         if self.inner is not None:
@@ -172,10 +191,9 @@ class CubeMonitor:
 
     def check(self) -> None:
         """Update the lift height and note a drop: the cube in the air, out of the grip."""
-        lift = float(self._cube.xpos[2]) - self.start_height
+        lift = float(self._cube[2]) - self.start_height
         self.max_lift = max(self.max_lift, lift)
-        held = np.linalg.norm(self._cube.xpos - self._site.xpos) <= HELD_DISTANCE
-        if lift > AIRBORNE_HEIGHT and not held:
+        if lift > AIRBORNE_HEIGHT and math.dist(self._cube, self._site) > HELD_DISTANCE:
             self.dropped = True
 
 
@@ -287,9 +305,10 @@ def run_pick_place(
     plan = validate_plan(plan or default_plan(), scene_limits())
     # Visual meshes have no mass and no contact: the physics is bit for bit the
     # same with the render-only meshes, which compile 4x faster and draw 3x
-    # faster. Only the interactive viewer shows the upstream meshes.
-    light = mode == "headless" or (mode == "record" and QUALITY[quality].light_meshes)
-    m = build_model(plan, cube, render_meshes=light)
+    # faster, and without any (headless). Only the interactive viewer shows
+    # the upstream meshes.
+    light = mode == "record" and QUALITY[quality].light_meshes
+    m = build_model(plan, cube, render_meshes=light, physics_only=mode == "headless")
     d = mujoco.MjData(m)
     mujoco.mj_resetDataKeyframe(m, d, m.key(INITIAL_KEYFRAME).id)
     mujoco.mj_forward(m, d)
