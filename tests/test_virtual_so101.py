@@ -18,8 +18,10 @@ import tty
 import numpy as np
 import pytest
 
+import feetech_protocol as fp
 import so101_mujoco_utils as smu
 import virtual_so101 as vso
+import virtual_so101_calibration as vcal
 from so101_forward_kinematics import JOINTS
 from so101_motion import JointLimitError
 from virtual_so101 import DEFAULT_CALIBRATION_PATH, VirtualSO101
@@ -102,7 +104,7 @@ class RawPort:
         termios.tcflush(self.fd, termios.TCIFLUSH)
 
     def send(self, servo_id, instruction, params=b""):
-        os.write(self.fd, vso.instruction_packet(servo_id, instruction, bytes(params)))
+        os.write(self.fd, fp.instruction_packet(servo_id, instruction, bytes(params)))
 
     def receive(self, n_bytes, timeout=0.2):
         """Up to n_bytes, waiting at most timeout [s] in total."""
@@ -133,15 +135,15 @@ def split_status(data):
         assert data[:2] == b"\xff\xff", data
         length = data[3]
         packet, data = data[:length + 4], data[length + 4:]
-        assert packet[-1] == vso.checksum(packet[2:-1]), f"bad checksum in {packet.hex()}"
+        assert packet[-1] == fp.checksum(packet[2:-1]), f"bad checksum in {packet.hex()}"
         packets.append((packet[2], packet[4], packet[5:-1]))
     return packets
 
 
 # --- calibration and mapping (no lerobot needed) --------------------------------------------
 def test_shipped_calibration_is_derived_from_the_model(model):
-    shipped = vso.load_calibration(DEFAULT_CALIBRATION_PATH)
-    assert shipped == vso.make_default_calibration(model)
+    shipped = vcal.load_calibration(DEFAULT_CALIBRATION_PATH)
+    assert shipped == vcal.make_default_calibration(model)
     for joint, entry in shipped.items():
         assert entry["drive_mode"] == 0
         if joint not in ("gripper", "wrist_roll"):
@@ -150,13 +152,13 @@ def test_shipped_calibration_is_derived_from_the_model(model):
 
 
 def test_calibrated_ranges_cover_the_model_joint_limits(model):
-    calibration = vso.load_calibration(DEFAULT_CALIBRATION_PATH)
+    calibration = vcal.load_calibration(DEFAULT_CALIBRATION_PATH)
     limits = smu.joint_limits(model)
     for joint, (lower, upper) in limits.items():
         entry = calibration[joint]
         joint_range = tuple(model.joint(joint).range)
         low_ticks, high_ticks = (
-            vso.radians_to_present(entry, joint, smu.to_radians(model, {joint: v})[joint],
+            vcal.radians_to_present(entry, joint, smu.to_radians(model, {joint: v})[joint],
                                    joint_range)
             for v in (lower, upper))
         assert entry["range_min"] <= low_ticks + 1e-9, joint
@@ -165,7 +167,7 @@ def test_calibrated_ranges_cover_the_model_joint_limits(model):
 
 def test_tick_mapping_agrees_with_the_simulator_units(model):
     """Ticks -> lerobot's DEGREES / RANGE_0_100 formulas == so101_mujoco_utils' user units."""
-    calibration = vso.load_calibration(DEFAULT_CALIBRATION_PATH)
+    calibration = vcal.load_calibration(DEFAULT_CALIBRATION_PATH)
     limits = smu.joint_limits(model)
     rng = np.random.default_rng(4)
     for _ in range(200):
@@ -174,32 +176,32 @@ def test_tick_mapping_agrees_with_the_simulator_units(model):
         for joint in JOINTS:
             entry = calibration[joint]
             joint_range = tuple(model.joint(joint).range)
-            ticks = vso.radians_to_present(entry, joint, angles[joint], joint_range)
+            ticks = vcal.radians_to_present(entry, joint, angles[joint], joint_range)
             lo, hi = entry["range_min"], entry["range_max"]
             if joint == "gripper":
                 user = (ticks - lo) / (hi - lo) * 100.0  # lerobot RANGE_0_100
             else:
                 user = (ticks - (lo + hi) / 2) * 360.0 / 4095.0  # lerobot DEGREES
             assert user == pytest.approx(cfg[joint], abs=1e-9), joint
-            back = vso.present_to_radians(entry, joint, ticks, joint_range)
+            back = vcal.present_to_radians(entry, joint, ticks, joint_range)
             assert back == pytest.approx(angles[joint], abs=1e-12)
 
 
 def test_bad_calibration_is_refused_with_the_fix():
-    calibration = vso.load_calibration(DEFAULT_CALIBRATION_PATH)
+    calibration = vcal.load_calibration(DEFAULT_CALIBRATION_PATH)
     broken = {j: dict(e) for j, e in calibration.items()}
     broken["gripper"]["drive_mode"] = 1
-    with pytest.raises(vso.CalibrationError, match="gripper.drive_mode.*drive_mode 0"):
-        vso.load_calibration(broken)
+    with pytest.raises(vcal.CalibrationError, match="gripper.drive_mode.*drive_mode 0"):
+        vcal.load_calibration(broken)
     del broken["elbow_flex"]
-    with pytest.raises(vso.CalibrationError, match="elbow_flex"):
-        vso.load_calibration(broken)
-    with pytest.raises(vso.CalibrationError, match="not found"):
-        vso.load_calibration("/nonexistent/calibration.json")
+    with pytest.raises(vcal.CalibrationError, match="elbow_flex"):
+        vcal.load_calibration(broken)
+    with pytest.raises(vcal.CalibrationError, match="not found"):
+        vcal.load_calibration("/nonexistent/calibration.json")
 
 
 def test_fault_grammar():
-    calibration = vso.load_calibration(DEFAULT_CALIBRATION_PATH)
+    calibration = vcal.load_calibration(DEFAULT_CALIBRATION_PATH)
     faults = vso.parse_faults("drop:3:5, corrupt:2,remove:wrist_flex,stall:elbow_flex,"
                               "firmware:3.9,firmware:6:3.8", calibration)
     assert faults == [("drop", 3, 5), ("corrupt", 2, 1), ("remove", 4, None), ("stall", 3, None),
@@ -214,46 +216,46 @@ def test_fault_grammar():
 
 # --- the protocol on the wire (no lerobot needed) -------------------------------------------
 def test_ping_read_and_broadcast_ping(raw):
-    raw.send(1, vso.INST_PING)
+    raw.send(1, fp.INST_PING)
     assert split_status(raw.receive(6)) == [(1, 0, b"")]
-    raw.send(2, vso.INST_READ, [3, 2])  # Model_Number
+    raw.send(2, fp.INST_READ, [3, 2])  # Model_Number
     assert split_status(raw.receive(8)) == [(2, 0, (777).to_bytes(2, "little"))]
-    raw.send(4, vso.INST_READ, [0, 2])  # firmware major, minor
+    raw.send(4, fp.INST_READ, [0, 2])  # firmware major, minor
     assert split_status(raw.receive(8)) == [(4, 0, bytes([3, 10]))]
-    raw.send(vso.BROADCAST_ID, vso.INST_PING)
+    raw.send(fp.BROADCAST_ID, fp.INST_PING)
     replies = split_status(raw.receive(36))
     assert [r[0] for r in replies] == [1, 2, 3, 4, 5, 6]
 
 
 def test_broadcasts_are_never_answered(raw):
     goal = [42, 2] + [b for i in range(1, 7) for b in (i, 0x00, 0x08)]
-    raw.send(vso.BROADCAST_ID, vso.INST_SYNC_WRITE, goal)
-    raw.send(vso.BROADCAST_ID, vso.INST_WRITE, [41, 254])  # Acceleration on every servo
-    raw.send(vso.BROADCAST_ID, vso.INST_READ, [56, 2])
+    raw.send(fp.BROADCAST_ID, fp.INST_SYNC_WRITE, goal)
+    raw.send(fp.BROADCAST_ID, fp.INST_WRITE, [41, 254])  # Acceleration on every servo
+    raw.send(fp.BROADCAST_ID, fp.INST_READ, [56, 2])
     assert raw.receive(1, timeout=0.15) == b""
-    raw.send(3, vso.INST_READ, [41, 1])
+    raw.send(3, fp.INST_READ, [41, 1])
     assert split_status(raw.receive(7)) == [(3, 0, bytes([254]))]  # the broadcast WRITE acted
 
 
 def test_sync_read_answers_in_request_order(raw):
-    raw.send(vso.BROADCAST_ID, vso.INST_SYNC_READ, [56, 2, 5, 1, 3])
+    raw.send(fp.BROADCAST_ID, fp.INST_SYNC_READ, [56, 2, 5, 1, 3])
     replies = split_status(raw.receive(3 * 8))
     assert [r[0] for r in replies] == [5, 1, 3]
 
 
 def test_corrupt_instruction_is_ignored(raw):
-    packet = bytearray(vso.instruction_packet(1, vso.INST_PING))
+    packet = bytearray(fp.instruction_packet(1, fp.INST_PING))
     packet[-1] ^= 0xFF
     os.write(raw.fd, bytes(packet))
     assert raw.receive(1, timeout=0.1) == b""
-    raw.send(1, vso.INST_PING)  # the bus resynchronises on the next packet
+    raw.send(1, fp.INST_PING)  # the bus resynchronises on the next packet
     assert split_status(raw.receive(6)) == [(1, 0, b"")]
 
 
 def test_servos_only_hear_their_baud_rate(fresh_arm):
     slow = RawPort(fresh_arm.port, baud=termios.B57600)
     try:
-        slow.send(1, vso.INST_PING)
+        slow.send(1, fp.INST_PING)
         assert slow.receive(1, timeout=0.1) == b""
     finally:
         slow.close()
@@ -265,7 +267,7 @@ def test_wire_timing_reply_never_precedes_the_wire(raw, fresh_arm):
     wire_s = (8 + 6 + 6 * 8) * 10 / 1_000_000  # request + six 8-byte replies at 1 Mbaud
     for _ in range(20):
         t0 = time.perf_counter()
-        raw.send(vso.BROADCAST_ID, vso.INST_SYNC_READ, [56, 2, 1, 2, 3, 4, 5, 6])
+        raw.send(fp.BROADCAST_ID, fp.INST_SYNC_READ, [56, 2, 1, 2, 3, 4, 5, 6])
         data = raw.receive(48, timeout=0.2)
         elapsed = time.perf_counter() - t0
         assert len(split_status(data)) == 6
@@ -514,7 +516,7 @@ def test_command_line_serves_with_faults_from_power_up(lerobot_bus_factory):
         assert port.startswith("/dev/")
 
         class Port:  # enough of VirtualSO101 for make_bus
-            calibration = vso.load_calibration(DEFAULT_CALIBRATION_PATH)
+            calibration = vcal.load_calibration(DEFAULT_CALIBRATION_PATH)
 
         Port.port = port
         bus = lerobot_bus_factory(Port, connect=False)
