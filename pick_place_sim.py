@@ -24,7 +24,7 @@ import numpy as np  # noqa: E402
 
 import so101_mujoco_utils as utils  # noqa: E402
 from so101_forward_kinematics import ARM_JOINTS, TOOL_SITE, get_forward_kinematics  # noqa: E402
-from so101_inverse_kinematics import add_cartesian_arguments, plan_from_arguments  # noqa: E402
+from so101_cartesian_plan import add_cartesian_arguments, plan_from_arguments  # noqa: E402
 from so101_meshes import ensure_meshes  # noqa: E402
 from so101_motion import (  # noqa: E402
     Plan,

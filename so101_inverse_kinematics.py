@@ -51,7 +51,6 @@ course's), radians inside. Example (the course's starting position)::
 
 from __future__ import annotations
 
-import argparse
 import logging
 import math
 from collections.abc import Mapping, Sequence
@@ -72,14 +71,7 @@ from so101_forward_kinematics import (
     get_gw1,
     joint_angles,
 )
-from so101_motion import (
-    FINAL_CONFIGURATION,
-    GRIPPER_CLOSED,
-    STARTING_CONFIGURATION,
-    Plan,
-    PlanError,
-    Step,
-)
+from so101_motion import STARTING_CONFIGURATION, PlanError
 
 # Joint limits [rad]: the ``range`` attributes of model/so101.xml (upstream
 # so101_new_calib). Kept here so that a solve needs no MuJoCo; a test checks
@@ -103,15 +95,6 @@ MIN_HEIGHT = CUBE_HALF_SIZE - 0.001
 
 GRIPPER_OPEN = float(STARTING_CONFIGURATION["gripper"])
 """Gripper opening of the course's open configurations [0, 100]."""
-
-DEFAULT_LIFT_HEIGHT = 0.10
-"""Height of the lift and carry waypoints above the pick and place positions [m]."""
-
-APPROACH_HEIGHT = 0.05
-"""Height of the approach waypoint above pre_grasp [m]."""
-
-PRE_GRASP_SLIDE = 0.012
-"""Offset of pre_grasp and retreat from the grasps along the jaw axis, towards the fixed jaw [m]."""
 
 REFINE_TOL = 1e-12
 """FK residual [m] or [rad] above which a closed-form result is refined numerically."""
@@ -441,7 +424,8 @@ class _Search:
 
 # ---------------------------------------------------------------------------
 # Public solver.
-def _as_position(position) -> tuple[float, float, float]:
+def as_position(position) -> tuple[float, float, float]:
+    """A position as three finite floats (x, y, z) [m]; ValueError otherwise."""
     try:
         x, y, z = (float(v) for v in position)
     except (TypeError, ValueError):
@@ -501,7 +485,7 @@ def get_inverse_kinematics(
             how much.
         ValueError: malformed arguments.
     """
-    p = _as_position(position)
+    p = as_position(position)
     if approach not in ("down", "pitch", None):
         raise ValueError(f"approach must be 'down', 'pitch' or None, got {approach!r}.")
     if approach == "pitch":
@@ -804,174 +788,3 @@ def sample_top_down_targets(n: int, seed: int = 0, min_height: float = MIN_HEIGH
     keep = positions[:, 2] >= min_height
     yaws = np.degrees(np.arctan2(rotations[keep, 1, 0], rotations[keep, 0, 0]))
     return angles[keep], positions[keep], yaws
-
-
-# ---------------------------------------------------------------------------
-# Cartesian pick-and-place.
-def _jaw_axis_and_yaw(cfg: Mapping[str, float]) -> tuple[np.ndarray, float]:
-    """Jaw-closing axis (tool x, toward the fixed jaw's side) and the cube yaw [deg] of a grasp."""
-    _, rotation = get_forward_kinematics(cfg)
-    return rotation[:, 0], math.degrees(math.atan2(rotation[1, 0], rotation[0, 0]))
-
-
-def cartesian_plan(
-    pick_xyz,
-    place_xyz,
-    cube_yaw_deg: float | None = None,
-    lift_height: float = DEFAULT_LIFT_HEIGHT,
-    move_duration: float = 2.0,
-    hold_duration: float = 0.5,
-    place_yaw_deg: float | None = None,
-    *,
-    approach_height: float = APPROACH_HEIGHT,
-    slide: float = PRE_GRASP_SLIDE,
-) -> Plan:
-    """The course's pick-and-place plan from the Cartesian pick and place positions.
-
-    The waypoints and timing of ``so101_motion.default_plan()``, each solved
-    by IK from the one before it (so the arm stays on one branch):
-
-    - start_open / final_open: top-down grasps at the pick and place positions;
-      start_closed / final_closed: the same with the gripper closed;
-    - pre_grasp / retreat: the open gripper ``slide`` [m] off the grasp along
-      the jaw axis, towards the fixed jaw's side, at the same height: the
-      fixed jaw slides onto the cube and backs off it horizontally;
-    - approach: ``approach_height`` above pre_grasp;
-    - lift / carry: ``lift_height`` above the pick and place positions.
-
-    Approach, lift and carry are top-down when the arm can reach them so,
-    otherwise as close to top-down as it can (position-only IK).
-
-    Args:
-        pick_xyz: centre of the cube to pick, (x, y, z) [m] in the base frame.
-        place_xyz: where the cube's centre goes [m].
-        cube_yaw_deg: the cube's yaw at the pick [deg] (see
-            :func:`get_inverse_kinematics`); None keeps wrist_roll near 0, the
-            course's grasp.
-        lift_height: height of lift and carry above pick and place [m].
-        move_duration: time for each main move [s]; the short moves near the
-            cube (pre_grasp, start_open, start_closed, final_open, retreat)
-            take half of it.
-        hold_duration: pause after each of the course's six configurations [s].
-        place_yaw_deg: the cube's yaw at the place [deg]; default ``cube_yaw_deg``.
-        approach_height: height of the approach above pre_grasp [m].
-        slide: horizontal offset of pre_grasp and retreat from the grasps [m].
-
-    Returns:
-        The plan; configurations [deg], gripper [0, 100].
-
-    Raises:
-        UnreachableError: a waypoint cannot be reached (the message names it).
-        ValueError: malformed arguments.
-
-    Example (the FK positions of the course's configurations give its grasps back)::
-
-        >>> plan = cartesian_plan((0.230054, 0.190308, 0.013), (0.229144, -0.191219, 0.013))
-        >>> [step.name for step in plan.steps]  # doctest: +NORMALIZE_WHITESPACE
-        ['approach', 'pre_grasp', 'start_open', 'start_closed', 'lift', 'carry',
-         'final_closed', 'final_open', 'retreat']
-        >>> {joint: round(value, 2) for joint, value in plan.configurations()["start_open"].items()}
-        {'shoulder_pan': -45.0, 'shoulder_lift': 45.0, 'elbow_flex': -45.0, 'wrist_flex': 90.0, \
-'wrist_roll': 0.0, 'gripper': 50.0}
-    """
-    for name, value in (("lift_height", lift_height), ("approach_height", approach_height),
-                        ("slide", slide)):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                or not math.isfinite(value) or value < 0.0:
-            raise ValueError(f"{name} must be a number of metres >= 0, got {value!r}.")
-    if place_yaw_deg is None:
-        place_yaw_deg = cube_yaw_deg
-    pick = np.array(_as_position(pick_xyz))
-    place = np.array(_as_position(place_xyz))
-    up = np.array([0.0, 0.0, 1.0])
-
-    def solve(name, target, yaw, initial, top_down_only=True):
-        try:
-            try:
-                return get_inverse_kinematics(target, "down", yaw, initial=initial,
-                                              gripper=GRIPPER_OPEN)
-            except UnreachableError:
-                if top_down_only:
-                    raise
-                return get_inverse_kinematics(target, None, initial=initial, gripper=GRIPPER_OPEN)
-        except UnreachableError as error:
-            raise UnreachableError(f"Waypoint '{name}': {error}", error.reason, error.distance,
-                                   error.joint) from None
-
-    start_open = solve("start_open", pick, cube_yaw_deg, STARTING_CONFIGURATION)
-    final_open = solve("final_open", place, place_yaw_deg,
-                       dict(FINAL_CONFIGURATION, wrist_roll=start_open["wrist_roll"]))
-    pick_jaw, pick_yaw = _jaw_axis_and_yaw(start_open)
-    place_jaw, place_yaw = _jaw_axis_and_yaw(final_open)
-    pre_grasp = solve("pre_grasp", pick + slide * pick_jaw, pick_yaw, start_open)
-    approach = solve("approach", pick + slide * pick_jaw + approach_height * up, pick_yaw,
-                     pre_grasp, top_down_only=False)
-    retreat = solve("retreat", place + slide * place_jaw, place_yaw, final_open)
-    closed = {"gripper": GRIPPER_CLOSED}
-    lift = solve("lift", pick + lift_height * up, pick_yaw, start_open, top_down_only=False)
-    carry = solve("carry", place + lift_height * up, place_yaw, final_open, top_down_only=False)
-    short = 0.5 * move_duration
-    waypoints = [
-        ("approach", approach, move_duration, 0.0),
-        ("pre_grasp", pre_grasp, short, 0.0),
-        ("start_open", start_open, short, hold_duration),
-        ("start_closed", dict(start_open, **closed), short, hold_duration),
-        ("lift", dict(lift, **closed), move_duration, hold_duration),
-        ("carry", dict(carry, **closed), move_duration, hold_duration),
-        ("final_closed", dict(final_open, **closed), move_duration, hold_duration),
-        ("final_open", final_open, short, hold_duration),
-        ("retreat", retreat, short, 0.0),
-    ]
-    return Plan([Step(name, dict(cfg), duration, hold) for name, cfg, duration, hold in waypoints],
-                return_duration=move_duration)
-
-
-# ---------------------------------------------------------------------------
-# Command line (shared by pick_place_sim.py and pick_place_hw.py).
-def add_cartesian_arguments(parser: argparse.ArgumentParser, cube_yaw: bool = True) -> None:
-    """Add ``--pick X Y Z``, ``--place X Y Z``, ``--lift-height M`` (and ``--cube-yaw DEG``).
-
-    Args:
-        parser: the script's parser.
-        cube_yaw: also add ``--cube-yaw`` (leave it out if the script has its own,
-            with ``default=None``).
-    """
-    group = parser.add_argument_group(
-        "Cartesian pick-and-place", "give the cube's positions instead of joint angles; the "
-        "waypoints are computed by inverse kinematics (top-down grasps)")
-    group.add_argument("--pick", type=float, nargs=3, metavar=("X", "Y", "Z"),
-                       help="centre of the cube to pick [m] in the base frame (z = 0.013 on "
-                       "the table); needs --place")
-    group.add_argument("--place", type=float, nargs=3, metavar=("X", "Y", "Z"),
-                       help="where to put the cube's centre [m]; needs --pick")
-    if cube_yaw:
-        group.add_argument("--cube-yaw", type=float, default=None, metavar="DEG",
-                           help="the cube's yaw in the world [deg]; the wrist turns to it "
-                           "(default: wrist_roll stays near 0, as in the course's plan)")
-    group.add_argument("--lift-height", type=float, default=DEFAULT_LIFT_HEIGHT, metavar="M",
-                       help="lift and carry this high above pick and place [m] "
-                       "(default %(default)g)")
-
-
-def plan_from_arguments(args: argparse.Namespace) -> Plan | None:
-    """The Cartesian plan if ``--pick`` and ``--place`` were given, else None.
-
-    Reads ``pick``, ``place``, ``cube_yaw``, ``lift_height``, ``move_duration``
-    and ``hold`` from ``args`` (see :func:`add_cartesian_arguments`).
-
-    Raises:
-        PlanError: only one of --pick/--place, or together with --plan.
-        UnreachableError: a waypoint is out of reach (a PlanError too).
-    """
-    pick, place = getattr(args, "pick", None), getattr(args, "place", None)
-    if pick is None and place is None:
-        return None
-    if pick is None or place is None:
-        raise PlanError("--pick and --place go together: give both cube positions "
-                        "(X Y Z [m] each).")
-    if getattr(args, "plan", None):
-        raise PlanError("--plan and --pick/--place both define the plan; give one of them.")
-    return cartesian_plan(pick, place, cube_yaw_deg=getattr(args, "cube_yaw", None),
-                          lift_height=getattr(args, "lift_height", DEFAULT_LIFT_HEIGHT),
-                          move_duration=getattr(args, "move_duration", 2.0),
-                          hold_duration=getattr(args, "hold", 0.5))

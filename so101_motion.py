@@ -46,7 +46,7 @@ def unit(joint: str) -> str:
     return "%" if joint == "gripper" else "deg"
 
 
-def _is_finite_number(value) -> bool:
+def is_finite_number(value) -> bool:
     """True for a finite int or float (numpy scalars included), False for bools and the rest."""
     return (not isinstance(value, (bool, np.bool_)) and isinstance(value, numbers.Real)
             and math.isfinite(value))
@@ -81,7 +81,7 @@ def check_configuration(cfg: Mapping[str, float], limits: Limits, where: str = "
         if joint not in cfg:
             raise PlanError(f"{prefix}joint '{joint}' is missing; give all of {', '.join(limits)}.")
         value = cfg[joint]
-        if not _is_finite_number(value):
+        if not is_finite_number(value):
             raise PlanError(f"{prefix}joint '{joint}' must be a finite number, got {value!r}.")
         lower, upper = limits[joint]
         if not lower <= value <= upper:
@@ -218,18 +218,59 @@ def default_plan(move_duration: float = 2.0, hold_duration: float = 0.5) -> Plan
         (start_open, start_closed, lift, carry, final_closed, final_open),
         retreat, then back to the initial pose.
     """
+    start, final = STARTING_CONFIGURATION, FINAL_CONFIGURATION
+    return pick_and_place_plan(
+        approach=dict(start, **APPROACH), pre_grasp=dict(start, **PRE_GRASP), grasp=start,
+        lift=dict(start, **LIFT), carry=dict(final, **LIFT), release=final,
+        retreat=dict(final, **PRE_GRASP), move_duration=move_duration,
+        hold_duration=hold_duration)
+
+
+def pick_and_place_plan(
+    approach: Mapping[str, float],
+    pre_grasp: Mapping[str, float],
+    grasp: Mapping[str, float],
+    lift: Mapping[str, float],
+    carry: Mapping[str, float],
+    release: Mapping[str, float],
+    retreat: Mapping[str, float],
+    move_duration: float = 2.0,
+    hold_duration: float = 0.5,
+) -> Plan:
+    """Assemble the pick-and-place's nine steps from its key configurations.
+
+    The one place that fixes the waypoints' names, order, gripper states and
+    timing, for the joint-space plan (:func:`default_plan`) and the Cartesian
+    one (``so101_cartesian_plan``) alike.
+
+    Args:
+        approach: the open gripper above the cube.
+        pre_grasp: the open gripper beside the cube, at grasp height.
+        grasp: the open gripper around the cube (start_open); it then closes there.
+        lift: the cube held above the pick position (gripper set to ``GRIPPER_CLOSED``).
+        carry: the cube held above the place position (gripper set likewise).
+        release: the open gripper at the place position (final_open).
+        retreat: the open gripper backed off the placed cube.
+        move_duration: time for each main move [s]; the short moves near the
+            cube take half of it.
+        hold_duration: pause after each of the course's six configurations [s].
+
+    Returns:
+        The plan: approach, pre_grasp, start_open, start_closed, lift, carry,
+        final_closed, final_open, retreat; then back to the initial pose.
+    """
     closed = {"gripper": GRIPPER_CLOSED}
     short = 0.5 * move_duration
     waypoints = [
-        ("approach", dict(STARTING_CONFIGURATION, **APPROACH), move_duration, 0.0),
-        ("pre_grasp", dict(STARTING_CONFIGURATION, **PRE_GRASP), short, 0.0),
-        ("start_open", STARTING_CONFIGURATION, short, hold_duration),
-        ("start_closed", dict(STARTING_CONFIGURATION, **closed), short, hold_duration),
-        ("lift", dict(STARTING_CONFIGURATION, **closed, **LIFT), move_duration, hold_duration),
-        ("carry", dict(FINAL_CONFIGURATION, **closed, **LIFT), move_duration, hold_duration),
-        ("final_closed", dict(FINAL_CONFIGURATION, **closed), move_duration, hold_duration),
-        ("final_open", FINAL_CONFIGURATION, short, hold_duration),
-        ("retreat", dict(FINAL_CONFIGURATION, **PRE_GRASP), short, 0.0),
+        ("approach", approach, move_duration, 0.0),
+        ("pre_grasp", pre_grasp, short, 0.0),
+        ("start_open", grasp, short, hold_duration),
+        ("start_closed", dict(grasp, **closed), short, hold_duration),
+        ("lift", dict(lift, **closed), move_duration, hold_duration),
+        ("carry", dict(carry, **closed), move_duration, hold_duration),
+        ("final_closed", dict(release, **closed), move_duration, hold_duration),
+        ("final_open", release, short, hold_duration),
+        ("retreat", retreat, short, 0.0),
     ]
     return Plan([Step(name, dict(cfg), duration, hold)
                  for name, cfg, duration, hold in waypoints], return_duration=move_duration)
@@ -271,7 +312,7 @@ def validate_plan(plan: Plan, limits: Limits) -> Plan:
             raise PlanError(f"{where}: the name is used twice; give each waypoint its own name.")
         seen.add(step.name)
         for label, value in (("duration", step.duration), ("hold", step.hold)):
-            if not _is_finite_number(value) or value < 0:
+            if not is_finite_number(value) or value < 0:
                 raise PlanError(f"{where}: {label} must be a number of seconds >= 0, "
                                 f"got {value!r}.")
         step.configuration = check_configuration(step.configuration, limits, where)

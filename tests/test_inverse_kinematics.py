@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from conftest import REPO
 
+import so101_cartesian_plan as cp
 import so101_inverse_kinematics as ik
 import so101_motion
 from so101_forward_kinematics import ARM_JOINTS, JOINTS, get_forward_kinematics
@@ -349,7 +350,7 @@ def assignment_positions():
 
 
 def test_cartesian_plan_has_the_default_plans_waypoints():
-    plan = ik.cartesian_plan(*assignment_positions())
+    plan = cp.cartesian_plan(*assignment_positions())
     default = so101_motion.default_plan()
     assert [s.name for s in plan.steps] == [s.name for s in default.steps]
     timing = [(s.duration, s.hold) for s in plan.steps]
@@ -367,7 +368,7 @@ def test_cartesian_plan_reproduces_the_assignment(cube_yaw):
     if cube_yaw == "assignment":  # the yaw the course's cubes have (FK of its configuration)
         _, rotation = get_forward_kinematics(so101_motion.STARTING_CONFIGURATION)
         cube_yaw = math.degrees(yaw_of(rotation))
-    plan = ik.cartesian_plan(pick, place, cube_yaw_deg=cube_yaw).configurations()
+    plan = cp.cartesian_plan(pick, place, cube_yaw_deg=cube_yaw).configurations()
     default = so101_motion.default_plan().configurations()
     for name in ("start_open", "start_closed", "final_closed", "final_open"):
         for joint in JOINTS:
@@ -377,7 +378,7 @@ def test_cartesian_plan_reproduces_the_assignment(cube_yaw):
 def test_cartesian_plan_waypoints_are_where_asked():
     pick, place = np.array([0.20, 0.12, 0.013]), np.array([0.24, -0.10, 0.013])
     lift_height = 0.07
-    plan = ik.cartesian_plan(pick, place, cube_yaw_deg=20.0, lift_height=lift_height,
+    plan = cp.cartesian_plan(pick, place, cube_yaw_deg=20.0, lift_height=lift_height,
                              move_duration=3.0, hold_duration=0.2).configurations()
     expected = {"start_open": pick, "start_closed": pick, "lift": pick + [0, 0, lift_height],
                 "carry": place + [0, 0, lift_height], "final_closed": place, "final_open": place}
@@ -391,7 +392,7 @@ def test_cartesian_plan_waypoints_are_where_asked():
     # pre_grasp and retreat: beside the grasps at the same height, still top-down.
     for name, grasp in (("pre_grasp", "start_open"), ("retreat", "final_open")):
         offset = get_forward_kinematics(plan[name])[0] - get_forward_kinematics(plan[grasp])[0]
-        assert np.linalg.norm(offset) == pytest.approx(ik.PRE_GRASP_SLIDE, abs=1e-9)
+        assert np.linalg.norm(offset) == pytest.approx(cp.PRE_GRASP_SLIDE, abs=1e-9)
         assert abs(offset[2]) < 1e-9
     assert plan["start_closed"]["gripper"] == so101_motion.GRIPPER_CLOSED
     assert plan["start_open"]["gripper"] == ik.GRIPPER_OPEN
@@ -399,10 +400,10 @@ def test_cartesian_plan_waypoints_are_where_asked():
 
 def test_cartesian_plan_names_the_unreachable_waypoint():
     with pytest.raises(ik.UnreachableError, match="Waypoint 'final_open'") as error:
-        ik.cartesian_plan((0.22, 0.1, 0.013), (0.5, 0.0, 0.013))
+        cp.cartesian_plan((0.22, 0.1, 0.013), (0.5, 0.0, 0.013))
     assert error.value.reason == "too_far"
     with pytest.raises(ValueError, match="lift_height"):
-        ik.cartesian_plan((0.22, 0.1, 0.013), (0.22, -0.1, 0.013), lift_height=-0.1)
+        cp.cartesian_plan((0.22, 0.1, 0.013), (0.22, -0.1, 0.013), lift_height=-0.1)
 
 
 # --- Command line ----------------------------------------------------------------------
@@ -413,23 +414,23 @@ def parse(argv, cube_yaw=True):
     parser.add_argument("--plan")
     parser.add_argument("--move-duration", type=float, default=2.0)
     parser.add_argument("--hold", type=float, default=0.5)
-    ik.add_cartesian_arguments(parser, cube_yaw=cube_yaw)
+    cp.add_cartesian_arguments(parser, cube_yaw=cube_yaw)
     return parser.parse_args(argv)
 
 
 def test_command_line_builds_the_cartesian_plan():
     pick, place = assignment_positions()
     argv = ["--pick", *map(str, pick), "--place", *map(str, place), "--hold", "0.25"]
-    plan = ik.plan_from_arguments(parse(argv))
-    expected = ik.cartesian_plan(pick, place, hold_duration=0.25)
+    plan = cp.plan_from_arguments(parse(argv))
+    expected = cp.cartesian_plan(pick, place, hold_duration=0.25)
     assert plan.configurations() == expected.configurations()
     assert [s.hold for s in plan.steps] == [s.hold for s in expected.steps]
-    turned = ik.plan_from_arguments(parse(argv + ["--cube-yaw", "10", "--lift-height", "0.05"]))
+    turned = cp.plan_from_arguments(parse(argv + ["--cube-yaw", "10", "--lift-height", "0.05"]))
     rotation = get_forward_kinematics(turned.configurations()["start_open"])[1]
     assert yaw_error(rotation, 10.0) < ANGLE_TOL
     lift = get_forward_kinematics(turned.configurations()["lift"])[0]
     assert lift[2] == pytest.approx(pick[2] + 0.05, abs=POSITION_TOL)
-    assert ik.plan_from_arguments(parse([])) is None
+    assert cp.plan_from_arguments(parse([])) is None
 
 
 @pytest.mark.parametrize("argv, match", [
@@ -439,4 +440,4 @@ def test_command_line_builds_the_cartesian_plan():
 ])
 def test_command_line_mistakes(argv, match):
     with pytest.raises(so101_motion.PlanError, match=match):
-        ik.plan_from_arguments(parse(argv))
+        cp.plan_from_arguments(parse(argv))
