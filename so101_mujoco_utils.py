@@ -59,7 +59,8 @@ def load_model(path: str | Path = SCENE_PATH) -> mujoco.MjModel:
 def _joint_table(m: mujoco.MjModel) -> tuple[tuple[str, int, int, float, float], ...]:
     """(name, qpos address, actuator id, lower, upper [rad]) for each joint."""
     return tuple(
-        (name, int(m.joint(name).qposadr[0]), int(m.actuator(name).id), *map(float, m.joint(name).range))
+        (name, int(m.joint(name).qposadr[0]), int(m.actuator(name).id),
+         *map(float, m.joint(name).range))
         for name in JOINTS
     )
 
@@ -265,7 +266,7 @@ def hold_position(m: mujoco.MjModel, d: mujoco.MjData, viewer, duration: float) 
 
 
 def get_object_pose(m: mujoco.MjModel, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-    """Simulated object-frame pose: (position (3,) [m], rotation (3, 3)), from the last kinematics."""
+    """Simulated object-frame pose (position (3,) [m], rotation (3, 3)) from the last kinematics."""
     site = d.site(TOOL_SITE)
     return site.xpos.copy(), site.xmat.reshape(3, 3).copy()
 
