@@ -15,40 +15,42 @@ from pathlib import Path
 from typing import Any
 
 from so101_bus import (
-    DEFAULT_RATE_HZ,
     FIND_PORT_HINT,
-    MAX_JOINT_SPEED_DEG_S,
-    MOTOR_IDS,
-    TRACKING_TIMEOUT_S,
-    TRACKING_TOLERANCE_DEG,
-    ArmSession,
-    BusError,
-    Cycle,
     LerobotMissing,
-    RateLoop,
-    Segment,
-    StopRequested,
     bus_errors,
-    capped_duration,
     configure,
     connect,
     disconnect,
     enable_torque_in_place,
-    gc_frozen,
     recover_port,
     release_torque,
     silent_servos,
-    speed_caps,
-    stop_on_sigint,
-    tracking_tolerances,
 )
 from so101_calibration import (
     CALIBRATE_HINT,
+    MOTOR_IDS,
     CalibrationError,
     HardwareError,
     calibrated_limits,
     find_calibration,
     load_calibration,
+)
+from so101_control import (
+    DEFAULT_RATE_HZ,
+    MAX_JOINT_SPEED_DEG_S,
+    TRACKING_TIMEOUT_S,
+    TRACKING_TOLERANCE_DEG,
+    ArmSession,
+    BusError,
+    Cycle,
+    RateLoop,
+    Segment,
+    StopRequested,
+    capped_duration,
+    gc_frozen,
+    speed_caps,
+    stop_on_sigint,
+    tracking_tolerances,
 )
 from so101_forward_kinematics import ARM_JOINTS, JOINTS, get_forward_kinematics
 from so101_inverse_kinematics import add_cartesian_arguments, plan_from_arguments

@@ -21,7 +21,7 @@ def bench_hw(quick: bool) -> dict:
         import lerobot  # noqa: F401
     except ImportError:
         return {"_hw_skipped": "lerobot is not installed (pip install -e '.[hw]')"}
-    from so101_bus import measure_loop_timing
+    from so101_control import measure_loop_timing
     from virtual_so101 import measure_cycle
 
     out: dict = {}

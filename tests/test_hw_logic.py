@@ -1,9 +1,9 @@
 """The hardware code without an arm: calibration, limits, speed cap, scheduler, session, CLI.
 
-These cover so101_calibration, so101_bus and pick_place_hw and run without
-lerobot: the session is driven through a small fake bus and a fake clock, so
-they are fast and deterministic. The same behaviour against the real lerobot
-bus and the virtual SO-101 is in test_pick_place_hw.py.
+These cover so101_calibration, so101_bus, so101_control and pick_place_hw and
+run without lerobot: the session is driven through a small fake bus and a fake
+clock, so they are fast and deterministic. The same behaviour against the real
+lerobot bus and the virtual SO-101 is in test_pick_place_hw.py.
 """
 
 from __future__ import annotations
@@ -19,27 +19,7 @@ import numpy as np
 import pytest
 
 import pick_place_hw as hw
-from so101_bus import (
-    MAX_JOINT_SPEED_DEG_S,
-    MAX_MISSED_READS,
-    RETURN_MIN_DURATION_S,
-    RETURN_SPEED_DEG_S,
-    TRACKING_TIMEOUT_S,
-    ArmSession,
-    BusError,
-    ConnectionFailed,
-    RateLoop,
-    TrackingError,
-    bus_errors,
-    capped_duration,
-    hold_position,
-    loop_timing_stats,
-    make_bus,
-    move_to_pose,
-    peak_speed_factor,
-    session_for,
-    speed_caps,
-)
+from so101_bus import ConnectionFailed, bus_errors, make_bus
 from so101_calibration import (
     MOTOR_IDS,
     CalibrationError,
@@ -49,6 +29,24 @@ from so101_calibration import (
     lerobot_calibration_root,
     load_calibration,
     ticks_to_user,
+)
+from so101_control import (
+    MAX_JOINT_SPEED_DEG_S,
+    MAX_MISSED_READS,
+    RETURN_MIN_DURATION_S,
+    RETURN_SPEED_DEG_S,
+    TRACKING_TIMEOUT_S,
+    ArmSession,
+    BusError,
+    RateLoop,
+    TrackingError,
+    capped_duration,
+    hold_position,
+    loop_timing_stats,
+    move_to_pose,
+    peak_speed_factor,
+    session_for,
+    speed_caps,
 )
 from so101_forward_kinematics import JOINTS, get_forward_kinematics
 from so101_motion import JointLimitError, Plan, PlanError, Step, default_plan, pick_and_place_steps

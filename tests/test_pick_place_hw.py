@@ -1,4 +1,4 @@
-"""pick_place_hw and so101_bus against the virtual SO-101, through lerobot's real bus over a pty.
+"""pick_place_hw, so101_bus, so101_control against the virtual SO-101: lerobot's real bus, a pty.
 
 Each test starts its own virtual arm (a MuJoCo arm stepped in real time in a
 subprocess; about 1.5 s to start), so faults and torque states never leak
@@ -23,14 +23,13 @@ pytestmark = pytest.mark.hw
 import pick_place_hw as hw  # noqa: E402
 import so101_mujoco_utils as mu  # noqa: E402
 from so101_bus import (  # noqa: E402
-    MAX_MISSED_READS,
     ConnectionFailed,
     calibration_mismatch,
     connect,
     disconnect,
-    measure_loop_timing,
 )
 from so101_calibration import CalibrationError, load_calibration  # noqa: E402
+from so101_control import MAX_MISSED_READS, measure_loop_timing  # noqa: E402
 from so101_forward_kinematics import ARM_JOINTS, JOINTS  # noqa: E402
 from so101_motion import JointLimitError, Plan, Step, default_plan  # noqa: E402
 from virtual_so101 import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402

@@ -1,0 +1,572 @@
+"""The deadline-scheduled control loop of the real arm and the course's move_to_pose/hold_position.
+
+The motion side of the hardware backend of the shared motion code
+(``so101_motion``), on a lerobot bus opened with ``so101_bus``:
+  - the speed cap (:func:`capped_duration`) and the deadline scheduler
+    (:class:`RateLoop`, :func:`loop_timing_stats`);
+  - the control loop (:class:`ArmSession`) behind the course's interface
+    ``move_to_pose(bus, cfg, duration)`` and ``hold_position(bus, duration)``,
+    with Ctrl-C turned into a stop at a cycle boundary (:func:`stop_on_sigint`)
+    and the garbage collector frozen during motion (:func:`gc_frozen`);
+  - :func:`measure_loop_timing` against the virtual SO-101, for the benchmarks.
+"""
+
+from __future__ import annotations
+
+import gc
+import logging
+import signal
+import sys
+import threading
+import time
+import weakref
+from collections.abc import Callable, Mapping
+from contextlib import contextmanager
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+from typing import NamedTuple
+
+from so101_bus import (
+    configure,
+    connect,
+    discard_stale_input,
+    disconnect,
+    enable_torque_in_place,
+    release_torque,
+)
+from so101_calibration import HardwareError, calibrated_limits, load_calibration
+from so101_forward_kinematics import JOINTS
+from so101_motion import (
+    PROFILES,
+    Configuration,
+    JointLimitError,
+    PlanError,
+    Trajectory,
+    check_configuration,
+    unit,
+)
+
+logger = logging.getLogger(__name__)
+
+# --- Settings ---------------------------------------------------------------
+DEFAULT_RATE_HZ = 100.0            # control loop rate [Hz]
+MAX_RATE_HZ = 1000.0               # the bus cannot do a 6-motor cycle much faster
+MAX_JOINT_SPEED_DEG_S = 100.0      # speed cap of each arm joint [deg/s] (peak of the profile)
+MAX_GRIPPER_SPEED_PCT_S = 100.0    # speed cap of the gripper [%/s]
+RETURN_SPEED_DEG_S = 20.0          # "slowly": return after an abort [deg/s] (gripper [%/s])
+RETURN_MIN_DURATION_S = 1.0        # the return after an abort never takes less [s]
+TRACKING_TOLERANCE_DEG = 15.0      # measured vs commanded, arm joints [deg] ...
+TRACKING_TIMEOUT_S = 0.3           # ... beyond it for this long [s] is a stall or a collision
+MAX_MISSED_READS = 2               # consecutive failed Present_Position reads tolerated
+SPIN_S = 0.0005                    # busy-wait this last part of each period [s]
+IDLE_RESTART_S = 0.25              # a loop idle for longer starts a fresh deadline grid [s]
+
+
+# --- Errors -----------------------------------------------------------------
+class TrackingError(HardwareError):
+    """A joint stayed too far from its command for too long: a stall or a collision."""
+
+
+class BusError(HardwareError):
+    """The bus failed during motion (a servo stopped answering, the port closed)."""
+
+
+class StopRequested(HardwareError):
+    """A stop was requested (Ctrl-C) and honoured at the next control cycle."""
+
+
+# --- Speed cap ---------------------------------------------------------------
+@cache
+def peak_speed_factor(profile: str) -> float:
+    """Peak of d(fraction)/ds for a time-scaling profile (1 for linear, 1.875 for minimum jerk)."""
+    scaling = PROFILES[profile]
+    n = 4000
+    return max((scaling((i + 1) / n) - scaling(i / n)) * n for i in range(n))
+
+
+def speed_caps(max_joint_speed: float = MAX_JOINT_SPEED_DEG_S,
+               max_gripper_speed: float = MAX_GRIPPER_SPEED_PCT_S) -> dict[str, float]:
+    """Joint -> speed cap ([deg/s]; gripper [%/s])."""
+    return {j: (max_gripper_speed if j == "gripper" else max_joint_speed) for j in JOINTS}
+
+
+def tracking_tolerances(arm_tolerance: float = TRACKING_TOLERANCE_DEG) -> dict[str, float | None]:
+    """Joint -> tracking tolerance [deg].
+
+    The gripper is not checked: it squeezes the cube by design, and lerobot's
+    configuration limits its torque and current instead.
+    """
+    return {j: (None if j == "gripper" else arm_tolerance) for j in JOINTS}
+
+
+def capped_duration(start: Mapping[str, float], goal: Mapping[str, float], duration: float,
+                    profile: str, max_speed: Mapping[str, float]) -> float:
+    """The shortest duration >= ``duration`` [s] that keeps every joint under its speed cap.
+
+    Args:
+        start: configuration at the start ([deg], gripper [0, 100]).
+        goal: configuration at the end.
+        duration: the requested duration [s].
+        profile: time scaling of the move ("minimum_jerk" or "linear").
+        max_speed: joint -> cap ([deg/s]; gripper [%/s]).
+
+    Example:
+        >>> capped_duration({"shoulder_pan": 0.0}, {"shoulder_pan": 90.0}, 1.0, "linear",
+        ...                 {"shoulder_pan": 45.0})
+        2.0
+    """
+    factor = peak_speed_factor(profile)
+    needed = max((abs(goal[j] - start[j]) * factor / max_speed[j] for j in goal), default=0.0)
+    return max(float(duration), needed)
+
+
+# --- Deadline scheduler ----------------------------------------------------------
+class RateLoop:
+    """Fixed-rate, deadline-scheduled loop: ``next_deadline += period``, sleep, spin the last bit.
+
+    A late cycle is counted as an overrun and the loop runs on at once; when
+    more than a whole period late, the missed deadlines are skipped (never
+    replayed in a burst).
+
+    Args:
+        rate_hz: loop rate [Hz].
+        clock: monotonic clock [s].
+        sleep: sleep function [s].
+        spin: busy-wait this last part of each wait [s].
+    """
+
+    def __init__(self, rate_hz: float, clock: Callable[[], float] = time.perf_counter,
+                 sleep: Callable[[float], None] = time.sleep, spin: float = SPIN_S):
+        if not (isinstance(rate_hz, (int, float)) and 0 < rate_hz <= MAX_RATE_HZ):
+            raise ValueError(f"rate must be in (0, {MAX_RATE_HZ:g}] Hz, got {rate_hz!r}.")
+        self.period = 1.0 / float(rate_hz)
+        self.clock, self.sleep, self.spin = clock, sleep, spin
+        self.deadline: float | None = None
+        self.woke = 0.0  # when the last wait returned [s]
+        self.cycles = self.overruns = self.skipped = 0
+
+    def start(self) -> float:
+        """Make now the current deadline; returns it [s]."""
+        self.deadline = self.woke = self.clock()
+        return self.deadline
+
+    def resume(self) -> float:
+        """The grid point a new segment starts from: the latest deadline not in the future.
+
+        Continues the grid (skipping missed deadlines) when the loop was busy
+        until now; starts afresh after an idle gap longer than ``IDLE_RESTART_S``.
+        """
+        if self.deadline is None:
+            return self.start()
+        behind = self.clock() - self.deadline
+        if behind > IDLE_RESTART_S:
+            return self.start()
+        if behind >= self.period:
+            missed = int(behind // self.period)
+            self.skipped += missed
+            self.deadline += missed * self.period
+        return self.deadline
+
+    def wait(self) -> float:
+        """Wait for the next deadline and return it (the cycle's scheduled time [s])."""
+        if self.deadline is None:
+            self.start()
+        self.deadline += self.period
+        now = self.clock()
+        late = now - self.deadline
+        if late > 0.0:
+            self.overruns += 1
+            if late >= self.period:
+                missed = int(late // self.period)
+                self.skipped += missed
+                self.deadline += missed * self.period
+        else:
+            remaining = -late
+            if remaining > self.spin:
+                self.sleep(remaining - self.spin)
+            while self.clock() < self.deadline:
+                pass
+        self.cycles += 1
+        self.woke = self.clock()
+        return self.deadline
+
+
+def loop_timing_stats(wake_times: list[float], rate_hz: float) -> dict[str, float]:
+    """Period statistics of a loop from the times its cycles started [s].
+
+    Returns:
+        ``achieved_hz``, ``period_p50_ms``, ``period_p99_error_ms`` (99th percentile
+        of |period - nominal|), ``period_max_error_ms`` and ``cycles``.
+    """
+    import numpy as np
+
+    times = np.asarray(wake_times, dtype=float)
+    if times.size < 3:
+        raise ValueError("need at least 3 cycles for timing statistics")
+    periods = np.diff(times)
+    error = np.abs(periods - 1.0 / rate_hz)
+    return {
+        "rate_hz": float(rate_hz),
+        "achieved_hz": float((times.size - 1) / (times[-1] - times[0])),
+        "period_p50_ms": float(np.median(periods) * 1e3),
+        "period_p99_error_ms": float(np.percentile(error, 99) * 1e3),
+        "period_max_error_ms": float(error.max() * 1e3),
+        "cycles": int(times.size),
+    }
+
+
+# --- The control loop ------------------------------------------------------------
+class Cycle(NamedTuple):
+    """One control cycle: scheduled and wake time since start [s], step, command, measurement."""
+
+    t_s: float
+    wall_s: float
+    step: str
+    command: Configuration
+    measured: Configuration | None
+
+
+@dataclass
+class Segment:
+    """A move or a hold as executed, on the session's timeline."""
+
+    kind: str  # "move" or "hold"
+    step: str
+    t_start_s: float  # [s] since the session's first cycle was scheduled
+    start: Configuration
+    goal: Configuration
+    duration: float  # [s], after the speed cap
+    requested: float  # [s], as asked
+
+
+_SESSIONS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+class ArmSession:
+    """A connected arm plus the state of its control loop.
+
+    Created for a bus, it is found again by :func:`move_to_pose` and
+    :func:`hold_position`, so the course's ``move_to_pose(bus, cfg, 2.0)`` works.
+
+    Args:
+        bus: a connected lerobot ``FeetechMotorsBus`` (calibration set).
+        rate_hz: control loop rate [Hz].
+        profile: "minimum_jerk" (default, as the simulator) or "linear".
+        max_speed: joint -> speed cap ([deg/s]; gripper [%/s]).
+        tracking_tolerance: joint -> |measured - commanded| allowed [deg]
+            (None: not checked; the gripper by default, as it squeezes the cube).
+        tracking_timeout: how long a joint may stay beyond it [s].
+        max_missed_reads: consecutive failed reads tolerated before a bus error.
+        on_cycle: called with (session, cycle) after each cycle (tests, monitors).
+        clock, sleep: time sources (tests).
+    """
+
+    def __init__(self, bus, *, rate_hz: float = DEFAULT_RATE_HZ, profile: str = "minimum_jerk",
+                 max_speed: Mapping[str, float] | None = None,
+                 tracking_tolerance: Mapping[str, float | None] | None = None,
+                 tracking_timeout: float = TRACKING_TIMEOUT_S,
+                 max_missed_reads: int = MAX_MISSED_READS,
+                 on_cycle: Callable[[ArmSession, Cycle], None] | None = None,
+                 clock: Callable[[], float] = time.perf_counter,
+                 sleep: Callable[[float], None] = time.sleep):
+        if profile not in PROFILES:
+            raise PlanError(f"Unknown profile '{profile}'; use one of {', '.join(PROFILES)}.")
+        self.bus = bus
+        self.limits = calibrated_limits(bus.calibration)
+        self.loop = RateLoop(rate_hz, clock, sleep)
+        self.profile = profile
+        self.max_speed = dict(max_speed or speed_caps())
+        if tracking_tolerance is None:
+            tracking_tolerance = tracking_tolerances(TRACKING_TOLERANCE_DEG)
+        self.tracking_tolerance = dict(tracking_tolerance)
+        self.tracking_timeout = tracking_timeout
+        self.max_missed_reads = max_missed_reads
+        self.on_cycle = on_cycle
+        self.cycles: list[Cycle] = []
+        self.segments: list[Segment] = []
+        self.stretched: list[str] = []
+        self.command: Configuration | None = None  # last command sent
+        self.step = ""
+        self.stop_reason: str | None = None
+        self._t0: float | None = None
+        self._beyond: dict[str, float] = {}
+        self._missed = 0
+        self.stale_bytes = 0  # late-reply bytes dropped before reads
+        _SESSIONS[bus] = self
+
+    # measurement and command
+    def read_pose(self) -> Configuration:
+        """Present_Position of every joint ([deg]; gripper [0, 100]); raises BusError."""
+        try:
+            pose = self.bus.sync_read("Present_Position")
+        except Exception as error:  # noqa: BLE001 - lerobot raises ConnectionError/RuntimeError
+            raise BusError(f"Cannot read the arm's position: {error}") from error
+        return {j: float(pose[j]) for j in JOINTS}
+
+    def _guard(self, command: Mapping[str, float]) -> Configuration:
+        """Last line of defence: refuse a command outside the calibrated range."""
+        out = {}
+        for joint in JOINTS:
+            lower, upper = self.limits[joint]
+            value = command[joint]
+            if not (lower - 1e-6 <= value <= upper + 1e-6):
+                raise JointLimitError(
+                    f"Command {joint} = {value:g} {unit(joint)} is outside the calibrated range "
+                    f"[{lower:g}, {upper:g}] {unit(joint)}; nothing was sent.")
+            out[joint] = min(upper, max(lower, value))
+        return out
+
+    def _cycle(self, command_at: Callable[[float], Mapping[str, float]]) -> float:
+        """Wait for the next deadline, command, measure, check, log; returns the deadline [s]."""
+        deadline = self.loop.wait()
+        if self.stop_reason is not None:
+            raise StopRequested(self.stop_reason)
+        previous = self.command
+        command = self._guard(command_at(deadline))
+        try:
+            self.bus.sync_write("Goal_Position", command)
+        except Exception as error:  # noqa: BLE001
+            raise BusError(f"Cannot send Goal_Position: {error}") from error
+        self.command = command
+        try:
+            stale = discard_stale_input(self.bus)
+            if stale:
+                self.stale_bytes += stale
+                logger.debug("dropped %d stale bytes (a late reply)", stale)
+            raw = self.bus.sync_read("Present_Position")
+            measured = {j: float(raw[j]) for j in JOINTS}
+            self._missed = 0
+        except Exception as error:  # noqa: BLE001
+            self._missed += 1
+            measured = None
+            logger.warning("Present_Position read failed (%d in a row): %s", self._missed, error)
+            if self._missed > self.max_missed_reads:
+                raise BusError(f"{self._missed} Present_Position reads in a row failed: {error}") \
+                    from error
+        if measured is not None and previous is not None:
+            self._check_tracking(previous, measured, deadline)
+        cycle = Cycle(deadline - self._t0, self.loop.woke - self._t0, self.step, command, measured)
+        self.cycles.append(cycle)
+        if self.on_cycle is not None:
+            self.on_cycle(self, cycle)
+        return deadline
+
+    def _check_tracking(self, commanded: Configuration, measured: Configuration,
+                        now: float) -> None:
+        for joint, tolerance in self.tracking_tolerance.items():
+            if tolerance is None:
+                continue
+            error = abs(measured[joint] - commanded[joint])
+            if error <= tolerance:
+                self._beyond.pop(joint, None)
+                continue
+            since = self._beyond.setdefault(joint, now)
+            if now - since >= self.tracking_timeout:
+                raise TrackingError(
+                    f"{joint} does not follow its command: measured {measured[joint]:.1f} "
+                    f"{unit(joint)}, commanded {commanded[joint]:.1f} {unit(joint)} (error "
+                    f"{error:.1f} > tolerance {tolerance:g} {unit(joint)} for "
+                    f"{now - since:.2f} s). Something blocks the arm (the table, an object, a "
+                    "cable) or the servo is overloaded: clear the way and check the power supply; "
+                    "--tracking-tolerance changes the tolerance.")
+
+    # motion
+    def _begin(self) -> float:
+        """Start (or continue) the loop for a new segment; returns its start time [s]."""
+        t_start = self.loop.resume()
+        if self._t0 is None:
+            self._t0 = t_start
+        return t_start
+
+    def move(self, cfg: Mapping[str, float], duration: float, step: str | None = None,
+             max_speed: Mapping[str, float] | None = None) -> Segment:
+        """Move from the last command (the measured pose at first) to ``cfg`` in ``duration`` [s].
+
+        The duration is stretched (with a warning) if a joint would exceed its speed cap.
+
+        Raises:
+            JointLimitError: ``cfg`` is outside the calibrated range (nothing sent).
+            TrackingError, BusError, StopRequested: see :class:`ArmSession`.
+        """
+        goal = check_configuration(cfg, self.limits, "move_to_pose target (calibrated range)")
+        if step is not None:
+            self.step = step
+        if self.command is None:
+            self.command = self.read_pose()  # the first move ramps from where the arm is
+        start = dict(self.command)
+        requested = float(duration)
+        caps = max_speed or self.max_speed
+        duration = capped_duration(start, goal, requested, self.profile, caps)
+        if duration > requested + 1e-9:
+            fastest = max(goal, key=lambda j: abs(goal[j] - start[j]) / caps[j])
+            distance = abs(goal[fastest] - start[fastest])
+            message = (f"'{self.step}': {requested:.2f} s is too fast for the speed cap "
+                       f"({fastest} moves {distance:.1f} {unit(fastest)}); "
+                       f"stretched to {duration:.2f} s.")
+            if max_speed is None:
+                logger.warning(message)
+                self.stretched.append(message)
+        path = Trajectory(start, goal, duration, self.profile)
+        t_start = self._begin()
+        segment = Segment("move", self.step, t_start - self._t0, start, goal, duration, requested)
+        self.segments.append(segment)
+        while True:
+            deadline = self._cycle(lambda now: path.at(now - t_start))
+            if deadline - t_start >= duration - 1e-9:
+                break
+        return segment
+
+    def hold(self, duration: float, step: str | None = None) -> None:
+        """Keep the last command for ``duration`` [s], still reading and checking every cycle."""
+        if step is not None:
+            self.step = step
+        if self.command is None:
+            self.command = self.read_pose()
+        command = dict(self.command)
+        t_start = self._begin()
+        self.segments.append(Segment("hold", self.step, t_start - self._t0, command, command,
+                                     float(duration), float(duration)))
+        while True:
+            deadline = self._cycle(lambda now: command)
+            if deadline - t_start >= float(duration) - 1e-9:
+                break
+
+    def return_slowly(self, target: Mapping[str, float]) -> Segment:
+        """Stop where the arm is, then go to ``target`` at the slow return speed."""
+        self._beyond.clear()
+        self.command = self.read_pose()
+        slow = speed_caps(RETURN_SPEED_DEG_S, RETURN_SPEED_DEG_S)
+        return self.move(target, RETURN_MIN_DURATION_S, step="abort_return", max_speed=slow)
+
+    def timing(self) -> dict[str, float]:
+        """Loop timing of the cycles so far (see :func:`loop_timing_stats`), plus overruns."""
+        stats = loop_timing_stats([c.wall_s for c in self.cycles], 1.0 / self.loop.period)
+        stats.update(overruns=self.loop.overruns, skipped=self.loop.skipped)
+        return stats
+
+
+def session_for(bus) -> ArmSession:
+    """The :class:`ArmSession` of a bus (created with default settings the first time)."""
+    if isinstance(bus, ArmSession):
+        return bus
+    session = _SESSIONS.get(bus)
+    return session if session is not None else ArmSession(bus)
+
+
+def move_to_pose(bus, cfg: Mapping[str, float], duration: float) -> None:
+    """Move the arm to ``cfg`` ([deg], gripper [0, 100]) in ``duration`` [s], as in the simulator.
+
+    Deadline-scheduled at the session's rate, Present_Position read each
+    cycle; the first call ramps from the measured pose.
+
+    Args:
+        bus: a connected lerobot FeetechMotorsBus (or its :class:`ArmSession`).
+        cfg: target configuration.
+        duration: [s]; stretched if too fast for the speed cap.
+    """
+    session_for(bus).move(cfg, duration)
+
+
+def hold_position(bus, duration: float) -> None:
+    """Hold the last commanded pose for ``duration`` [s], reading and checking the arm each cycle.
+
+    Args:
+        bus: a connected lerobot FeetechMotorsBus (or its :class:`ArmSession`).
+        duration: [s].
+    """
+    session_for(bus).hold(duration)
+
+
+@contextmanager
+def gc_frozen():
+    """Collect garbage once, then freeze: no 0.2 s full collection in the middle of a motion.
+
+    With lerobot (and PyTorch) imported, a full collection of the cyclic
+    garbage collector walks about 250 000 objects: about 0.2 s on this
+    machine, long enough to stall the arm mid-move. Frozen objects are
+    skipped; reference counting still frees everything the loop creates.
+    """
+    gc.collect()
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+
+
+@contextmanager
+def stop_on_sigint(session: ArmSession):
+    """Turn Ctrl-C into a stop at the next cycle boundary (never inside a bus transaction).
+
+    A second Ctrl-C raises KeyboardInterrupt at once. Only in the main thread.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        if session.stop_reason is None:
+            session.stop_reason = "Ctrl-C"
+            print("\nStopping (Ctrl-C again to release the torque at once) ...", file=sys.stderr)
+        else:
+            raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+# --- Loop timing, for the benchmarks ------------------------------------------------
+def measure_loop_timing(rates_hz=(100.0, 200.0), seconds: float = 3.0, wire_timing: bool = True,
+                        calibration_path: str | Path | None = None,
+                        ) -> dict[float, dict[str, float]]:
+    """Run the control loop against the virtual SO-101 and measure its timing at each rate.
+
+    The arm swings wrist_flex by +-10 deg so each cycle does the full work
+    (interpolate, sync_write, sync_read, check, log).
+
+    Args:
+        rates_hz: loop rates to measure [Hz].
+        seconds: run time per rate [s].
+        wire_timing: the virtual arm delays replies by the 1 Mbaud byte time.
+        calibration_path: the virtual arm's calibration (default: the shipped one).
+
+    Returns:
+        rate -> ``achieved_hz``, ``period_p50_ms``, ``period_p99_error_ms``,
+        ``period_max_error_ms``, ``cycles``, ``overruns``, ``skipped``.
+    """
+    from virtual_so101 import DEFAULT_CALIBRATION_PATH, VirtualSO101
+
+    calibration_path = calibration_path or DEFAULT_CALIBRATION_PATH
+    calibration = load_calibration(calibration_path)
+    results = {}
+    with VirtualSO101(calibration=calibration_path, wire_timing=wire_timing) as arm:
+        bus = connect(arm.port, calibration)
+        try:
+            configure(bus)
+            enable_torque_in_place(bus)
+            for rate in rates_hz:
+                with gc_frozen():
+                    results[rate] = _swing_wrist(ArmSession(bus, rate_hz=rate), seconds)
+        finally:
+            release_torque(bus)
+            disconnect(bus)
+    return results
+
+
+def _swing_wrist(session: ArmSession, seconds: float) -> dict[str, float]:
+    """Swing wrist_flex +-10 deg for ``seconds`` [s]; returns the session's loop timing."""
+    home = session.read_pose()
+    session.command = dict(home)
+    swings, elapsed = 0, 0.0
+    while elapsed < seconds:
+        sign = 1.0 if swings % 2 == 0 else -1.0
+        session.move(dict(home, wrist_flex=home["wrist_flex"] + sign * 10.0), 0.5)
+        session.hold(0.25)
+        swings += 1
+        elapsed = session.cycles[-1].wall_s
+    session.move(home, 0.5)
+    return session.timing()
