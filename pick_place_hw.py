@@ -35,6 +35,7 @@ from so101_calibration import (
     find_calibration,
     load_calibration,
 )
+from so101_cartesian_plan import add_cartesian_arguments, plan_from_arguments
 from so101_control import (
     DEFAULT_RATE_HZ,
     MAX_JOINT_SPEED_DEG_S,
@@ -53,7 +54,6 @@ from so101_control import (
     tracking_tolerances,
 )
 from so101_forward_kinematics import ARM_JOINTS, JOINTS, get_forward_kinematics
-from so101_inverse_kinematics import add_cartesian_arguments, plan_from_arguments
 from so101_motion import (
     PROFILES,
     Configuration,

@@ -10,7 +10,7 @@ One place for what both backends must agree on:
     :func:`load_plan`) and the runner that executes it through a backend's
     ``move_to_pose`` / ``hold_position`` (:func:`run_plan`).
 
-The backends (``so101_mujoco_utils`` for MuJoCo, ``so101_bus`` for a
+The backends (``so101_mujoco_utils`` for MuJoCo, ``so101_control`` for a
 lerobot bus) only decide how time passes and how a command reaches the arm.
 """
 
