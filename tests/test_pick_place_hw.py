@@ -467,6 +467,11 @@ def test_teach_from_the_main_script_stops_on_ctrl_c(arm, capsys):
     import threading
     import time
 
+    # Torque on first, so that "torque off" below really means teach mode has
+    # started (an earlier test may have left it off): a Ctrl-C sent before the
+    # teach loop runs would interrupt pytest itself.
+    arm.set_torque(True)
+
     def press_ctrl_c_once_teaching():
         deadline = time.monotonic() + 60.0
         while any(arm.torque_enabled().values()) and time.monotonic() < deadline:
