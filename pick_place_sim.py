@@ -23,8 +23,8 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 import so101_mujoco_utils as utils  # noqa: E402
-from so101_forward_kinematics import ARM_JOINTS, TOOL_SITE, get_forward_kinematics  # noqa: E402
 from so101_cartesian_plan import add_cartesian_arguments, plan_from_arguments  # noqa: E402
+from so101_forward_kinematics import ARM_JOINTS, TOOL_SITE, get_forward_kinematics  # noqa: E402
 from so101_meshes import ensure_meshes  # noqa: E402
 from so101_motion import (  # noqa: E402
     Plan,
@@ -49,7 +49,6 @@ from so101_render import (  # noqa: E402
 )
 
 _HERE = Path(__file__).resolve().parent
-SCENE_PATH = _HERE / "model" / "scene.xml"
 DEFAULT_VIDEO = _HERE / "out" / "pick_place.mp4"
 INITIAL_KEYFRAME = "home"  # the arm's initial pose, returned to at the end
 
@@ -117,7 +116,7 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
         contact computation until the arm touches it.
     """
     ensure_meshes()
-    spec = mujoco.MjSpec.from_file(str(SCENE_PATH))
+    spec = mujoco.MjSpec.from_file(str(utils.SCENE_PATH))
     if physics_only:
         _remove_visuals(spec)
     elif render_meshes:
