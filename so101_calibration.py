@@ -2,9 +2,13 @@
 
 A calibration (what ``lerobot-calibrate`` writes) gives each servo its id,
 drive mode, homing offset and calibrated range in raw encoder ticks. Here it
-is found by robot id, loaded and validated (:func:`load_calibration`), and
-turned into user units exactly as lerobot normalises: [deg] for the arm
-joints, [0, 100] for the gripper (:func:`ticks_to_user`, :func:`calibrated_limits`).
+is found by robot id, loaded and validated from a file or a mapping
+(:func:`load_calibration`), and turned into user units exactly as lerobot
+normalises: [deg] for the arm joints, [0, 100] for the gripper
+(:func:`ticks_to_user`, its inverse :func:`user_to_ticks`,
+:func:`calibrated_limits`). The one implementation for both backends: the
+real arm (``so101_bus``) and the virtual arm (``virtual_so101_calibration``
+adds only what is specific to it).
 
 Also home of :class:`HardwareError`, the base of the hardware error family
 (``so101_bus`` and ``pick_place_hw`` add the others).
@@ -39,8 +43,12 @@ class HardwareError(RuntimeError):
     """The arm cannot be used as asked; the message says what to do."""
 
 
-class CalibrationError(HardwareError):
-    """The calibration file is missing, malformed, or does not match the servos."""
+class CalibrationError(HardwareError, ValueError):
+    """The calibration file is missing, malformed, or does not match the servos.
+
+    Both a :class:`HardwareError` (what the real arm's callers catch) and a
+    ``ValueError`` (a bad calibration is a bad argument of the virtual arm).
+    """
 
 
 # --- Calibration files ---------------------------------------------------------
@@ -53,6 +61,10 @@ class ServoCalibration:
     homing_offset: int
     range_min: int
     range_max: int
+
+
+CALIBRATION_FIELDS = ("id", "drive_mode", "homing_offset", "range_min", "range_max")
+"""The fields of one joint's calibration, in lerobot's order."""
 
 
 def lerobot_calibration_root() -> Path:
@@ -97,11 +109,30 @@ def find_calibration(robot_id: str, port: str | None = None) -> Path:
     )
 
 
-def load_calibration(path: str | Path, robot_id: str | None = None) -> dict[str, ServoCalibration]:
-    """Read and check a lerobot calibration file (the JSON ``lerobot-calibrate`` writes).
+def calibration_source_name(source: str | Path | Mapping) -> str:
+    """How error messages name a calibration: its file, or "The calibration" for a mapping."""
+    if isinstance(source, Mapping):
+        return "The calibration"
+    return f"Calibration file '{Path(source)}'"
+
+
+def _entry_fields(entry: Any) -> Mapping[str, Any] | None:
+    """One joint's entry as a mapping of the calibration fields (None if some are missing)."""
+    if isinstance(entry, Mapping):
+        return entry if all(k in entry for k in CALIBRATION_FIELDS) else None
+    if all(hasattr(entry, k) for k in CALIBRATION_FIELDS):  # ServoCalibration, MotorCalibration
+        return {k: getattr(entry, k) for k in CALIBRATION_FIELDS}
+    return None
+
+
+def load_calibration(source: str | Path | Mapping,
+                     robot_id: str | None = None) -> dict[str, ServoCalibration]:
+    """Read and check a lerobot calibration (the JSON ``lerobot-calibrate`` writes, or its dict).
 
     Args:
-        path: the JSON file.
+        source: the JSON file, or the mapping joint name -> {id, drive_mode,
+            homing_offset, range_min, range_max} (entries may also be objects
+            with those attributes, e.g. :class:`ServoCalibration`).
         robot_id: only for the fix suggested in error messages.
 
     Returns:
@@ -111,19 +142,22 @@ def load_calibration(path: str | Path, robot_id: str | None = None) -> dict[str,
         CalibrationError: missing file, invalid JSON, missing or unknown joints,
             wrong servo ids, non-integer fields, an empty or out-of-encoder range.
     """
-    path = Path(path)
-    command = CALIBRATE_HINT.format(port="PORT", robot_id=robot_id or path.stem)
+    name = calibration_source_name(source)
+    stem = "ROBOT_ID" if isinstance(source, Mapping) else Path(source).stem
+    command = CALIBRATE_HINT.format(port="PORT", robot_id=robot_id or stem)
     fix = f"Fix: recalibrate with `{command}` or pass the right file with --calibration."
-    name = f"Calibration file '{path}'"
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise CalibrationError(f"{name} does not exist. {fix}") from None
-    except OSError as error:
-        raise CalibrationError(f"Cannot read {name}: {error.strerror}.") from None
-    except ValueError as error:
-        raise CalibrationError(f"{name} is not valid JSON ({error}). {fix}") from None
-    if not isinstance(data, dict):
+    if isinstance(source, Mapping):
+        data = source
+    else:
+        try:
+            data = json.loads(Path(source).read_text())
+        except FileNotFoundError:
+            raise CalibrationError(f"{name} does not exist. {fix}") from None
+        except OSError as error:
+            raise CalibrationError(f"Cannot read {name}: {error.strerror}.") from None
+        except ValueError as error:
+            raise CalibrationError(f"{name} is not valid JSON ({error}). {fix}") from None
+    if not isinstance(data, Mapping):
         raise CalibrationError(f"{name} must map joint names to calibrations. {fix}")
     unknown = sorted(set(data) - set(JOINTS))
     missing = [j for j in JOINTS if j not in data]
@@ -137,9 +171,9 @@ def load_calibration(path: str | Path, robot_id: str | None = None) -> dict[str,
         )
     out = {}
     for joint in JOINTS:
-        entry = data[joint]
-        fields = ("id", "drive_mode", "homing_offset", "range_min", "range_max")
-        if not isinstance(entry, dict) or any(k not in entry for k in fields):
+        entry = _entry_fields(data[joint])
+        fields = CALIBRATION_FIELDS
+        if entry is None:
             raise CalibrationError(f"{name}: {joint} needs the fields "
                                    f"{', '.join(fields)}. {fix}")
         for key in fields:
@@ -179,6 +213,27 @@ def ticks_to_user(joint: str, raw: float, cal) -> float:
         value = (min(hi, max(lo, raw)) - lo) / (hi - lo) * 100.0
         return 100.0 - value if cal.drive_mode else value
     return (raw - (lo + hi) / 2.0) * 360.0 / TICKS_PER_TURN
+
+
+def user_to_ticks(joint: str, value: float, cal) -> float:
+    """[deg] (gripper [0, 100]) -> raw ticks, not rounded: the inverse of :func:`ticks_to_user`.
+
+    Not clamped (lerobot clamps the gripper to [0, 100] before it writes), so
+    the map stays affine beyond the calibrated range.
+
+    Args:
+        joint: joint name (the gripper uses RANGE_0_100, the others DEGREES).
+        value: joint angle [deg], or gripper opening [0, 100].
+        cal: the joint's calibration (anything with ``range_min``, ``range_max``, ``drive_mode``).
+
+    Returns:
+        Encoder ticks (a float).
+    """
+    lo, hi = cal.range_min, cal.range_max
+    if joint == "gripper":
+        value = 100.0 - value if cal.drive_mode else value
+        return lo + value / 100.0 * (hi - lo)
+    return (lo + hi) / 2.0 + value * TICKS_PER_TURN / 360.0
 
 
 def calibrated_limits(calibration: Mapping[str, Any]) -> dict[str, tuple[float, float]]:

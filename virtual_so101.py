@@ -42,7 +42,8 @@ Design
 Where it lives: :mod:`virtual_so101_emulator` (the emulator process and what
 the registers do), :mod:`virtual_sts3215` (one servo's register memory),
 :mod:`feetech_protocol` (packets, the control table, wire time) and
-:mod:`virtual_so101_calibration` (the calibration, ticks <-> joint angles).
+:mod:`virtual_so101_calibration` (the shipped calibration, ticks <-> joint angles; loading
+and checking are :mod:`so101_calibration`'s, shared with the real arm).
 
 Deviations from a real arm (deliberate, for testing):
 - At power-up torque is ON, holding the initial pose (``torque_on_start``);
@@ -90,9 +91,9 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 
 from feetech_protocol import BITS_PER_BYTE, INST_SYNC_READ, cycle_wire_bytes, status_packet
+from so101_calibration import MOTOR_IDS
 from virtual_so101_calibration import (
     DEFAULT_CALIBRATION_PATH,
-    JOINT_IDS,
     CalibrationError,
     load_calibration,
     make_default_calibration,
@@ -370,7 +371,7 @@ class VirtualSO101:
 # Measurement and command line
 # =============================================================================================
 SO101_MOTORS = {name: ("sts3215", ("range_0_100" if name == "gripper" else "degrees"))
-                for name in JOINT_IDS}
+                for name in MOTOR_IDS}
 
 
 def make_bus(arm: VirtualSO101, degrees: bool = True):

@@ -1,11 +1,14 @@
-"""The virtual SO-101's lerobot calibration: the shipped one, loading, ticks <-> radians.
+"""The virtual SO-101's lerobot calibration: the shipped one and what only the virtual arm needs.
 
-Ticks <-> joint angles go through the lerobot calibration, so they agree with
-``so101_mujoco_utils.to_radians``:
-- arm joints: angle [deg] = (present - (range_min + range_max) / 2) * 360 / 4095,
-  lerobot's DEGREES;
-- gripper: opening [0, 100] = (present - range_min) / (range_max - range_min) * 100,
-  lerobot's RANGE_0_100, and 0..100 spans the model's gripper range.
+Loading, checking and lerobot's normalisation live in :mod:`so101_calibration`
+(one implementation for the real and the virtual arm); here are the virtual
+arm's additions: the shipped calibration derived from the model, the one
+extra constraint (drive_mode 0) and ticks <-> joint angles as the composition
+of lerobot's normalisation with the project's one unit conversion:
+Present_Position [ticks] -> ``so101_calibration.ticks_to_user`` ([deg], lerobot's
+DEGREES; gripper [0, 100], lerobot's RANGE_0_100) -> ``so101_mujoco_utils.to_radians``
+[rad] (0..100 spans the model's gripper range), and back.
+
 The shipped calibration (:func:`make_default_calibration`) centres each arm
 joint's range on the model's zero (2047 +/- the joint's range, rounded up by a
 tick so that lerobot's truncation at the exact joint limit stays inside). The
@@ -20,12 +23,21 @@ plausible offsets), and the registers are seeded from the calibration, so
 
 from __future__ import annotations
 
-import json
+import dataclasses
 import math
 from collections.abc import Mapping
 from pathlib import Path
 
-from feetech_protocol import BROADCAST_ID, RESOLUTION
+from feetech_protocol import RESOLUTION
+from so101_calibration import (
+    MOTOR_IDS,
+    CalibrationError,
+    ServoCalibration,
+    calibration_source_name,
+    ticks_to_user,
+    user_to_ticks,
+)
+from so101_calibration import load_calibration as load_lerobot_calibration
 
 _HERE = Path(__file__).resolve().parent
 DEFAULT_CALIBRATION_PATH = _HERE / "calibration" / "virtual_so101.json"
@@ -36,13 +48,6 @@ TICKS_PER_RAD = (RESOLUTION - 1) / (2.0 * math.pi)  # lerobot's scale (360 deg =
 DEFAULT_HOMING_OFFSETS = {"shoulder_pan": 143, "shoulder_lift": -612, "elbow_flex": 488,
                           "wrist_flex": -251, "wrist_roll": 97, "gripper": -705}
 FULL_TURN_JOINTS = ("wrist_roll",)  # recorded as 0..4095 by lerobot-calibrate
-JOINT_IDS = {"shoulder_pan": 1, "shoulder_lift": 2, "elbow_flex": 3, "wrist_flex": 4,
-             "wrist_roll": 5, "gripper": 6}
-CALIBRATION_KEYS = ("id", "drive_mode", "homing_offset", "range_min", "range_max")
-
-
-class CalibrationError(ValueError):
-    """A calibration file or dict is not usable for the virtual arm."""
 
 
 def make_default_calibration(m) -> dict[str, dict[str, int]]:
@@ -59,7 +64,7 @@ def make_default_calibration(m) -> dict[str, dict[str, int]]:
         Joint name -> {id, drive_mode, homing_offset, range_min, range_max}.
     """
     calibration = {}
-    for name, servo_id in JOINT_IDS.items():
+    for name, servo_id in MOTOR_IDS.items():
         lower, upper = (float(x) for x in m.joint(name).range)
         if name in FULL_TURN_JOINTS:
             range_min, range_max = 0, RESOLUTION - 1
@@ -78,6 +83,9 @@ def make_default_calibration(m) -> dict[str, dict[str, int]]:
 def load_calibration(calibration: str | Path | Mapping) -> dict[str, dict[str, int]]:
     """Read and check a lerobot calibration (JSON path or dict) for the virtual arm.
 
+    The checks are :func:`so101_calibration.load_calibration`'s, plus the
+    virtual arm's own: its servos are not inverted (drive_mode 0).
+
     Args:
         calibration: path to a ``lerobot-calibrate`` JSON file, or the dict
             joint name -> {id, drive_mode, homing_offset, range_min, range_max}
@@ -89,68 +97,34 @@ def load_calibration(calibration: str | Path | Mapping) -> dict[str, dict[str, i
     Raises:
         CalibrationError: missing joints or keys, bad values; the message says what to fix.
     """
-    source = "calibration"
-    if isinstance(calibration, (str, Path)):
-        source = str(calibration)
-        try:
-            calibration = json.loads(Path(calibration).read_text())
-        except FileNotFoundError as exc:
+    servos = load_lerobot_calibration(calibration)
+    for name, servo in servos.items():
+        if servo.drive_mode != 0:
             raise CalibrationError(
-                f"Calibration file {source} not found. Fix: pass an existing lerobot calibration "
-                f"JSON, e.g. {DEFAULT_CALIBRATION_PATH}.") from exc
-        except json.JSONDecodeError as exc:
-            raise CalibrationError(f"Calibration file {source} is not valid JSON: {exc}.") from exc
-    out = {}
-    missing = [name for name in JOINT_IDS if name not in calibration]
-    if missing:
-        raise CalibrationError(f"{source}: joints {missing} are missing; the virtual SO-101 needs "
-                               f"all of {list(JOINT_IDS)}.")
-    for name in JOINT_IDS:
-        entry = calibration[name]
-        get = entry.get if isinstance(entry, Mapping) else lambda k, e=entry: getattr(e, k, None)
-        values = {key: get(key) for key in CALIBRATION_KEYS}
-        for key, value in values.items():
-            if isinstance(value, bool) or not isinstance(value, int):
-                raise CalibrationError(f"{source}: {name}.{key} = {value!r} must be an integer.")
-        if values["drive_mode"] != 0:
-            raise CalibrationError(f"{source}: {name}.drive_mode = {values['drive_mode']}; the "
-                                   "virtual arm's servos are not inverted. Fix: use drive_mode 0.")
-        if not 0 <= values["range_min"] < values["range_max"] <= RESOLUTION - 1:
-            raise CalibrationError(
-                f"{source}: {name} range [{values['range_min']}, {values['range_max']}] must "
-                f"satisfy 0 <= range_min < range_max <= {RESOLUTION - 1}.")
-        if abs(values["homing_offset"]) > 2047:
-            raise CalibrationError(f"{source}: {name}.homing_offset = {values['homing_offset']} "
-                                   "is beyond +/-2047 (the register's sign-magnitude range).")
-        if not 0 < values["id"] < BROADCAST_ID:
-            raise CalibrationError(f"{source}: {name}.id = {values['id']} must be in 1..253.")
-        out[name] = values
-    ids = [v["id"] for v in out.values()]
-    if len(set(ids)) != len(ids):
-        raise CalibrationError(f"{source}: servo ids {ids} are not unique.")
-    return out
+                f"{calibration_source_name(calibration)}: {name}.drive_mode = {servo.drive_mode}; "
+                "the virtual arm's servos are not inverted. Fix: use drive_mode 0.")
+    return {name: dataclasses.asdict(servo) for name, servo in servos.items()}
 
 
-def present_to_radians(cal: Mapping[str, int], joint: str, present: float,
-                       joint_range: tuple[float, float]) -> float:
-    """Present_Position [ticks] -> joint angle [rad] through the calibration (lerobot's mapping).
+def present_to_radians(m, cal: Mapping[str, int], joint: str, present: float) -> float:
+    """Present_Position [ticks] -> joint angle [rad]: lerobot's normalisation, then ``to_radians``.
 
     Args:
+        m: the MuJoCo model (its gripper range is what [0, 100] spans).
         cal: the joint's calibration entry.
-        joint: joint name ("gripper" uses RANGE_0_100 over ``joint_range``).
-        present: position in the calibration's frame [ticks].
-        joint_range: the model joint's (lower, upper) [rad].
+        joint: joint name.
+        present: position in the calibration's frame [ticks] (the gripper's is
+            clamped to its calibrated range, as lerobot reads it).
     """
-    lo, hi = cal["range_min"], cal["range_max"]
-    if joint == "gripper":
-        return joint_range[0] + (present - lo) / (hi - lo) * (joint_range[1] - joint_range[0])
-    return (present - (lo + hi) / 2.0) / TICKS_PER_RAD
+    from so101_mujoco_utils import to_radians  # imports mujoco: only where a model is at hand
+
+    user = ticks_to_user(joint, present, ServoCalibration(**cal))
+    return to_radians(m, {joint: user})[joint]
 
 
-def radians_to_present(cal: Mapping[str, int], joint: str, angle: float,
-                       joint_range: tuple[float, float]) -> float:
-    """Joint angle [rad] -> Present_Position [ticks, not rounded]; see present_to_radians."""
-    lo, hi = cal["range_min"], cal["range_max"]
-    if joint == "gripper":
-        return lo + (angle - joint_range[0]) / (joint_range[1] - joint_range[0]) * (hi - lo)
-    return (lo + hi) / 2.0 + angle * TICKS_PER_RAD
+def radians_to_present(m, cal: Mapping[str, int], joint: str, angle: float) -> float:
+    """Joint angle [rad] -> Present_Position [ticks, not rounded]; inverse of present_to_radians."""
+    from so101_mujoco_utils import from_radians
+
+    user = from_radians(m, {joint: angle})[joint]
+    return user_to_ticks(joint, user, ServoCalibration(**cal))

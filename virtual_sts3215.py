@@ -49,7 +49,6 @@ class VirtualServo:
     def __init__(self, joint: str, cal: Mapping[str, int], m):
         self.joint = joint
         self.cal = dict(cal)
-        self.range = tuple(float(x) for x in m.joint(joint).range)
         self.qadr = int(m.joint(joint).qposadr[0])
         self.dofadr = int(m.joint(joint).dofadr[0])
         self.act = int(m.actuator(joint).id)
@@ -57,8 +56,8 @@ class VirtualServo:
         self.kv = float(-m.actuator_biasprm[self.act, 2])
         self.max_force = float(m.actuator_forcerange[self.act, 1])  # [N m] = Present_Load 1000
         # present = base + scale * angle (calibration frame), exactly lerobot's mapping
-        self.base = radians_to_present(self.cal, joint, 0.0, self.range)
-        self.scale = radians_to_present(self.cal, joint, 1.0, self.range) - self.base
+        self.base = radians_to_present(m, self.cal, joint, 0.0)
+        self.scale = radians_to_present(m, self.cal, joint, 1.0) - self.base
         self.regs = bytearray(256)
         for name, value in FACTORY.items():
             self.set(name, value)

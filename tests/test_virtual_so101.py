@@ -156,10 +156,8 @@ def test_calibrated_ranges_cover_the_model_joint_limits(model):
     limits = smu.joint_limits(model)
     for joint, (lower, upper) in limits.items():
         entry = calibration[joint]
-        joint_range = tuple(model.joint(joint).range)
         low_ticks, high_ticks = (
-            vcal.radians_to_present(entry, joint, smu.to_radians(model, {joint: v})[joint],
-                                   joint_range)
+            vcal.radians_to_present(model, entry, joint, smu.to_radians(model, {joint: v})[joint])
             for v in (lower, upper))
         assert entry["range_min"] <= low_ticks + 1e-9, joint
         assert high_ticks <= entry["range_max"] + 1e-9, joint
@@ -175,15 +173,14 @@ def test_tick_mapping_agrees_with_the_simulator_units(model):
         angles = smu.to_radians(model, cfg)
         for joint in JOINTS:
             entry = calibration[joint]
-            joint_range = tuple(model.joint(joint).range)
-            ticks = vcal.radians_to_present(entry, joint, angles[joint], joint_range)
+            ticks = vcal.radians_to_present(model, entry, joint, angles[joint])
             lo, hi = entry["range_min"], entry["range_max"]
             if joint == "gripper":
                 user = (ticks - lo) / (hi - lo) * 100.0  # lerobot RANGE_0_100
             else:
                 user = (ticks - (lo + hi) / 2) * 360.0 / 4095.0  # lerobot DEGREES
             assert user == pytest.approx(cfg[joint], abs=1e-9), joint
-            back = vcal.present_to_radians(entry, joint, ticks, joint_range)
+            back = vcal.present_to_radians(model, entry, joint, ticks)
             assert back == pytest.approx(angles[joint], abs=1e-12)
 
 
@@ -196,7 +193,7 @@ def test_bad_calibration_is_refused_with_the_fix():
     del broken["elbow_flex"]
     with pytest.raises(vcal.CalibrationError, match="elbow_flex"):
         vcal.load_calibration(broken)
-    with pytest.raises(vcal.CalibrationError, match="not found"):
+    with pytest.raises(vcal.CalibrationError, match="does not exist"):
         vcal.load_calibration("/nonexistent/calibration.json")
 
 
