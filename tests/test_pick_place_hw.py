@@ -240,13 +240,23 @@ def test_cli_run_writes_log_and_plot(arm, tmp_path, capsys):
 
 
 # --- aborts --------------------------------------------------------------------------------
-def test_ctrl_c_mid_motion_returns_to_the_start_and_releases(arm):
-    def on_cycle(session, cycle):
-        if cycle.step == "swing_right" and not fired:
-            fired.append(cycle.t_s)
-            os.kill(os.getpid(), signal.SIGINT)  # a real Ctrl-C, handled at the cycle boundary
+def once_in_swing_right(action):
+    """An on_cycle hook that runs ``action(session)`` once, at the first cycle of 'swing_right'.
 
-    fired = []
+    The hook's ``fired`` list records the cycle time [s] when it ran.
+    """
+    def on_cycle(session, cycle):
+        if cycle.step == "swing_right" and not on_cycle.fired:
+            on_cycle.fired.append(cycle.t_s)
+            action(session)
+
+    on_cycle.fired = []
+    return on_cycle
+
+
+def test_ctrl_c_mid_motion_returns_to_the_start_and_releases(arm):
+    # A real Ctrl-C, handled at the cycle boundary.
+    on_cycle = once_in_swing_right(lambda session: os.kill(os.getpid(), signal.SIGINT))
     start = arm.joint_positions()
     handler = signal.getsignal(signal.SIGINT)
     with pytest.raises(hw.MotionAborted) as info:
@@ -263,13 +273,11 @@ def test_ctrl_c_mid_motion_returns_to_the_start_and_releases(arm):
 
 def test_interrupt_inside_a_bus_transaction_is_recovered(arm):
     """KeyboardInterrupt with a reply still on the wire: the port is flushed before the return."""
-    def on_cycle(session, cycle):
-        if cycle.step == "swing_right" and not fired:
-            fired.append(True)
-            session.bus.sync_reader.txPacket()  # request sent, reply left unread ...
-            raise KeyboardInterrupt  # ... as when Ctrl-C lands inside lerobot
+    def interrupt_mid_transaction(session):
+        session.bus.sync_reader.txPacket()  # request sent, reply left unread ...
+        raise KeyboardInterrupt  # ... as when Ctrl-C lands inside lerobot
 
-    fired = []
+    on_cycle = once_in_swing_right(interrupt_mid_transaction)
     start = arm.joint_positions()
     with pytest.raises(hw.MotionAborted, match="Ctrl-C") as info:
         hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, short_plan(), on_cycle=on_cycle)
@@ -284,17 +292,15 @@ def test_a_late_reply_is_dropped_not_taken_for_the_next_one(arm):
     The late reply is servo 1's Model_Number (777): taken for its
     Present_Position it would read shoulder_pan as -112 deg.
     """
-    def on_cycle(session, cycle):
-        if cycle.step == "swing_right" and not fired:
-            fired.append(True)
-            bus = session.bus
-            bus.packet_handler.readTx(bus.port_handler, 1, 3, 2)  # its reply is never read ...
-            bus.port_handler.is_using = False  # ... as after the SDK gave up waiting
+    def leave_a_reply_on_the_port(session):
+        bus = session.bus
+        bus.packet_handler.readTx(bus.port_handler, 1, 3, 2)  # its reply is never read ...
+        bus.port_handler.is_using = False  # ... as after the SDK gave up waiting
 
-    fired = []
+    on_cycle = once_in_swing_right(leave_a_reply_on_the_port)
     result = hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, short_plan(), on_cycle=on_cycle)
     pan = [c.measured["shoulder_pan"] for c in result.cycles if c.measured is not None]
-    assert fired and min(pan) > -32.0 and max(pan) < 32.0
+    assert on_cycle.fired and min(pan) > -32.0 and max(pan) < 32.0
     assert result.stale_bytes == 8  # one status packet with 2 bytes of data
     assert_near(arm.joint_positions(), result.start_pose, label="end")
 
@@ -314,12 +320,8 @@ def test_stalled_joint_aborts_returns_and_releases(arm):
 
 
 def test_stall_that_also_blocks_the_way_back_releases_at_once(arm):
-    def on_cycle(session, cycle):
-        if cycle.step == "swing_right" and not fired:
-            fired.append(True)
-            arm.inject("stall:shoulder_pan")  # stuck near +30 deg, asked to go to -30, then 0
-
-    fired = []
+    # Stuck near +30 deg, asked to go to -30, then 0.
+    on_cycle = once_in_swing_right(lambda session: arm.inject("stall:shoulder_pan"))
     with pytest.raises(hw.MotionAborted) as info:
         hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, short_plan(), on_cycle=on_cycle)
     result = info.value.result
@@ -330,12 +332,7 @@ def test_stall_that_also_blocks_the_way_back_releases_at_once(arm):
 
 
 def test_servo_that_stops_answering_aborts_and_releases_the_others(arm):
-    def on_cycle(session, cycle):
-        if cycle.step == "swing_right" and not fired:
-            fired.append(True)
-            arm.inject("remove:wrist_flex")
-
-    fired = []
+    on_cycle = once_in_swing_right(lambda session: arm.inject("remove:wrist_flex"))
     with pytest.raises(hw.MotionAborted) as info:
         hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, short_plan(), on_cycle=on_cycle)
     message = str(info.value)
@@ -350,12 +347,7 @@ def test_servo_that_stops_answering_aborts_and_releases_the_others(arm):
 
 
 def test_a_dropped_reply_is_ridden_through(arm):
-    def on_cycle(session, cycle):
-        if cycle.step == "swing_right" and not fired:
-            fired.append(True)
-            arm.inject("drop:3:1")
-
-    fired = []
+    on_cycle = once_in_swing_right(lambda session: arm.inject("drop:3:1"))
     result = hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, short_plan(), on_cycle=on_cycle)
     assert sum(c.measured is None for c in result.cycles) == 1
     assert result.aborted is None and not any(arm.torque_enabled().values())
