@@ -43,3 +43,30 @@ def data(model):
     import mujoco
 
     return mujoco.MjData(model)
+
+
+class _EveryStep:
+    """A headless stand-in for a viewer: ``move_to_pose`` calls ``sync()`` after every step."""
+
+    offscreen, sync_every_step = True, True
+
+    def __init__(self, after_step):
+        self.sync = after_step
+
+    def is_running(self) -> bool:
+        return True
+
+
+def run_default_plan(m, d, after_step) -> None:
+    """Run the default plan from the home keyframe, calling ``after_step()`` after each step."""
+    import mujoco
+
+    import so101_mujoco_utils as utils
+    from so101_motion import default_plan, run_plan
+
+    mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
+    mujoco.mj_forward(m, d)
+    viewer = _EveryStep(after_step)
+    run_plan(default_plan(), lambda cfg, duration: utils.move_to_pose(m, d, viewer, cfg, duration),
+             lambda duration: utils.hold_position(m, d, viewer, duration),
+             utils.get_configuration(m, d))
