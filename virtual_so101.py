@@ -21,7 +21,7 @@ Design
   started with subprocess so the caller's ``__main__`` is not re-run) holds
   the pty, the servo registers and the MuJoCo simulation of
   ``model/scene.xml`` in a single-threaded event loop: it answers the bus
-  first and steps the physics (2 ms steps) to keep up with the wall clock in
+  first and steps the physics (the model's 4 ms steps) to keep up with the wall clock in
   between. Nothing of the emulator runs in the client's process (lerobot
   busy-polls the port; a Python thread there slows it, and a second thread in
   the emulator would fight for its GIL). The parent object talks to it over a
