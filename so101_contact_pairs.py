@@ -6,7 +6,7 @@ pairs whose contype/conaffinity bits match and whose bodies are not welded
 together or parent and child. Explicitly, a ``<pair>`` names two geoms and
 only those are tested. A scene as small as the course's (13 arm boxes, the
 table, one cube) has 27 geom pairs that can touch at all, so listing them
-costs less than finding them: 6.5 % fewer instructions per pick-and-place
+costs less than finding them: 6 % fewer instructions per pick-and-place
 step, and the run is bit for bit the same.
 
 :func:`use_explicit_contact_pairs` makes the conversion from the model as
