@@ -15,9 +15,9 @@ from so101_contact_pairs import (
     use_explicit_contact_pairs,
 )
 
-# Two free boxes resting on a plane and on each other, each with its own
-# contact parameters (equal priority, so MuJoCo mixes them), and a third with
-# a higher priority.
+# A plane and two free boxes stacked on it, each with its own contact
+# parameters. The plane and the lower box have equal priority (MuJoCo mixes
+# their parameters); the upper box has a higher one (its own govern).
 MIXING_SCENE = """
 <mujoco>
   <worldbody>
