@@ -68,10 +68,10 @@ def cartesian_plan(
     - pre_grasp / retreat: the open gripper ``slide`` [m] off the grasp along
       the jaw axis, towards the fixed jaw's side, at the same height: the
       fixed jaw slides onto the cube and backs off it horizontally;
-    - approach: ``approach_height`` above pre_grasp;
+    - approach / depart: ``approach_height`` above pre_grasp / retreat;
     - lift / carry: ``lift_height`` above the pick and place positions.
 
-    Approach, lift and carry are top-down when the arm can reach them so,
+    Approach, lift, carry and depart are top-down when the arm can reach them so,
     otherwise as close to top-down as it can (position-only IK).
 
     Args:
@@ -82,11 +82,11 @@ def cartesian_plan(
             course's grasp.
         lift_height: height of lift and carry above pick and place [m].
         move_duration: time for each main move [s]; the short moves near the
-            cube (pre_grasp, start_open, start_closed, final_open, retreat)
-            take half of it.
+            cube (pre_grasp, start_open, start_closed, final_open, retreat,
+            depart) take half of it.
         hold_duration: pause after each of the course's six configurations [s].
         place_yaw_deg: the cube's yaw at the place [deg]; default ``cube_yaw_deg``.
-        approach_height: height of the approach above pre_grasp [m].
+        approach_height: height of approach and depart above pre_grasp and retreat [m].
         slide: horizontal offset of pre_grasp and retreat from the grasps [m].
 
     Returns:
@@ -101,7 +101,7 @@ def cartesian_plan(
         >>> plan = cartesian_plan((0.230054, 0.190308, 0.013), (0.229144, -0.191219, 0.013))
         >>> [step.name for step in plan.steps]  # doctest: +NORMALIZE_WHITESPACE
         ['approach', 'pre_grasp', 'start_open', 'start_closed', 'lift', 'carry',
-         'final_closed', 'final_open', 'retreat']
+         'final_closed', 'final_open', 'retreat', 'depart']
         >>> {joint: round(value, 2) for joint, value in plan.configurations()["start_open"].items()}
         {'shoulder_pan': -45.0, 'shoulder_lift': 45.0, 'elbow_flex': -45.0, 'wrist_flex': 90.0, \
 'wrist_roll': 0.0, 'gripper': 50.0}
@@ -138,10 +138,12 @@ def cartesian_plan(
     approach = solve("approach", pick + slide * pick_jaw + approach_height * up, pick_yaw,
                      pre_grasp, top_down_only=False)
     retreat = solve("retreat", place + slide * place_jaw, place_yaw, final_open)
+    depart = solve("depart", place + slide * place_jaw + approach_height * up, place_yaw,
+                   retreat, top_down_only=False)
     lift = solve("lift", pick + lift_height * up, pick_yaw, start_open, top_down_only=False)
     carry = solve("carry", place + lift_height * up, place_yaw, final_open, top_down_only=False)
     return pick_and_place_plan(approach, pre_grasp, start_open, lift, carry, final_open, retreat,
-                               move_duration, hold_duration)
+                               depart, move_duration, hold_duration)
 
 
 def add_cartesian_arguments(parser: argparse.ArgumentParser, cube_yaw: bool = True) -> None:

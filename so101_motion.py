@@ -173,8 +173,9 @@ class Plan:
 # The course's pick-and-place. The six configurations of the assignment are
 # start_open, start_closed, lift, carry, final_closed and final_open; the first
 # and last two are the course's, lift and carry (ours) raise the cube 11.6 cm
-# clear of the table. Three extra waypoints (approach, pre_grasp, retreat) make
-# the grasp robust; they are moves of the arm only, the jaws stay open.
+# clear of the table. Four extra waypoints (approach, pre_grasp, retreat,
+# depart) make the grasp robust and leave the placed cube alone; they are
+# moves of the arm only, the jaws stay open.
 STARTING_CONFIGURATION = {
     "shoulder_pan": -45.0, "shoulder_lift": 45.0, "elbow_flex": -45.0,
     "wrist_flex": 90.0, "wrist_roll": 0.0, "gripper": 50.0,
@@ -195,7 +196,11 @@ GRIPPER_CLOSED = 5.0
 #   pre_grasp: 12 mm nearer the base, gripper vertical, same height;
 #   lift/carry: 116 mm up (the cube's bottom 11.6 cm above the table), tilted 25 deg;
 #   retreat:   pre_grasp at the final pan: the fixed jaw backs off the placed
-#              cube horizontally before the arm returns to its initial pose.
+#              cube horizontally;
+#   depart:    approach at the final pan: the open gripper rises clear of the
+#              cube before the arm returns to its initial pose (a joint-space
+#              return straight from retreat can sweep a jaw through a cube
+#              placed near the base).
 APPROACH = {"shoulder_lift": 24.0, "elbow_flex": -32.0, "wrist_flex": 93.0}
 PRE_GRASP = {"shoulder_lift": 35.0, "elbow_flex": -28.0, "wrist_flex": 83.0}
 LIFT = {"shoulder_lift": 0.0, "elbow_flex": -20.0, "wrist_flex": 85.0}
@@ -210,20 +215,20 @@ def default_plan(move_duration: float = 2.0, hold_duration: float = 0.5) -> Plan
 
     Args:
         move_duration: time for each main move [s]; the short approach,
-            sweep, grip, release and retreat moves take half of it.
+            sweep, grip, release, retreat and depart moves take half of it.
         hold_duration: pause after each of the six course configurations [s].
 
     Returns:
         The plan: approach, pre_grasp, then the course's six configurations
         (start_open, start_closed, lift, carry, final_closed, final_open),
-        retreat, then back to the initial pose.
+        retreat, depart, then back to the initial pose.
     """
     start, final = STARTING_CONFIGURATION, FINAL_CONFIGURATION
     return pick_and_place_plan(
         approach=dict(start, **APPROACH), pre_grasp=dict(start, **PRE_GRASP), grasp=start,
         lift=dict(start, **LIFT), carry=dict(final, **LIFT), release=final,
-        retreat=dict(final, **PRE_GRASP), move_duration=move_duration,
-        hold_duration=hold_duration)
+        retreat=dict(final, **PRE_GRASP), depart=dict(final, **APPROACH),
+        move_duration=move_duration, hold_duration=hold_duration)
 
 
 def pick_and_place_plan(
@@ -234,10 +239,11 @@ def pick_and_place_plan(
     carry: Mapping[str, float],
     release: Mapping[str, float],
     retreat: Mapping[str, float],
+    depart: Mapping[str, float],
     move_duration: float = 2.0,
     hold_duration: float = 0.5,
 ) -> Plan:
-    """Assemble the pick-and-place's nine steps from its key configurations.
+    """Assemble the pick-and-place's ten steps from its key configurations.
 
     The one place that fixes the waypoints' names, order, gripper states and
     timing, for the joint-space plan (:func:`default_plan`) and the Cartesian
@@ -251,13 +257,14 @@ def pick_and_place_plan(
         carry: the cube held above the place position (gripper set likewise).
         release: the open gripper at the place position (final_open).
         retreat: the open gripper backed off the placed cube.
+        depart: the open gripper raised clear of the placed cube.
         move_duration: time for each main move [s]; the short moves near the
             cube take half of it.
         hold_duration: pause after each of the course's six configurations [s].
 
     Returns:
         The plan: approach, pre_grasp, start_open, start_closed, lift, carry,
-        final_closed, final_open, retreat; then back to the initial pose.
+        final_closed, final_open, retreat, depart; then back to the initial pose.
     """
     closed = {"gripper": GRIPPER_CLOSED}
     short = 0.5 * move_duration
@@ -271,6 +278,7 @@ def pick_and_place_plan(
         ("final_closed", dict(release, **closed), move_duration, hold_duration),
         ("final_open", release, short, hold_duration),
         ("retreat", retreat, short, 0.0),
+        ("depart", depart, short, 0.0),
     ]
     return Plan([Step(name, dict(cfg), duration, hold)
                  for name, cfg, duration, hold in waypoints], return_duration=move_duration)

@@ -15,6 +15,7 @@ from conftest import run_default_plan
 import pick_place_sim
 import so101_mujoco_utils as utils
 from pick_place_sim import CubeStart, choose_mode, run_pick_place
+from so101_cartesian_plan import cartesian_plan
 from so101_forward_kinematics import get_forward_kinematics
 from so101_motion import (
     FINAL_CONFIGURATION,
@@ -305,6 +306,36 @@ def test_cartesian_pick_and_place_elsewhere_on_the_table(tmp_path):
     assert code == 0
     report = json.loads(path.read_text())
     np.testing.assert_allclose(report["cube_target_position_m"], [0.20, -0.15, 0.013], atol=1e-6)
+
+
+def random_cartesian_plans(count, seed):
+    """Reachable IK plans between random cube positions on the table, 6 cm or more apart."""
+    rng = np.random.default_rng(seed)
+    while count:
+        (r_pick, r_place), (a_pick, a_place) = rng.uniform(0.16, 0.30, 2), rng.uniform(-70, 70, 2)
+        pick = (r_pick * math.cos(math.radians(a_pick)), r_pick * math.sin(math.radians(a_pick)))
+        place = (r_place * math.cos(math.radians(a_place)),
+                 r_place * math.sin(math.radians(a_place)))
+        yaw = rng.uniform(-45, 45)  # [deg]
+        if math.dist(pick, place) < 0.06:
+            continue
+        try:
+            yield cartesian_plan((*pick, 0.013), (*place, 0.013), cube_yaw_deg=yaw)
+        except PlanError:
+            continue  # out of reach
+        count -= 1
+
+
+@pytest.mark.parametrize("plan", [
+    # Placed near the base: a return home straight from retreat swept the
+    # moving jaw through this cube and pushed it 3.6 cm (before depart).
+    cartesian_plan((0.207, 0.070, 0.013), (0.167, -0.050, 0.013), cube_yaw_deg=20.3),
+    *random_cartesian_plans(6, seed=1),
+])
+def test_cartesian_plans_across_the_table_place_the_cube(plan):
+    # 100 such plans (4 seeds): all placed, worst 1.4 mm; 17 failed without depart.
+    report = run_pick_place(plan)
+    assert report.success, report.summary()
 
 
 def test_cube_yaw_without_cartesian_plan_is_refused(capsys):
