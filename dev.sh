@@ -7,9 +7,9 @@
 #   ./dev.sh bench [ARGS] the benchmarks (benchmarks/run.py)
 #   ./dev.sh shell        a shell inside the environment
 #
-# The virtual environment lives outside the clone, keyed by a hash of
-# pyproject.toml and the extras, so a new clone reuses it and a changed
-# pyproject.toml builds a fresh one:
+# The virtual environment lives outside the clone, keyed by a hash of the
+# dependencies and the extras, so a new clone reuses it and changed
+# dependencies build a fresh one:
 #   ${SO101_VENV_ROOT:-${XDG_CACHE_HOME:-~/.cache}/so101-kinematics}/venv-<hash>-<extras>
 set -euo pipefail
 cd "$(dirname "$0")"
@@ -29,7 +29,11 @@ if ! "$python" -c 'import sys; sys.exit(sys.version_info < (3, 10))' 2>/dev/null
 fi
 
 root="${SO101_VENV_ROOT:-${XDG_CACHE_HOME:-$HOME/.cache}/so101-kinematics}"
-key="$( (cat pyproject.toml; echo "$extras"; "$python" -V) | sha256sum | cut -c1-16)"
+# Keyed by what the environment contains: the dependency lists (comments and
+# blank lines dropped), the extras and the interpreter; not the rest of
+# pyproject.toml, so moving modules or editing tool settings rebuilds nothing.
+deps="$(awk '/^dependencies = \[/,/^\[tool/' pyproject.toml | grep -v -e '^\[tool' -e '^ *#' -e '^ *$')"
+key="$( (echo "$deps"; echo "$extras"; "$python" -V) | sha256sum | cut -c1-16)"
 venv="$root/venv-$key-${extras:-base}"
 
 if [ ! -f "$venv/.complete" ]; then
