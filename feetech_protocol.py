@@ -34,7 +34,11 @@ BITS_PER_BYTE = 10  # on the wire: start bit, 8 data bits, stop bit
 INST_PING, INST_READ, INST_WRITE = 0x01, 0x02, 0x03
 INST_SYNC_READ, INST_SYNC_WRITE = 0x82, 0x83
 BROADCAST_ID = 0xFE
-ERR_OVERLOAD = 0x20  # status error bit
+ERR_VOLTAGE = 0x01  # status error bits (the status packet's error byte and the Status register)
+ERR_OVERHEAT = 0x04
+ERR_OVERLOAD = 0x20
+ERROR_BITS = {"voltage": ERR_VOLTAGE, "overheat": ERR_OVERHEAT, "overload": ERR_OVERLOAD}
+"""Fault name -> status error bit (the bits lerobot's SDK names in its error messages)."""
 
 # --- control table: name -> (address, size [bytes]) (lerobot's STS_SMS_SERIES_CONTROL_TABLE) ---
 ADDR = {

@@ -3,17 +3,20 @@
 The bus side of the hardware backend (the control loop that drives it is
 ``so101_control``):
   - lerobot, imported lazily (it imports PyTorch): :func:`import_lerobot`;
-  - the bus: :func:`make_bus`, :func:`connect` (checks servos and calibration,
-    nothing moves), :func:`configure`, :func:`enable_torque_in_place`,
-    :func:`release_torque`, :func:`disconnect`;
+  - the bus: :func:`make_bus`, :func:`connect` (takes the port for this
+    program alone, checks servos and calibration, nothing moves),
+    :func:`configure`, :func:`enable_torque_in_place`, :func:`release_torque`,
+    :func:`disconnect`;
   - what a Feetech bus needs after a fault: dropping late replies
     (:func:`discard_stale_input`, :func:`recover_port`), finding the servos
-    that stopped answering (:func:`silent_servos`), and lerobot's exceptions
-    turned into errors with a fix (:func:`bus_errors`).
+    that stopped answering (:func:`silent_servos`), telling a vanished port
+    (:func:`port_lost`) from a silent arm, and lerobot's exceptions turned into
+    errors with a fix (:func:`bus_errors`).
 """
 
 from __future__ import annotations
 
+import fcntl
 import logging
 import os
 import time
@@ -46,6 +49,84 @@ class LerobotMissing(HardwareError):
 
 class ConnectionFailed(HardwareError):
     """The port cannot be opened or a servo does not answer."""
+
+
+class PortInUse(ConnectionFailed):
+    """Another program has the arm's port open."""
+
+
+class PortLost(HardwareError):
+    """The arm's USB connection was lost mid-run (the port vanished)."""
+
+    @classmethod
+    def during(cls, what: str) -> PortLost:
+        """The error for a port that vanished during ``what``."""
+        return cls(f"the arm's USB connection was lost during {what} (the port vanished). The "
+                   "servos keep holding their last goal with torque on")
+
+
+# --- The port, for this program alone ------------------------------------------
+def _proc_links(pid: str) -> set[str]:
+    try:
+        folder = f"/proc/{pid}/fd"
+        return {os.readlink(os.path.join(folder, fd)) for fd in os.listdir(folder)}
+    except OSError:
+        return set()
+
+
+def _command_line(pid: str) -> str:
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as handle:
+            return handle.read().replace(b"\0", b" ").decode(errors="replace").strip()[:80]
+    except OSError:
+        return "?"
+
+
+def port_users(port: str) -> list[str]:
+    """Other processes with ``port`` open, as "pid N (command)" (Linux; [] elsewhere).
+
+    A process that also holds a pseudo-terminal master (/dev/ptmx: the virtual
+    arm's emulator, a terminal) is the port's other end, not a user.
+    """
+    if not os.path.isdir("/proc"):
+        return []
+    target = os.path.realpath(port)
+    users = []
+    for pid in os.listdir("/proc"):
+        if not pid.isdigit() or int(pid) == os.getpid():
+            continue
+        links = _proc_links(pid)
+        if target in links and "/dev/ptmx" not in links:
+            users.append(f"pid {pid} ({_command_line(pid)})")
+    return users
+
+
+def claim_port(port: str) -> int:
+    """Open ``port`` with an exclusive lock (flock) for this program; returns the fd to close.
+
+    Raises:
+        PortInUse: another program holds the lock or has the port open.
+        ConnectionFailed: the port cannot be opened.
+    """
+    try:
+        fd = os.open(port, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    except OSError as error:
+        raise ConnectionFailed(f"Cannot open port '{port}': {error.strerror}. Find the port with "
+                               f"`{FIND_PORT_HINT}`.") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        users = port_users(port)
+        raise PortInUse(f"The port '{port}' is in use by another program"
+                        f"{': ' + ', '.join(users) if users else ''}. Fix: stop that program "
+                        "first (only one program may drive the arm).") from None
+    users = port_users(port)
+    if users:
+        os.close(fd)
+        raise PortInUse(f"The port '{port}' is in use by another program: {', '.join(users)}. "
+                        "Fix: stop that program first (only one program may drive the arm).")
+    return fd
 
 
 # --- lerobot, imported lazily ------------------------------------------------
@@ -91,7 +172,7 @@ def make_bus(port: str, calibration: Mapping[str, ServoCalibration]):
 
 
 def connect(port: str, calibration: Mapping[str, ServoCalibration], *, robot_id: str | None = None,
-            write_calibration: bool = False):
+            write_calibration: bool = False, check_calibration: bool = True):
     """Open the port, check every servo answers and holds this calibration; nothing moves.
 
     Args:
@@ -100,6 +181,8 @@ def connect(port: str, calibration: Mapping[str, ServoCalibration], *, robot_id:
         robot_id: for the messages.
         write_calibration: if the servos' calibration registers differ from the
             file, write the file into them (as ``lerobot-calibrate`` offers) instead of refusing.
+        check_calibration: compare the servos' calibration with the file (False
+            only to release the torque, which needs no calibration).
 
     Returns:
         The connected bus (torque untouched).
@@ -116,13 +199,17 @@ def connect(port: str, calibration: Mapping[str, ServoCalibration], *, robot_id:
     if port.startswith("/") and not os.path.exists(port):
         raise ConnectionFailed(f"Port '{port}' does not exist. Is the arm's USB cable plugged in? "
                                f"Find the port with `{FIND_PORT_HINT}`.")
+    lock = claim_port(port)
     bus = make_bus(port, calibration)
+    bus.so101_port_lock = lock
     try:
         bus.connect()
     except ConnectionError as error:
+        os.close(lock)
         raise ConnectionFailed(f"Cannot open port '{port}': {str(error).strip()} "
                                f"Find the port with `{FIND_PORT_HINT}`.") from None
     except RuntimeError as error:
+        os.close(lock)
         raise ConnectionFailed(
             f"The servos on '{port}' did not pass lerobot's check:\n{error}\n"
             "Fix: switch on the arm's power supply, check the cables between the servos, and make "
@@ -130,7 +217,7 @@ def connect(port: str, calibration: Mapping[str, ServoCalibration], *, robot_id:
         ) from None
     try:
         with bus_errors("reading the servos' calibration"):
-            mismatch = calibration_mismatch(bus, calibration)
+            mismatch = calibration_mismatch(bus, calibration) if check_calibration else []
         if mismatch:
             if not write_calibration:
                 fix = CALIBRATE_HINT.format(port=port, robot_id=robot_id or "ID")
@@ -212,14 +299,26 @@ def discard_stale_input(bus) -> int:
     return waiting
 
 
-def recover_port(bus) -> None:
-    """After an interrupted transaction: let late replies arrive, drop them, free the port."""
+def recover_port(bus, settle: bool = True) -> None:
+    """After an interrupted or failed transaction: drop late replies, free the port.
+
+    Args:
+        bus: the bus.
+        settle: first wait ``PORT_SETTLE_S`` for replies still on the way.
+    """
     try:
-        time.sleep(PORT_SETTLE_S)
+        if settle:
+            time.sleep(PORT_SETTLE_S)
         discard_stale_input(bus)
         bus.port_handler.is_using = False
     except Exception:  # noqa: BLE001 - best effort on a failing port
         logger.debug("could not flush the port", exc_info=True)
+
+
+def port_lost(bus) -> bool:
+    """Whether the bus's port has vanished (the USB cable pulled out, the virtual arm gone)."""
+    port = getattr(bus, "port", None) or getattr(bus.port_handler, "port_name", None)
+    return isinstance(port, str) and port.startswith("/") and not os.path.exists(port)
 
 
 @contextmanager
@@ -276,3 +375,10 @@ def disconnect(bus) -> None:
             bus.disconnect(disable_torque=False)
     except Exception:  # noqa: BLE001
         logger.debug("disconnect failed", exc_info=True)
+    lock = getattr(bus, "so101_port_lock", None)
+    if lock is not None:
+        bus.so101_port_lock = None
+        try:
+            os.close(lock)
+        except OSError:
+            pass

@@ -6,15 +6,25 @@ The motion side of the hardware backend of the shared motion code
     (:class:`RateLoop`, :func:`loop_timing_stats`);
   - the control loop (:class:`ArmSession`) behind the course's interface
     ``move_to_pose(bus, cfg, duration)`` and ``hold_position(bus, duration)``,
-    with Ctrl-C turned into a stop at a cycle boundary (:func:`stop_on_sigint`)
-    and the garbage collector frozen during motion (:func:`gc_frozen`);
-  - :func:`measure_loop_timing` against the virtual SO-101, for the benchmarks.
+    with every stop signal (Ctrl-C, SIGTERM, SIGHUP) turned into a stop at a
+    cycle boundary (:func:`stop_on_signals`) and the garbage collector frozen
+    during motion (:func:`gc_frozen`).
+
+The fault policy (docs/hardware_safety.md): a position-controlled servo holds
+its last goal by itself, so holding is always safer than letting go. A failed
+read is retried within the cycle; while the arm is unobserved the
+trajectory's clock stands still and the last goal is repeated, so the plan
+resumes where it paused when the reads come back. Only an outage longer than
+``OUTAGE_TOLERANCE_S``, a stall, or a servo's error bit ends the motion, with
+a controlled stop (goal = present position, torque on): see
+:meth:`ArmSession.stop_here`.
 """
 
 from __future__ import annotations
 
 import gc
 import logging
+import math
 import signal
 import sys
 import threading
@@ -24,18 +34,10 @@ from collections.abc import Callable, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import cache
-from pathlib import Path
 from typing import NamedTuple
 
-from so101_bus import (
-    configure,
-    connect,
-    discard_stale_input,
-    disconnect,
-    enable_torque_in_place,
-    release_torque,
-)
-from so101_calibration import HardwareError, calibrated_limits, load_calibration
+from so101_bus import PortLost, discard_stale_input, port_lost, recover_port
+from so101_calibration import HardwareError, calibrated_limits
 from so101_forward_kinematics import JOINTS
 from so101_motion import (
     PROFILES,
@@ -51,16 +53,27 @@ logger = logging.getLogger(__name__)
 
 # --- Settings ---------------------------------------------------------------
 DEFAULT_RATE_HZ = 100.0            # control loop rate [Hz]
-MAX_RATE_HZ = 1000.0               # the bus cannot do a 6-motor cycle much faster
+MIN_RATE_HZ = 20.0                 # slower, one cycle's step at the speed cap exceeds 5 deg
+MAX_RATE_HZ = 500.0                # a 6-motor cycle takes about 1.1 ms on the wire and host
 MAX_JOINT_SPEED_DEG_S = 100.0      # speed cap of each arm joint [deg/s] (peak of the profile)
+SPEED_CAP_LIMIT_DEG_S = 180.0      # the highest cap accepted: 2/3 of the STS3215's no-load
+                                   # speed at 7.4 V (0.222 s/60 deg = 270 deg/s) [deg/s]
 MAX_GRIPPER_SPEED_PCT_S = 100.0    # speed cap of the gripper [%/s]
 RETURN_SPEED_DEG_S = 20.0          # "slowly": return after an abort [deg/s] (gripper [%/s])
 RETURN_MIN_DURATION_S = 1.0        # the return after an abort never takes less [s]
 TRACKING_TOLERANCE_DEG = 15.0      # measured vs commanded, arm joints [deg] ...
+TRACKING_TOLERANCE_LIMIT_DEG = 45.0  # ... at most this [deg] ...
 TRACKING_TIMEOUT_S = 0.3           # ... beyond it for this long [s] is a stall or a collision
-MAX_MISSED_READS = 2               # consecutive failed Present_Position reads tolerated
+READ_RETRIES = 1                   # a failed Present_Position read is retried in the cycle
+OUTAGE_TOLERANCE_S = 1.0           # the arm may go unobserved this long: the plan pauses [s]
+RECOVERY_TIMEOUT_S = 5.0           # after a longer outage, wait this long for the arm [s]
+MAX_ADVANCE_S = 0.05               # the trajectory advances at most this much per cycle [s]
+STATUS_EVERY = 10                  # read the servos' Status (error bits) every N cycles
 SPIN_S = 0.0005                    # busy-wait this last part of each period [s]
 IDLE_RESTART_S = 0.25              # a loop idle for longer starts a fresh deadline grid [s]
+STATUS_BITS = {0x01: "input voltage out of range", 0x04: "overheated", 0x08: "overcurrent",
+               0x20: "overloaded"}
+"""Status register bits of the STS3215 that stop the motion, and what they mean."""
 
 
 # --- Errors -----------------------------------------------------------------
@@ -69,11 +82,19 @@ class TrackingError(HardwareError):
 
 
 class BusError(HardwareError):
-    """The bus failed during motion (a servo stopped answering, the port closed)."""
+    """The arm went unobserved for longer than ``OUTAGE_TOLERANCE_S`` during motion."""
+
+
+class ServoFault(HardwareError):
+    """A servo reported an error bit (overload, overheating, voltage) during motion."""
 
 
 class StopRequested(HardwareError):
-    """A stop was requested (Ctrl-C) and honoured at the next control cycle."""
+    """A stop was requested (Ctrl-C, SIGTERM, SIGHUP) and honoured at the next control cycle."""
+
+
+class FreezeRequested(KeyboardInterrupt):
+    """A second stop signal: freeze at once where the arm is, torque on (no return)."""
 
 
 # --- Speed cap ---------------------------------------------------------------
@@ -251,14 +272,15 @@ class ArmSession:
 
     Args:
         bus: a connected lerobot ``FeetechMotorsBus`` (calibration set).
-        rate_hz: control loop rate [Hz].
+        rate_hz: control loop rate [Hz], in [``MIN_RATE_HZ``, ``MAX_RATE_HZ``].
         profile: "minimum_jerk" (default, as the simulator) or "linear".
         max_speed: joint -> speed cap ([deg/s]; gripper [%/s]).
         tracking_tolerance: joint -> |measured - commanded| allowed [deg]
             (None: not checked; the gripper by default, as it squeezes the cube).
         tracking_timeout: how long a joint may stay beyond it [s].
-        max_missed_reads: consecutive failed reads tolerated before a bus error.
-        on_cycle: called with (session, cycle) after each cycle (tests, monitors).
+        outage_tolerance: how long the arm may go unobserved (every read
+            failing) before the motion stops [s]; meanwhile the plan pauses.
+        on_cycle: called with (session, cycle) after each cycle (tests, monitors, the log).
         clock, sleep: time sources (tests).
     """
 
@@ -266,12 +288,13 @@ class ArmSession:
                  max_speed: Mapping[str, float] | None = None,
                  tracking_tolerance: Mapping[str, float | None] | None = None,
                  tracking_timeout: float = TRACKING_TIMEOUT_S,
-                 max_missed_reads: int = MAX_MISSED_READS,
+                 outage_tolerance: float = OUTAGE_TOLERANCE_S,
                  on_cycle: Callable[[ArmSession, Cycle], None] | None = None,
                  clock: Callable[[], float] = time.perf_counter,
                  sleep: Callable[[float], None] = time.sleep):
         if profile not in PROFILES:
             raise PlanError(f"Unknown profile '{profile}'; use one of {', '.join(PROFILES)}.")
+        check_rate(rate_hz)
         self.bus = bus
         self.limits = calibrated_limits(bus.calibration)
         self.loop = RateLoop(rate_hz, clock, sleep)
@@ -281,7 +304,7 @@ class ArmSession:
             tracking_tolerance = tracking_tolerances(TRACKING_TOLERANCE_DEG)
         self.tracking_tolerance = dict(tracking_tolerance)
         self.tracking_timeout = tracking_timeout
-        self.max_missed_reads = max_missed_reads
+        self.outage_tolerance = outage_tolerance
         self.on_cycle = on_cycle
         self.cycles: list[Cycle] = []
         self.segments: list[Segment] = []
@@ -289,20 +312,27 @@ class ArmSession:
         self.command: Configuration | None = None  # last command sent
         self.step = ""
         self.stop_reason: str | None = None
+        self.outages: list[tuple[float, float]] = []  # ridden through: (start, length) [s]
         self._t0: float | None = None
         self._beyond: dict[str, float] = {}
-        self._missed = 0
+        self._unobserved_since: float | None = None
         self.stale_bytes = 0  # late-reply bytes dropped before reads
         _SESSIONS[bus] = self
 
     # measurement and command
+    def _read(self) -> Configuration:
+        """Present_Position of every joint, retried within the call; raises what the bus raises."""
+        raw = self.bus.sync_read("Present_Position", num_retry=READ_RETRIES)
+        return {j: float(raw[j]) for j in JOINTS}
+
     def read_pose(self) -> Configuration:
-        """Present_Position of every joint ([deg]; gripper [0, 100]); raises BusError."""
+        """Present_Position of every joint ([deg]; gripper [0, 100]); raises BusError, PortLost."""
         try:
-            pose = self.bus.sync_read("Present_Position")
+            return self._read()
         except Exception as error:  # noqa: BLE001 - lerobot raises ConnectionError/RuntimeError
+            if port_lost(self.bus):
+                raise PortLost.during("reading the arm's position") from error
             raise BusError(f"Cannot read the arm's position: {error}") from error
-        return {j: float(pose[j]) for j in JOINTS}
 
     def _guard(self, command: Mapping[str, float]) -> Configuration:
         """Last line of defence: refuse a command outside the calibrated range."""
@@ -317,6 +347,19 @@ class ArmSession:
             out[joint] = min(upper, max(lower, value))
         return out
 
+    @property
+    def observed(self) -> bool:
+        """Whether the last read of the arm succeeded."""
+        return self._unobserved_since is None
+
+    def _send(self, command: Configuration) -> None:
+        try:
+            self.bus.sync_write("Goal_Position", command)
+        except Exception as error:  # noqa: BLE001 - a broadcast gets no reply: only the port fails
+            if port_lost(self.bus):
+                raise PortLost.during("sending Goal_Position") from error
+            logger.warning("Goal_Position write failed: %s", error)
+
     def _cycle(self, command_at: Callable[[float], Mapping[str, float]]) -> float:
         """Wait for the next deadline, command, measure, check, log; returns the deadline [s]."""
         deadline = self.loop.wait()
@@ -324,33 +367,59 @@ class ArmSession:
             raise StopRequested(self.stop_reason)
         previous = self.command
         command = self._guard(command_at(deadline))
-        try:
-            self.bus.sync_write("Goal_Position", command)
-        except Exception as error:  # noqa: BLE001
-            raise BusError(f"Cannot send Goal_Position: {error}") from error
+        self._send(command)
         self.command = command
         try:
             stale = discard_stale_input(self.bus)
             if stale:
                 self.stale_bytes += stale
                 logger.debug("dropped %d stale bytes (a late reply)", stale)
-            raw = self.bus.sync_read("Present_Position")
-            measured = {j: float(raw[j]) for j in JOINTS}
-            self._missed = 0
+            measured = self._read()
         except Exception as error:  # noqa: BLE001
-            self._missed += 1
             measured = None
-            logger.warning("Present_Position read failed (%d in a row): %s", self._missed, error)
-            if self._missed > self.max_missed_reads:
-                raise BusError(f"{self._missed} Present_Position reads in a row failed: {error}") \
-                    from error
-        if measured is not None and previous is not None:
-            self._check_tracking(previous, measured, deadline)
+            if port_lost(self.bus):
+                raise PortLost.during(f"'{self.step}'") from error
+            recover_port(self.bus, settle=False)
+            if self._unobserved_since is None:
+                self._unobserved_since = deadline
+                logger.warning("The arm does not answer (%s); pausing the plan, holding the last "
+                               "goal.", error)
+            unobserved = self.loop.clock() - self._unobserved_since
+            if unobserved > self.outage_tolerance:
+                raise BusError(f"The arm did not answer for {unobserved:.2f} s (more than the "
+                               f"{self.outage_tolerance:g} s tolerated): {error}") from error
+        if measured is not None:
+            if self._unobserved_since is not None:
+                length = deadline - self._unobserved_since
+                self.outages.append((self._unobserved_since - self._t0, length))
+                logger.warning("The arm answers again after %.2f s; resuming the plan.", length)
+                self._unobserved_since = None
+            if previous is not None:
+                self._check_tracking(previous, measured, deadline)
+            if len(self.cycles) % STATUS_EVERY == 0:
+                self._check_status()
         cycle = Cycle(deadline - self._t0, self.loop.woke - self._t0, self.step, command, measured)
         self.cycles.append(cycle)
         if self.on_cycle is not None:
             self.on_cycle(self, cycle)
         return deadline
+
+    def _check_status(self) -> None:
+        """Stop on an error bit in a servo's Status register (the gripper's overload excepted)."""
+        try:
+            status = self.bus.sync_read("Status", normalize=False)
+        except Exception:  # noqa: BLE001 - a missed status read is not a fault; the next one
+            recover_port(self.bus, settle=False)
+            return
+        for joint, bits in status.items():
+            if joint == "gripper":  # squeezing the cube is what its overload protection is for
+                bits &= ~0x20
+            faults = [text for bit, text in STATUS_BITS.items() if int(bits) & bit]
+            if faults:
+                raise ServoFault(f"The {joint} servo reports: {', '.join(faults)} (status "
+                                 f"0x{int(bits):02x}). Fix: check the power supply (voltage), "
+                                 "let the servo cool down, or free the arm from what it pushes "
+                                 "against.")
 
     def _check_tracking(self, commanded: Configuration, measured: Configuration,
                         now: float) -> None:
@@ -379,6 +448,26 @@ class ArmSession:
             self._t0 = t_start
         return t_start
 
+    def _run(self, command_at: Callable[[float], Mapping[str, float]], duration: float,
+             t_start: float) -> None:
+        """Cycle until the segment's own clock reaches ``duration`` [s].
+
+        The segment's clock advances by the time between cycles (at most
+        ``MAX_ADVANCE_S``) only while the arm is observed: during an outage
+        the last goal is repeated and the plan resumes where it paused.
+        """
+        elapsed, last = 0.0, t_start
+
+        def at(deadline: float) -> Mapping[str, float]:
+            nonlocal elapsed, last
+            if self.observed:
+                elapsed = min(duration, elapsed + min(deadline - last, MAX_ADVANCE_S))
+            last = deadline
+            return command_at(elapsed)
+
+        while elapsed < duration - 1e-9:
+            self._cycle(at)
+
     def move(self, cfg: Mapping[str, float], duration: float, step: str | None = None,
              max_speed: Mapping[str, float] | None = None) -> Segment:
         """Move from the last command (the measured pose at first) to ``cfg`` in ``duration`` [s].
@@ -387,7 +476,7 @@ class ArmSession:
 
         Raises:
             JointLimitError: ``cfg`` is outside the calibrated range (nothing sent).
-            TrackingError, BusError, StopRequested: see :class:`ArmSession`.
+            TrackingError, BusError, ServoFault, StopRequested, PortLost: see the class.
         """
         goal = check_configuration(cfg, self.limits, "move_to_pose target (calibrated range)")
         if step is not None:
@@ -411,10 +500,7 @@ class ArmSession:
         t_start = self._begin()
         segment = Segment("move", self.step, t_start - self._t0, start, goal, duration, requested)
         self.segments.append(segment)
-        while True:
-            deadline = self._cycle(lambda now: path.at(now - t_start))
-            if deadline - t_start >= duration - 1e-9:
-                break
+        self._run(path.at, duration, t_start)
         return segment
 
     def hold(self, duration: float, step: str | None = None) -> None:
@@ -427,15 +513,39 @@ class ArmSession:
         t_start = self._begin()
         self.segments.append(Segment("hold", self.step, t_start - self._t0, command, command,
                                      float(duration), float(duration)))
+        self._run(lambda elapsed: command, float(duration), t_start)
+
+    def stop_here(self) -> Configuration | None:
+        """Controlled stop: goal = present position (clamped to the calibration), torque stays on.
+
+        Returns:
+            The pose the arm stopped at, or None if it cannot be read (then
+            every servo that hears us still holds its last goal by itself).
+        """
+        self._beyond.clear()
+        recover_port(self.bus)
+        try:
+            pose = self._read()
+        except Exception:  # noqa: BLE001 - unobserved: the servos hold their last goals
+            return None
+        goal = {j: min(self.limits[j][1], max(self.limits[j][0], pose[j])) for j in JOINTS}
+        self._send(goal)
+        self.command = goal
+        return pose
+
+    def wait_for_arm(self, timeout: float = RECOVERY_TIMEOUT_S) -> Configuration | None:
+        """Poll the arm until every servo answers (then stop there), for up to ``timeout`` [s]."""
+        give_up = self.loop.clock() + timeout
         while True:
-            deadline = self._cycle(lambda now: command)
-            if deadline - t_start >= float(duration) - 1e-9:
-                break
+            pose = self.stop_here()
+            if pose is not None or self.loop.clock() >= give_up:
+                return pose
+            self.loop.sleep(0.1)
 
     def return_slowly(self, target: Mapping[str, float]) -> Segment:
         """Stop where the arm is, then go to ``target`` at the slow return speed."""
-        self._beyond.clear()
-        self.command = self.read_pose()
+        if self.stop_here() is None:
+            raise BusError("Cannot read the arm's position before the return.")
         slow = speed_caps(RETURN_SPEED_DEG_S, RETURN_SPEED_DEG_S)
         return self.move(target, RETURN_MIN_DURATION_S, step="abort_return", max_speed=slow)
 
@@ -495,78 +605,71 @@ def gc_frozen():
         gc.unfreeze()
 
 
-@contextmanager
-def stop_on_sigint(session: ArmSession):
-    """Turn Ctrl-C into a stop at the next cycle boundary (never inside a bus transaction).
+STOP_SIGNALS = {signal.SIGINT: "Ctrl-C", signal.SIGTERM: "SIGTERM", signal.SIGHUP: "SIGHUP"}
+"""Every signal that asks a program to stop, and how the messages name it."""
 
-    A second Ctrl-C raises KeyboardInterrupt at once. Only in the main thread.
+
+@contextmanager
+def stop_on_signals(session: ArmSession, freeze_at_once: bool = False):
+    """Turn every stop signal (Ctrl-C, SIGTERM, SIGHUP) into a stop at the next cycle boundary.
+
+    The first signal sets ``session.stop_reason`` (the loop raises
+    StopRequested at its next cycle, never inside a bus transaction); a second
+    one raises :class:`FreezeRequested` at once. With ``freeze_at_once`` (during
+    the return after an abort) the first signal already freezes. Only in the
+    main thread; the previous handlers are restored on exit.
     """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def handler(signum, frame):
-        if session.stop_reason is None:
-            session.stop_reason = "Ctrl-C"
-            print("\nStopping (Ctrl-C again to release the torque at once) ...", file=sys.stderr)
+        name = STOP_SIGNALS.get(signum, f"signal {signum}")
+        if session.stop_reason is None and not freeze_at_once:
+            session.stop_reason = name
+            print(f"\nStopping ({name}): the arm returns slowly to its start. {name} again "
+                  "freezes it where it is, torque on.", file=sys.stderr, flush=True)
         else:
-            raise KeyboardInterrupt
+            raise FreezeRequested(name)
 
-    previous = signal.signal(signal.SIGINT, handler)
+    previous = {sig: signal.signal(sig, handler) for sig in STOP_SIGNALS}
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
+        for sig, old in previous.items():
+            signal.signal(sig, old)
 
 
-# --- Loop timing, for the benchmarks ------------------------------------------------
-def measure_loop_timing(rates_hz=(100.0, 200.0), seconds: float = 3.0, wire_timing: bool = True,
-                        calibration_path: str | Path | None = None,
-                        ) -> dict[float, dict[str, float]]:
-    """Run the control loop against the virtual SO-101 and measure its timing at each rate.
+@contextmanager
+def signals_as_interrupt():
+    """SIGTERM and SIGHUP raise KeyboardInterrupt, as Ctrl-C does (before and after the motion)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
 
-    The arm swings wrist_flex by +-10 deg so each cycle does the full work
-    (interpolate, sync_write, sync_read, check, log).
+    def handler(signum, frame):
+        raise KeyboardInterrupt(STOP_SIGNALS.get(signum, str(signum)))
 
-    Args:
-        rates_hz: loop rates to measure [Hz].
-        seconds: run time per rate [s].
-        wire_timing: the virtual arm delays replies by the 1 Mbaud byte time.
-        calibration_path: the virtual arm's calibration (default: the shipped one).
-
-    Returns:
-        rate -> ``achieved_hz``, ``period_p50_ms``, ``period_p99_error_ms``,
-        ``period_max_error_ms``, ``cycles``, ``overruns``, ``skipped``.
-    """
-    from virtual_so101 import DEFAULT_CALIBRATION_PATH, VirtualSO101
-
-    calibration_path = calibration_path or DEFAULT_CALIBRATION_PATH
-    calibration = load_calibration(calibration_path)
-    results = {}
-    with VirtualSO101(calibration=calibration_path, wire_timing=wire_timing) as arm:
-        bus = connect(arm.port, calibration)
-        try:
-            configure(bus)
-            enable_torque_in_place(bus)
-            for rate in rates_hz:
-                with gc_frozen():
-                    results[rate] = _swing_wrist(ArmSession(bus, rate_hz=rate), seconds)
-        finally:
-            release_torque(bus)
-            disconnect(bus)
-    return results
+    previous = {sig: signal.signal(sig, handler) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        yield
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
 
 
-def _swing_wrist(session: ArmSession, seconds: float) -> dict[str, float]:
-    """Swing wrist_flex +-10 deg for ``seconds`` [s]; returns the session's loop timing."""
-    home = session.read_pose()
-    session.command = dict(home)
-    swings, elapsed = 0, 0.0
-    while elapsed < seconds:
-        sign = 1.0 if swings % 2 == 0 else -1.0
-        session.move(dict(home, wrist_flex=home["wrist_flex"] + sign * 10.0), 0.5)
-        session.hold(0.25)
-        swings += 1
-        elapsed = session.cycles[-1].wall_s
-    session.move(home, 0.5)
-    return session.timing()
+def check_rate(rate_hz) -> float:
+    """The control loop's rate [Hz], refused outside [MIN_RATE_HZ, MAX_RATE_HZ]."""
+    return check_number("--rate", rate_hz, MIN_RATE_HZ, MAX_RATE_HZ, "Hz")
+
+
+def check_number(name: str, value, lower: float, upper: float, unit_: str,
+                 lower_open: bool = False) -> float:
+    """``value`` as a float, refused (PlanError naming it) unless finite and in its range."""
+    low = "(" if lower_open else "["
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+            math.isfinite(value) and (lower < value if lower_open else lower <= value)
+            and value <= upper):
+        raise PlanError(f"{name} {value!r} is out of range: allowed {low}{lower:g}, {upper:g}] "
+                        f"{unit_}. Fix: give a value in that range.")
+    return float(value)

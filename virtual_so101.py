@@ -72,6 +72,15 @@ SERVO is an id or a joint name:
   (read: RuntimeError "... Overload error!"; sync_read ignores status bits).
 - ``firmware:[SERVO:]MAJOR.MINOR``: the servo (default id 1) reports that
   firmware (connect: RuntimeError "Some Motors use different firmware versions").
+- ``outage:MS``: the whole bus is down for MS milliseconds from now: every
+  request is lost (goals too) and nobody answers (a loose cable, a power dip).
+- ``unplug``: the USB cable pulled out: the port vanishes (the client's next
+  transaction fails with an OSError); the servos keep holding their last goals.
+- ``latency:MS[:N]``: the next N replies (default 1) come MS milliseconds late
+  (past lerobot's 50 ms timeout they arrive after it gave up).
+- ``overload:SERVO``, ``overheat:SERVO``, ``voltage:SERVO``: the servo sets that
+  status error bit in every reply and its Status register (read: RuntimeError
+  "... Overload error!" and so on; sync_read ignores status bits).
 """
 
 from __future__ import annotations
@@ -113,7 +122,9 @@ class FaultSpecError(ValueError):
 
 
 # --- faults -----------------------------------------------------------------------------------
-FAULT_KINDS = ("drop", "corrupt", "remove", "stall", "firmware")
+FAULT_KINDS = ("drop", "corrupt", "remove", "stall", "firmware", "outage", "unplug", "latency",
+               "overload", "overheat", "voltage")
+MAX_FAULT_MS = 60_000  # longest outage or latency [ms]
 
 
 def parse_faults(spec: str | None, calibration: Mapping[str, Mapping[str, int]]) -> list[tuple]:
@@ -126,7 +137,9 @@ def parse_faults(spec: str | None, calibration: Mapping[str, Mapping[str, int]])
         FaultSpecError: naming the bad item and the grammar.
     """
     grammar = ("drop:SERVO[:N], corrupt:SERVO[:N], remove:SERVO, stall:SERVO, "
-               "firmware:[SERVO:]MAJOR.MINOR (SERVO = id or joint name), comma-separated")
+               "firmware:[SERVO:]MAJOR.MINOR, outage:MS, unplug, latency:MS[:N], "
+               "overload:SERVO, overheat:SERVO, voltage:SERVO (SERVO = id or joint name, "
+               f"MS in 1..{MAX_FAULT_MS}), comma-separated")
     ids = {name: int(entry["id"]) for name, entry in calibration.items()}
 
     def servo(token: str, item: str) -> int:
@@ -152,6 +165,18 @@ def parse_faults(spec: str | None, calibration: Mapping[str, Mapping[str, int]])
                 if not (0 <= major <= 255 and 0 <= minor <= 255) or len(args) != 2:
                     raise ValueError
                 faults.append((kind, servo(args[0], item), (major, minor)))
+            elif kind == "unplug":
+                if args:
+                    raise ValueError
+                faults.append((kind, None, None))
+            elif kind in ("outage", "latency"):
+                milliseconds = float(args[0])
+                count = int(args[1]) if len(args) == 2 else 1
+                if not (0 < milliseconds <= MAX_FAULT_MS) or count < 1 or len(args) > 2 \
+                        or (kind == "outage" and len(args) != 1):
+                    raise ValueError
+                faults.append((kind, None, milliseconds if kind == "outage"
+                               else (milliseconds, count)))
             elif kind in ("drop", "corrupt"):
                 count = int(args[1]) if len(args) == 2 else 1
                 if len(args) not in (1, 2) or count < 1:

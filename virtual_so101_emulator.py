@@ -46,6 +46,7 @@ from feetech_protocol import (
     BROADCAST_ID,
     EEPROM_END,
     ERR_OVERLOAD,
+    ERROR_BITS,
     FIRMWARE,
     INST_PING,
     INST_READ,
@@ -97,6 +98,10 @@ class _Emulator:
         self.rx_partial_since = 0.0
         self.wire_free = 0.0
         self.host_baud = 1_000_000
+        self.outage_until = 0.0  # [perf_counter s] the whole bus is silent until then
+        self.latency = 0.0  # [s] extra delay of the next ``latency_left`` replies
+        self.latency_left = 0
+        self.unplugged = False
         self.listening: dict[int, VirtualServo] = {}
         if options["initial"] is None:
             mujoco.mj_resetDataKeyframe(self.m, self.d, self.m.key("home").id)
@@ -194,9 +199,10 @@ class _Emulator:
         regs[65] = self.error_byte(servo)
 
     def error_byte(self, servo: VirtualServo) -> int:
+        bits = servo.error_bits
         if servo.stalled_at is not None and abs(servo.load) >= 10 * servo.regs[36]:
-            return ERR_OVERLOAD
-        return 0
+            bits |= ERR_OVERLOAD
+        return bits
 
     # --- registers ------------------------------------------------------------------------
     def write_goal(self, servo: VirtualServo, low: int, high: int) -> None:
@@ -258,6 +264,9 @@ class _Emulator:
             time.sleep(0.001)
             return
         now = time.perf_counter()
+        if now < self.outage_until:  # the bus is down: requests are lost, nobody answers
+            self.rx.clear()
+            return
         baud = self.speeds.get(termios.tcgetattr(self.master)[5], self.host_baud)
         if baud != self.host_baud:
             self.host_baud = baud
@@ -332,6 +341,12 @@ class _Emulator:
             out.append((t_ready, packet))
         if not out:
             return
+        if self.latency_left > 0:  # late replies (injected): the whole batch waits
+            self.latency_left -= 1
+            out = [(ready + self.latency, packet) for ready, packet in out]
+            t_ready += self.latency
+            if not self.wire_timing:
+                _wait_until(t_ready)
         if self.wire_timing:
             self.wire_free = t_ready
             for deadline, packet in out:
@@ -356,8 +371,21 @@ class _Emulator:
     # --- faults and commands --------------------------------------------------------------
     def inject(self, faults: list[tuple]) -> None:
         for kind, servo_id, arg in faults:
+            if kind == "outage":
+                self.outage_until = time.perf_counter() + arg / 1000.0
+                logger.info("fault injected: bus outage of %g ms", arg)
+                continue
+            if kind == "latency":
+                self.latency, self.latency_left = arg[0] / 1000.0, arg[1]
+                logger.info("fault injected: the next %d replies %g ms late", arg[1], arg[0])
+                continue
+            if kind == "unplug":
+                self.unplug()
+                continue
             servo = next(s for s in self.by_joint.values() if s.cal["id"] == servo_id)
-            if kind == "drop":
+            if kind in ERROR_BITS:
+                servo.error_bits |= ERROR_BITS[kind]
+            elif kind == "drop":
                 servo.drop += arg
             elif kind == "corrupt":
                 servo.corrupt += arg
@@ -371,8 +399,20 @@ class _Emulator:
             self.update_listening()
             logger.info("fault injected: %s on servo %d (%s)", kind, servo_id, servo.joint)
 
+    def unplug(self) -> None:
+        """The USB cable pulled out: the port vanishes; the servos keep their last goals."""
+        if self.unplugged:
+            return
+        self.unplugged = True
+        os.close(self.master)
+        os.close(self.slave)
+        logger.info("fault injected: unplugged (%s is gone)", self.port)
+
     def clear_faults(self) -> None:
+        self.outage_until = 0.0
+        self.latency_left = 0
         for servo in self.servos.values():
+            servo.error_bits = 0
             servo.drop = servo.corrupt = 0
             servo.removed = False
             servo.stalled_at = None
@@ -453,7 +493,8 @@ class _Emulator:
         while True:
             now = time.perf_counter()
             wake = max(now, self.t0 + (self.steps + 1) * self.dt)
-            ready, _, _ = select.select([master, conn], [], [], wake - now)
+            watched = [conn] if self.unplugged else [master, conn]
+            ready, _, _ = select.select(watched, [], [], wake - now)
             # How long past its wake-up time the loop got the CPU back (descheduled).
             self.max_gap = max(self.max_gap, time.perf_counter() - wake)
             if master in ready:
@@ -536,5 +577,6 @@ def emulator_main(fd: int) -> None:
     finally:
         if emulator.viewer is not None:
             emulator.viewer.close()
-        os.close(emulator.master)
-        os.close(emulator.slave)
+        if not emulator.unplugged:
+            os.close(emulator.master)
+            os.close(emulator.slave)

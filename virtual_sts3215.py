@@ -72,6 +72,7 @@ class VirtualServo:
         self.removed = False
         self.stalled_at: float | None = None  # [rad]
         self.load = 0.0  # stall load [0.1 %]
+        self.error_bits = 0  # injected status error bits (voltage, overheat, overload)
         self.sync_cache()
 
     def sync_cache(self) -> None:

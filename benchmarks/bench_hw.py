@@ -21,7 +21,6 @@ def bench_hw(quick: bool) -> dict:
         import lerobot  # noqa: F401
     except ImportError:
         return {"_hw_skipped": "lerobot is not installed (pip install -e '.[hw]')"}
-    from so101_control import measure_loop_timing
     from virtual_so101 import measure_cycle
 
     out: dict = {}
@@ -43,3 +42,49 @@ def bench_hw(quick: bool) -> dict:
     for key, values in samples.items():
         out[key] = summarize(values)
     return out
+
+
+def measure_loop_timing(rates_hz=(100.0, 200.0), seconds: float = 3.0, wire_timing: bool = True,
+                        ) -> dict[float, dict[str, float]]:
+    """Run the control loop against the virtual SO-101 and measure its timing at each rate.
+
+    The arm swings wrist_flex by +-10 deg so each cycle does the full work
+    (interpolate, sync_write, sync_read, check, log).
+
+    Returns:
+        rate -> ``achieved_hz``, ``period_p50_ms``, ``period_p99_error_ms``,
+        ``period_max_error_ms``, ``cycles``, ``overruns``, ``skipped``.
+    """
+    from so101_bus import configure, connect, disconnect, enable_torque_in_place, release_torque
+    from so101_calibration import load_calibration
+    from so101_control import ArmSession, gc_frozen
+    from virtual_so101 import DEFAULT_CALIBRATION_PATH, VirtualSO101
+
+    results = {}
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, wire_timing=wire_timing) as arm:
+        bus = connect(arm.port, load_calibration(DEFAULT_CALIBRATION_PATH))
+        try:
+            configure(bus)
+            enable_torque_in_place(bus)
+            for rate in rates_hz:
+                with gc_frozen():
+                    results[rate] = _swing_wrist(ArmSession(bus, rate_hz=rate), seconds)
+        finally:
+            release_torque(bus)
+            disconnect(bus)
+    return results
+
+
+def _swing_wrist(session, seconds: float) -> dict[str, float]:
+    """Swing wrist_flex +-10 deg for ``seconds`` [s]; returns the session's loop timing."""
+    home = session.read_pose()
+    session.command = dict(home)
+    swings, elapsed = 0, 0.0
+    while elapsed < seconds:
+        sign = 1.0 if swings % 2 == 0 else -1.0
+        session.move(dict(home, wrist_flex=home["wrist_flex"] + sign * 10.0), 0.5)
+        session.hold(0.25)
+        swings += 1
+        elapsed = session.cycles[-1].wall_s
+    session.move(home, 0.5)
+    return session.timing()

@@ -1,0 +1,114 @@
+"""The hardware run's log: a CSV written as the run goes, that survives any ending, and its plot.
+
+:class:`CycleLog` appends one row per control cycle to a temporary file
+beside the target, flushed at least every ``FLUSH_EVERY_S`` of run time, and
+renames it over the target when closed, whatever ended the run (done, abort,
+signal, exception). After a SIGKILL the temporary file (``.NAME.*.part``
+beside the target) still holds every cycle up to its last flush.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+from collections.abc import Iterable
+from pathlib import Path
+
+from so101_control import ArmSession, Cycle
+from so101_forward_kinematics import JOINTS
+from so101_motion import unit
+from so101_outputs import atomic_output, temporary_beside
+
+FLUSH_EVERY_S = 0.5  # the log reaches the disk at least this often [s of run time]
+HEADER = (["t_s", "wall_s", "step"] + [f"cmd_{j}" for j in JOINTS]
+          + [f"meas_{j}" for j in JOINTS])
+"""CSV columns: scheduled and actual cycle start [s], step, commanded and measured joints."""
+
+
+def cycle_row(cycle: Cycle) -> list[str]:
+    """One CSV row; the measured columns are empty when the read failed."""
+    measured = [f"{cycle.measured[j]:.4f}" if cycle.measured else "" for j in JOINTS]
+    return ([f"{cycle.t_s:.6f}", f"{cycle.wall_s:.6f}", cycle.step]
+            + [f"{cycle.command[j]:.4f}" for j in JOINTS] + measured)
+
+
+class CycleLog:
+    """A CSV log written while the arm moves; use as the session's ``on_cycle`` hook.
+
+    Args:
+        path: the CSV to produce (checked beforehand with ``so101_outputs.check_output_path``).
+    """
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self.temporary = temporary_beside(self.path)
+        self._handle = self.temporary.open("w", newline="", encoding="utf-8")
+        self._writer = csv.writer(self._handle)
+        self._writer.writerow(HEADER)
+        self._handle.flush()
+        self._flushed_at = 0.0
+        self.rows = 0
+
+    def __call__(self, session: ArmSession, cycle: Cycle) -> None:
+        """Append ``cycle``; flush once ``FLUSH_EVERY_S`` of run time passed since the last."""
+        self._writer.writerow(cycle_row(cycle))
+        self.rows += 1
+        if cycle.wall_s - self._flushed_at >= FLUSH_EVERY_S:
+            self._handle.flush()
+            self._flushed_at = cycle.wall_s
+
+    def discard(self) -> None:
+        """Close and delete the temporary file: the target is left as it was."""
+        if not self._handle.closed:
+            self._handle.close()
+        self.temporary.unlink(missing_ok=True)
+
+    def close(self) -> Path:
+        """Flush, close and rename over the target (idempotent); returns the target."""
+        if not self._handle.closed:
+            self._handle.flush()
+            os.fsync(self._handle.fileno())
+            self._handle.close()
+            os.replace(self.temporary, self.path)
+        return self.path
+
+
+def write_log_csv(cycles: Iterable[Cycle], path: str | Path) -> Path:
+    """Write ``cycles`` as a CSV at once (complete, or not at all); returns the path."""
+    with atomic_output(path) as temporary, temporary.open("w", newline="",
+                                                          encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(HEADER)
+        writer.writerows(cycle_row(c) for c in cycles)
+    return Path(path)
+
+
+def plot_log(cycles: list[Cycle], path: str | Path,
+             title: str = "SO-101: commanded vs measured") -> Path:
+    """PNG with one panel per joint: commanded and measured against time."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    t = [c.t_s for c in cycles]
+    fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
+    measured = [c for c in cycles if c.measured]
+    for ax, joint in zip(axes.flat, JOINTS, strict=True):
+        ax.plot(t, [c.command[joint] for c in cycles], label="commanded", lw=1.5)
+        ax.plot([c.t_s for c in measured], [c.measured[joint] for c in measured],
+                label="measured", lw=1.0, ls="--")
+        worst = max((abs(c.command[joint] - c.measured[joint]) for c in measured), default=0.0)
+        ax.set_title(f"{joint}  (max |commanded - measured| = {worst:.2f} {unit(joint)})",
+                     fontsize=10)
+        ax.set_ylabel("[%]" if joint == "gripper" else "[deg]")
+        ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]")
+    axes.flat[0].legend(loc="best")
+    fig.suptitle(title)
+    fig.tight_layout()
+    with atomic_output(path) as temporary:
+        fig.savefig(temporary, dpi=100, format="png")
+    plt.close(fig)
+    return Path(path)

@@ -1,0 +1,401 @@
+"""The pick-and-place on the real arm: check, connect, confirm, run, and end the same way always.
+
+The fault policy (docs/hardware_safety.md) in one place, :func:`execute`:
+every way a run can end (done, a fault, a stop signal, an exception) ends
+with a controlled stop (goal = present position, torque on), the slow return
+to the starting pose when the whole arm answers, and the torque released
+there. Torque is never released away from the starting pose by the program:
+a position-controlled servo holds its last goal by itself, so holding is
+safer than letting go. :func:`ending` says where the arm is and whether it
+is torqued; :func:`release_arm` is the explicit release, with the arm in hand.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any
+
+from so101_bus import (
+    PortLost,
+    bus_errors,
+    configure,
+    connect,
+    disconnect,
+    enable_torque_in_place,
+    recover_port,
+    release_torque,
+    silent_servos,
+)
+from so101_calibration import (
+    CALIBRATE_HINT,
+    MOTOR_IDS,
+    CalibrationError,
+    HardwareError,
+    calibrated_limits,
+)
+from so101_control import (
+    DEFAULT_RATE_HZ,
+    MAX_JOINT_SPEED_DEG_S,
+    RECOVERY_TIMEOUT_S,
+    SPEED_CAP_LIMIT_DEG_S,
+    TRACKING_TOLERANCE_DEG,
+    TRACKING_TOLERANCE_LIMIT_DEG,
+    ArmSession,
+    Cycle,
+    FreezeRequested,
+    Segment,
+    StopRequested,
+    capped_duration,
+    check_number,
+    check_rate,
+    gc_frozen,
+    speed_caps,
+    stop_on_signals,
+    tracking_tolerances,
+)
+from so101_forward_kinematics import JOINTS
+from so101_motion import (
+    Configuration,
+    JointLimitError,
+    Limits,
+    Plan,
+    Step,
+    run_plan,
+    unit,
+    validate_plan,
+)
+
+logger = logging.getLogger("pick_place_hw")
+
+LIMIT_SLACK_DEG = 2.0  # a start this far outside the calibration is clamped [deg]
+RELEASE_HINT = "python pick_place_hw.py --release --port {port} {arm}"
+"""The documented command that releases the torque, with the arm held by hand."""
+
+
+class NotConfirmed(HardwareError):
+    """The user did not confirm (or could not be asked)."""
+
+
+class MotionAborted(HardwareError):
+    """The motion was aborted; ``result`` says where the arm is and whether it is torqued."""
+
+    def __init__(self, message: str, result: RunResult):
+        super().__init__(message)
+        self.result = result
+
+
+@lru_cache(maxsize=1)
+def model_limits() -> dict[str, tuple[float, float]]:
+    """The MuJoCo model's joint limits in user units (the simulator's, so sim and hw agree)."""
+    import so101_mujoco_utils
+
+    return so101_mujoco_utils.joint_limits(so101_mujoco_utils.load_model())
+
+
+def validate_plan_for_arm(plan: Plan, calibration: Mapping[str, Any] | None,
+                          source: str = "the calibration") -> Plan:
+    """Check every waypoint against the model's limits and the arm's calibrated limits.
+
+    Raises:
+        PlanError: bad structure; JointLimitError naming joint, value, limit,
+            which limits (model or calibration) and the fix.
+    """
+    try:
+        validate_plan(plan, model_limits())
+    except JointLimitError as error:
+        raise JointLimitError(f"{error} (joint limits of the SO-101 model, as in the simulator)") \
+            from None
+    if calibration is not None:
+        try:
+            validate_plan(plan, calibrated_limits(calibration))
+        except JointLimitError as error:
+            raise JointLimitError(f"{error} (calibrated range of this arm, from {source}; if the "
+                                  "range looks too small, recalibrate)") from None
+    check_number("The plan's return_duration", plan.return_duration, 0.0, 600.0, "s")
+    return plan
+
+
+def check_run_settings(rate_hz: float, max_joint_speed: float, tracking_tolerance: float) -> None:
+    """Refuse a setting outside its documented range (PlanError naming it), before connecting."""
+    check_rate(rate_hz)
+    check_number("--max-speed", max_joint_speed, 0.0, SPEED_CAP_LIMIT_DEG_S, "deg/s",
+                 lower_open=True)
+    check_number("--tracking-tolerance", tracking_tolerance, 0.0, TRACKING_TOLERANCE_LIMIT_DEG,
+                 "deg", lower_open=True)
+
+
+@dataclass
+class RunResult:
+    """What happened on the arm, and how it was left."""
+
+    start_pose: Configuration
+    cycles: list[Cycle] = field(default_factory=list)
+    segments: list[Segment] = field(default_factory=list)
+    stretched: list[str] = field(default_factory=list)
+    outages: list[tuple[float, float]] = field(default_factory=list)  # (start, length) [s]
+    final_pose: Configuration | None = None
+    final_step: str = ""
+    aborted: str | None = None
+    returned_to_start: bool = False  # the plan's return or the abort's return completed
+    torque_released: bool = False
+    unreleased: list[str] = field(default_factory=list)
+    silent: list[str] = field(default_factory=list)
+    usb_lost: bool = False
+    frozen: bool = False
+    timing: dict[str, float] = field(default_factory=dict)
+    stale_bytes: int = 0  # late-reply bytes dropped before reads (see discard_stale_input)
+
+
+def _describe(error: BaseException, step: str) -> str:
+    where = f" (during '{step}')" if step else ""
+    if isinstance(error, (KeyboardInterrupt, StopRequested)):
+        name = str(error) or "Ctrl-C"
+        return f"stopped by {name}{where}"
+    text = str(error).rstrip(".")
+    if isinstance(error, HardwareError):
+        return f"{text}{where}"
+    return f"{type(error).__name__}: {text}{where}"
+
+
+def _after_abort(session: ArmSession, error: BaseException, start_pose: Configuration,
+                 return_on_abort: bool, result: RunResult) -> None:
+    """Controlled stop; then the slow return when the whole arm answers; else hold."""
+    bus = session.bus
+    if isinstance(error, PortLost):
+        result.usb_lost = True
+        return
+    try:
+        with stop_on_signals(session, freeze_at_once=True):
+            if isinstance(error, FreezeRequested):
+                recover_port(bus)
+                session.stop_here()
+                result.frozen = True
+                return
+            pose = session.stop_here()
+            if pose is None:
+                logger.warning("Holding; waiting up to %g s for every servo to answer ...",
+                               RECOVERY_TIMEOUT_S)
+                pose = session.wait_for_arm()
+            if pose is None:
+                result.silent = silent_servos(bus)
+                return
+            if return_on_abort:
+                session.stop_reason = None
+                session.return_slowly(start_pose)
+                result.returned_to_start = True
+    except FreezeRequested:
+        recover_port(bus)
+        session.stop_here()
+        result.frozen = True
+    except PortLost:
+        result.usb_lost = True
+    except Exception as second:  # noqa: BLE001 - the return stopped: hold where it is
+        logger.error("The return to the starting pose stopped: %s",
+                     _describe(second, "abort_return"))
+        recover_port(bus)
+        if session.stop_here() is None:
+            result.silent = silent_servos(bus)
+
+
+def execute(session: ArmSession, plan: Plan, start_pose: Configuration,
+            return_on_abort: bool = True) -> RunResult:
+    """Run a validated plan on a torqued arm; every ending is a controlled one.
+
+    Args:
+        session: the armed session (torque on).
+        plan: validated plan.
+        start_pose: the measured starting pose (inside the calibrated range).
+        return_on_abort: after an abort, move slowly back to ``start_pose``
+            when the whole arm answers (else hold where it stopped).
+
+    Returns:
+        The result. Torque is released only if the arm ended at ``start_pose``.
+
+    Raises:
+        MotionAborted: after the controlled ending; ``.result`` has the details.
+    """
+    result = RunResult(dict(start_pose))
+    bus = session.bus
+
+    def on_step(step: Step) -> None:
+        session.step = step.name
+        logger.info("-> %s (%.2f s, hold %.2f s)", step.name, step.duration, step.hold)
+
+    try:
+        with gc_frozen(), stop_on_signals(session):
+            run_plan(plan, session.move, session.hold, initial=start_pose, on_step=on_step)
+        result.returned_to_start = plan.return_to_start
+    except (Exception, KeyboardInterrupt) as error:
+        result.aborted = _describe(error, session.step)
+        logger.error("Aborting: %s", result.aborted)
+        _after_abort(session, error, start_pose, return_on_abort, result)
+    finally:
+        result.cycles, result.segments = session.cycles, session.segments
+        result.stretched, result.outages = session.stretched, session.outages
+        result.stale_bytes, result.final_step = session.stale_bytes, session.step
+        if len(session.cycles) >= 3:
+            result.timing = session.timing()
+        if not result.usb_lost:
+            if result.returned_to_start:
+                result.unreleased = release_torque(bus)
+                result.torque_released = not result.unreleased
+            try:
+                result.final_pose = session.read_pose()
+            except (Exception, KeyboardInterrupt):
+                result.final_pose = None
+    if result.aborted is not None:
+        raise MotionAborted(f"Pick-and-place aborted: {result.aborted}.", result)
+    return result
+
+
+def ending(result: RunResult, release: str) -> str:
+    """The run's last line: where the arm is and whether it is torqued, and what to do."""
+    hold = f"Support the arm with a hand, then release it with: {release}"
+    if result.usb_lost:
+        return ("The arm's USB connection was lost: the servos hold their last goal, torque ON. "
+                f"Support the arm, plug the cable back in, then release it with: {release}")
+    if result.returned_to_start and result.torque_released:
+        done = "Done: b" if result.aborted is None else "B"
+        return f"{done}ack at the starting pose, torque off."
+    if result.returned_to_start:
+        return (f"The arm is back at its starting pose, but torque could NOT be released on "
+                f"{', '.join(result.unreleased)} (not answering): it holds there. Check the cable "
+                f"to that servo and run: {release}")
+    if result.silent:
+        names = ", ".join(f"{j} (id {MOTOR_IDS[j]})" for j in result.silent)
+        return (f"Not answering: {names}. The other servos hold where they are, torque ON (a "
+                f"powered silent servo holds its last goal). Check the cable and power of the "
+                f"silent servo(s); {hold}")
+    pose = "" if result.final_pose is None else f" ({format_pose(result.final_pose)})"
+    if result.frozen:
+        return f"Frozen where it was by a second stop signal{pose}, torque ON. {hold}"
+    if result.aborted is None:
+        return (f"Done: holding the final pose '{result.final_step}'{pose}, torque ON (the plan "
+                f"has return_to_start: false). {hold}")
+    return f"The arm is holding where it stopped{pose}, torque ON. {hold}"
+
+
+def format_pose(cfg: Mapping[str, float]) -> str:
+    """A pose in one short line: name=value pairs, 1 decimal."""
+    return ", ".join(f"{j} {cfg[j]:.1f} {unit(j)}" for j in JOINTS if j in cfg)
+
+
+def clamp_to_limits(cfg: Mapping[str, float], limits: Limits) -> Configuration:
+    """``cfg`` with each joint clamped into its limits."""
+    return {j: min(limits[j][1], max(limits[j][0], cfg[j])) for j in JOINTS}
+
+
+def starting_pose(bus, calibration, port: str, robot_id: str | None) -> Configuration:
+    """The measured pose, clamped into the calibration; refused if far outside it."""
+    limits = calibrated_limits(calibration)
+    with bus_errors("reading the starting pose"):
+        measured = {j: float(v) for j, v in bus.sync_read("Present_Position").items()}
+    start = clamp_to_limits(measured, limits)
+    for joint in JOINTS:
+        if abs(start[joint] - measured[joint]) > LIMIT_SLACK_DEG:
+            raise CalibrationError(
+                f"The arm's {joint} reads {measured[joint]:.1f} {unit(joint)}, outside its "
+                f"calibrated range [{limits[joint][0]:.1f}, {limits[joint][1]:.1f}]: the "
+                "calibration does not fit this arm. Fix: `"
+                + CALIBRATE_HINT.format(port=port, robot_id=robot_id or "ID") + "`.")
+    bounds = model_limits()
+    outside = [j for j in JOINTS if not bounds[j][0] <= start[j] <= bounds[j][1]]
+    if outside:
+        logger.warning("The starting pose is outside the model's limits on %s; the arm will "
+                       "return there at the end anyway (it is where it stood).", ", ".join(outside))
+    return start
+
+
+def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
+               robot_id: str | None = None, source: str = "the calibration",
+               rate_hz: float = DEFAULT_RATE_HZ, profile: str = "minimum_jerk",
+               max_joint_speed: float = MAX_JOINT_SPEED_DEG_S,
+               tracking_tolerance: float = TRACKING_TOLERANCE_DEG,
+               confirm: Callable[[str], bool] | None = None, write_calibration: bool = False,
+               return_on_abort: bool = True,
+               on_cycle: Callable[[ArmSession, Cycle], None] | None = None,
+               on_start: Callable[[Configuration, float], None] | None = None) -> RunResult:
+    """The whole hardware run: check, connect, confirm, torque on, run, return, torque off.
+
+    Nothing is sent to the servos' goal registers and torque stays off until
+    the plan has passed both limit checks, the servos answered, their
+    calibration matched and ``confirm`` (if given) said yes.
+
+    Args:
+        port: serial port of the arm.
+        calibration: the loaded lerobot calibration of this arm (``load_calibration``).
+        plan: the plan (validated here against model and calibrated limits).
+        robot_id: for messages.
+        source: where the calibration came from (for messages).
+        rate_hz: control loop rate [Hz].
+        profile: "minimum_jerk" or "linear".
+        max_joint_speed: speed cap of the arm joints [deg/s].
+        tracking_tolerance: stall/collision tolerance of the arm joints [deg].
+        confirm: asked before torque on; False refuses.
+        write_calibration: write the calibration into the servos if they differ.
+        return_on_abort: after an abort, move back slowly when the arm answers.
+        on_cycle: hook called after each control cycle (the log).
+        on_start: called with the measured starting pose and the first move's
+            duration [s] before ``confirm``.
+
+    Raises:
+        CalibrationError, PlanError, ConnectionFailed, LerobotMissing, NotConfirmed:
+            refused before anything moved.
+        MotionAborted: aborted during motion (controlled ending done).
+    """
+    validate_plan_for_arm(plan, calibration, source)
+    check_run_settings(rate_hz, max_joint_speed, tracking_tolerance)
+    bus = connect(port, calibration, robot_id=robot_id, write_calibration=write_calibration)
+    armed = False
+    try:
+        start = starting_pose(bus, calibration, port, robot_id)
+        session = ArmSession(
+            bus, rate_hz=rate_hz, profile=profile, max_speed=speed_caps(max_joint_speed),
+            tracking_tolerance=tracking_tolerances(tracking_tolerance), on_cycle=on_cycle)
+        session.command = dict(start)
+        first = plan.steps[0]
+        if on_start is not None:
+            on_start(start, capped_duration(start, first.configuration, first.duration, profile,
+                                            session.max_speed))
+        if confirm is not None and not confirm("Enable torque and run the pick-and-place?"):
+            raise NotConfirmed("Not confirmed: nothing moved.")
+        armed = True
+        with bus_errors("configuring the servos and enabling torque"):
+            configure(bus)
+            enable_torque_in_place(bus)
+        return execute(session, plan, start, return_on_abort=return_on_abort)
+    except MotionAborted:
+        raise
+    except BaseException:
+        if armed:  # torque came on at the start pose and nothing moved: release there
+            unreleased = release_torque(bus)
+            if unreleased:
+                logger.error("Torque could NOT be released on %s (at the starting pose).",
+                             ", ".join(unreleased))
+        raise
+    finally:
+        disconnect(bus)
+
+
+def release_arm(port: str, calibration: Mapping[str, Any], *, robot_id: str | None = None,
+                confirm: Callable[[str], bool] | None = None) -> list[str]:
+    """Release the torque of every servo, asked for explicitly with the arm held by hand.
+
+    Returns:
+        The joints whose servo did not answer (still torqued if powered).
+
+    Raises:
+        NotConfirmed: the user said no.
+    """
+    bus = connect(port, calibration, robot_id=robot_id, check_calibration=False)
+    try:
+        question = ("Hold the arm with a hand: without torque it falls under gravity. "
+                    "Release the torque now?")
+        if confirm is not None and not confirm(question):
+            raise NotConfirmed("Not confirmed: torque unchanged.")
+        return release_torque(bus)
+    finally:
+        disconnect(bus)

@@ -1,0 +1,120 @@
+"""Teach mode and the plan table: what a student reads before and between runs on the arm."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from collections.abc import Mapping
+
+from so101_bus import PortLost, port_lost, recover_port
+from so101_control import READ_RETRIES, RECOVERY_TIMEOUT_S, RateLoop, capped_duration
+from so101_forward_kinematics import ARM_JOINTS, JOINTS, get_forward_kinematics
+from so101_motion import Configuration, Plan, pick_and_place_steps
+
+TEACH_RATE_HZ = 5.0        # live pose printing [Hz]
+MAX_TEACH_RATE_HZ = 50.0   # a terminal cannot show more [Hz]
+
+
+def format_configuration(cfg: Mapping[str, float], digits: int = 1) -> str:
+    """A configuration as a JSON object (valid Python and waypoint-file syntax)."""
+    return json.dumps({j: round(float(cfg[j]), digits) for j in JOINTS if j in cfg})
+
+
+def object_position_cm(cfg: Mapping[str, float]) -> tuple[float, float, float]:
+    """FK object-frame position in the base frame [cm]."""
+    position, _ = get_forward_kinematics({j: cfg[j] for j in ARM_JOINTS})
+    return tuple(float(v) * 100.0 for v in position)
+
+
+def format_plan(plan: Plan, *, rate_hz: float, profile: str, max_speed: Mapping[str, float],
+                start: Configuration | None = None) -> str:
+    """The plan as a table (durations after the speed cap) and the cube positions to place [cm]."""
+    lines = [f"Plan: {len(plan.steps)} waypoints, {rate_hz:g} Hz, profile {profile}, speed cap "
+             f"{max_speed['shoulder_pan']:g} deg/s (gripper {max_speed['gripper']:g} %/s)"]
+    header = f"  {'#':>2} {'waypoint':<16}{'move':>7}{'hold':>6}" + "".join(
+        f"{j[:13]:>14}" for j in JOINTS) + "    object x, y, z [cm]"
+    lines.append(header)
+    previous = start
+    for i, step in enumerate(plan.steps, 1):
+        if previous is None:
+            move = f"{step.duration:>6.2f}*"
+        else:
+            capped = capped_duration(previous, step.configuration, step.duration, profile,
+                                     max_speed)
+            move = f"{capped:>7.2f}"
+        x, y, z = object_position_cm(step.configuration)
+        lines.append(f"  {i:>2} {step.name[:15]:<16}{move}{step.hold:>6.2f}" + "".join(
+            f"{step.configuration[j]:>14.1f}" for j in JOINTS) + f"    {x:6.1f} {y:6.1f} {z:5.1f}")
+        previous = step.configuration
+    if plan.return_to_start:
+        lines.append(f"  {len(plan.steps) + 1:>2} {'return_to_start':<16}"
+                     f"{plan.return_duration:>6.2f}*     back to the measured starting pose")
+    else:
+        lines.append("  (return_to_start: false: the arm holds the last waypoint, torque on)")
+    if start is None:
+        lines.append("  * ramps from (or to) the arm's measured pose; stretched if the speed cap "
+                     "needs it.")
+    pick, place = pick_and_place_steps(plan)
+    lines.append("Place the cubes here (FK of the object frame, base frame, rounded to the grid):")
+    for label, step in (("pick ", pick), ("place", place)):
+        x, y, z = object_position_cm(step.configuration)
+        lines.append(f"  {label} ({step.name}): x = {x:.1f} cm, y = {y:.1f} cm  (cube centre "
+                     f"z = {z:.1f} cm)")
+    return "\n".join(lines)
+
+
+def teach(bus, *, rate_hz: float = TEACH_RATE_HZ, duration: float | None = None,
+          out=None) -> Configuration | None:
+    """Torque off; print the pose live (configuration dict + FK object position) until Ctrl-C.
+
+    A failed read is skipped (the arm is in the user's hands, nothing is
+    commanded); if the arm stays silent for ``RECOVERY_TIMEOUT_S`` the mode ends.
+
+    Args:
+        bus: connected bus.
+        rate_hz: print rate [Hz], in (0, ``MAX_TEACH_RATE_HZ``].
+        duration: stop after this long [s] (None: until Ctrl-C).
+        out: text stream (default stdout); a terminal gets one updating line.
+
+    Returns:
+        The last pose read.
+
+    Raises:
+        PortLost: the port vanished.
+    """
+    out = out or sys.stdout
+    bus.disable_torque()
+    live = hasattr(out, "isatty") and out.isatty()
+    print("Torque is off: move the arm by hand. Ctrl-C to stop.", file=out)
+    loop = RateLoop(rate_hz)
+    started = loop.start()
+    pose, silent_since = None, None
+    try:
+        while duration is None or loop.deadline - started < duration - 1e-9:
+            try:
+                raw = bus.sync_read("Present_Position", num_retry=READ_RETRIES)
+            except Exception:  # noqa: BLE001 - a glitch: skip this line
+                if port_lost(bus):
+                    raise PortLost.during("teach mode") from None
+                recover_port(bus, settle=False)
+                silent_since = silent_since or time.monotonic()
+                if time.monotonic() - silent_since > RECOVERY_TIMEOUT_S:
+                    print(f"\nThe arm has not answered for {RECOVERY_TIMEOUT_S:g} s: check its "
+                          "power supply and cables.", file=out)
+                    break
+                loop.wait()
+                continue
+            silent_since = None
+            pose = {j: float(raw[j]) for j in JOINTS}
+            x, y, z = object_position_cm(pose)
+            line = f"{format_configuration(pose)}  object x={x:.1f} y={y:.1f} z={z:.1f} cm"
+            print(("\r" + line) if live else line, end="" if live else "\n", file=out, flush=True)
+            loop.wait()
+    except KeyboardInterrupt:
+        pass
+    if live:
+        print(file=out)
+    if pose is not None:
+        print("Last pose (paste into a waypoint file): " + format_configuration(pose), file=out)
+    return pose
