@@ -36,7 +36,7 @@ from dataclasses import dataclass
 from functools import cache
 from typing import NamedTuple
 
-from so101_bus import PortLost, discard_stale_input, port_lost, recover_port
+from so101_bus import PORT_SETTLE_S, PortLost, discard_stale_input, port_lost, recover_port
 from so101_calibration import HardwareError, calibrated_limits
 from so101_forward_kinematics import JOINTS
 from so101_motion import (
@@ -316,6 +316,7 @@ class ArmSession:
         self._t0: float | None = None
         self._beyond: dict[str, float] = {}
         self._unobserved_since: float | None = None
+        self.known_faults: dict[str, int] = {}  # joint -> status bits already reported
         self.stale_bytes = 0  # late-reply bytes dropped before reads
         _SESSIONS[bus] = self
 
@@ -405,17 +406,22 @@ class ArmSession:
         return deadline
 
     def _check_status(self) -> None:
-        """Stop on an error bit in a servo's Status register (the gripper's overload excepted)."""
+        """Stop on a new error bit in a servo's Status register (the gripper's overload excepted).
+
+        A bit reported once is known: it does not stop the slow return that follows.
+        """
         try:
             status = self.bus.sync_read("Status", normalize=False)
         except Exception:  # noqa: BLE001 - a missed status read is not a fault; the next one
             recover_port(self.bus, settle=False)
             return
         for joint, bits in status.items():
+            bits = int(bits) & ~self.known_faults.get(joint, 0)
             if joint == "gripper":  # squeezing the cube is what its overload protection is for
                 bits &= ~0x20
-            faults = [text for bit, text in STATUS_BITS.items() if int(bits) & bit]
+            faults = [text for bit, text in STATUS_BITS.items() if bits & bit]
             if faults:
+                self.known_faults[joint] = self.known_faults.get(joint, 0) | bits
                 raise ServoFault(f"The {joint} servo reports: {', '.join(faults)} (status "
                                  f"0x{int(bits):02x}). Fix: check the power supply (voltage), "
                                  "let the servo cool down, or free the arm from what it pushes "
@@ -523,7 +529,8 @@ class ArmSession:
             every servo that hears us still holds its last goal by itself).
         """
         self._beyond.clear()
-        recover_port(self.bus)
+        self.loop.sleep(PORT_SETTLE_S)  # let late replies arrive, then drop them
+        recover_port(self.bus, settle=False)
         try:
             pose = self._read()
         except Exception:  # noqa: BLE001 - unobserved: the servos hold their last goals

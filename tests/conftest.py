@@ -70,3 +70,19 @@ def run_default_plan(m, d, after_step) -> None:
     run_plan(default_plan(), lambda cfg, duration: utils.move_to_pose(m, d, viewer, cfg, duration),
              lambda duration: utils.hold_position(m, d, viewer, duration),
              utils.get_configuration(m, d))
+
+
+@pytest.fixture
+def calibration():
+    """The virtual arm's lerobot calibration (calibration/virtual_so101.json), loaded."""
+    from so101_calibration import load_calibration
+
+    return load_calibration(REPO / "calibration" / "virtual_so101.json")
+
+
+@pytest.fixture
+def clock():
+    """A deterministic clock (tests/hw_fakes.py)."""
+    from hw_fakes import FakeClock
+
+    return FakeClock()

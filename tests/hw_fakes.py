@@ -1,0 +1,93 @@
+"""Stand-ins for the hardware tests that need no lerobot: a fake clock and a fake Feetech bus."""
+
+from __future__ import annotations
+
+import types
+
+from so101_calibration import MOTOR_IDS
+from so101_control import ArmSession
+from so101_forward_kinematics import JOINTS
+
+HOME = {"shoulder_pan": 0.0, "shoulder_lift": -90.0, "elbow_flex": 90.0, "wrist_flex": 30.0,
+        "wrist_roll": 0.0, "gripper": 9.0}
+"""The virtual arm's power-up pose (the model's home keyframe), rounded."""
+
+
+class FakeClock:
+    """Deterministic time: sleep advances it; each read advances 1 us (so spinning ends)."""
+
+    def __init__(self):
+        self.now = 1000.0
+        self.sleeps = []
+
+    def clock(self) -> float:
+        self.now += 1e-6
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        self.sleeps.append(seconds)
+        self.now += max(0.0, seconds)
+
+
+class FakeBus:
+    """Enough of lerobot's FeetechMotorsBus for a session: servos follow goals instantly.
+
+    ``stalled`` joints never move; ``fail_reads`` makes the next N sync_reads raise
+    ConnectionError as lerobot does when a servo does not answer, and
+    ``fail_until`` every read before that time of ``clock`` (an outage);
+    ``status`` holds each servo's Status register (error bits).
+    """
+
+    def __init__(self, calibration, pose, stalled=()):
+        self.calibration = calibration
+        self.motors = {j: types.SimpleNamespace(id=MOTOR_IDS[j]) for j in JOINTS}
+        self.pose = dict(pose)
+        self.stalled = set(stalled)
+        self.goals: list[dict] = []
+        self.torque = dict.fromkeys(JOINTS, True)
+        self.fail_reads = 0
+        self.fail_until = 0.0
+        self.clock = None
+        self.status = dict.fromkeys(JOINTS, 0)
+        self.reads = 0
+        self.silent: set[str] = set()
+        self.port_handler = types.SimpleNamespace(clearPort=lambda: None, is_using=False)
+
+    def sync_write(self, name, values, normalize=True):
+        assert name == "Goal_Position"
+        self.goals.append(dict(values))
+        for joint, value in values.items():
+            if joint not in self.stalled:
+                self.pose[joint] = value
+
+    def sync_read(self, name, motors=None, *, normalize=True, num_retry=0):
+        assert name in ("Present_Position", "Status")
+        outage = self.clock is not None and self.clock.now < self.fail_until
+        if self.fail_reads > 0 or outage:
+            self.fail_reads = max(0, self.fail_reads - 1)
+            raise ConnectionError(f"Failed to sync read '{name}' on ids=[1, 2, 3, 4, 5, 6] after "
+                                  f"{num_retry + 1} tries. [TxRxResult] There is no status packet!")
+        if name == "Status":
+            return dict(self.status)
+        self.reads += 1
+        return dict(self.pose)
+
+    def disable_torque(self, motors=None, num_retry=0):
+        for joint in [motors] if isinstance(motors, str) else (motors or JOINTS):
+            self.write("Torque_Enable", joint, 0)
+
+    def write(self, name, motor, value, normalize=True, num_retry=0):
+        if motor in self.silent:
+            raise ConnectionError(f"{motor}: There is no status packet!")
+        if name == "Torque_Enable":
+            self.torque[motor] = bool(value)
+
+    def ping(self, motor, num_retry=0):
+        return None if motor in self.silent else 777
+
+
+def make_session(calibration, clock, pose=HOME, stalled=(), **kwargs):
+    """An ArmSession on a FakeBus at ``pose``, timed by ``clock``; returns (session, bus)."""
+    bus = FakeBus(calibration, pose, stalled)
+    bus.clock = clock
+    return ArmSession(bus, clock=clock.clock, sleep=clock.sleep, **kwargs), bus

@@ -1,0 +1,257 @@
+"""The control loop without an arm: speed cap, deadline scheduler, the session and its fault policy
+on a fake bus and a fake clock (deterministic)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hw_fakes import HOME, FakeBus, FakeClock, make_session  # noqa: F401
+
+import so101_hw_run as hw
+from so101_control import (
+    MAX_JOINT_SPEED_DEG_S,
+    SPEED_CAP_LIMIT_DEG_S,
+    TRACKING_TIMEOUT_S,
+    ArmSession,
+    BusError,
+    RateLoop,
+    ServoFault,
+    TrackingError,
+    capped_duration,
+    hold_position,
+    loop_timing_stats,
+    move_to_pose,
+    peak_speed_factor,
+    session_for,
+    speed_caps,
+)
+from so101_forward_kinematics import JOINTS
+from so101_motion import JointLimitError, default_plan
+
+REPO = Path(__file__).resolve().parent.parent
+VIRTUAL_CALIBRATION = REPO / "calibration" / "virtual_so101.json"
+
+
+# --- speed cap ---------------------------------------------------------------------------
+def test_peak_speed_factors():
+    assert peak_speed_factor("linear") == pytest.approx(1.0)
+    assert peak_speed_factor("minimum_jerk") == pytest.approx(1.875, rel=1e-4)
+
+
+def test_capped_duration_stretches_only_when_needed():
+    caps = speed_caps(100.0, 50.0)
+    start, goal = dict(HOME), dict(HOME, shoulder_pan=90.0)
+    assert capped_duration(start, goal, 2.0, "minimum_jerk", caps) == 2.0
+    assert capped_duration(start, goal, 1.0, "minimum_jerk", caps) == pytest.approx(1.6875)
+    assert capped_duration(start, goal, 0.1, "linear", caps) == pytest.approx(0.9)
+    gripper = dict(HOME, gripper=59.0)  # 50 % at 50 %/s
+    assert capped_duration(start, gripper, 0.2, "linear", caps) == pytest.approx(1.0)
+
+
+# --- the deadline scheduler ------------------------------------------------------------
+def test_rate_loop_deadlines_do_not_drift_with_varying_work(clock):
+    loop = RateLoop(100.0, clock.clock, clock.sleep, spin=0.0005)
+    t0 = loop.start()
+    rng = np.random.default_rng(1)
+    wakes = []
+    for _ in range(1000):
+        clock.now += rng.uniform(0.0, 0.008)  # work of 0-8 ms inside a 10 ms period
+        wakes.append(loop.wait())
+    assert wakes[-1] == pytest.approx(t0 + 1000 * 0.01, abs=1e-9)  # no accumulated drift
+    assert np.diff(wakes) == pytest.approx(0.01, abs=1e-9)
+    assert loop.overruns == 0 and loop.skipped == 0
+    assert clock.now - wakes[-1] < 1e-4  # woke at the deadline, not after it
+    assert min(clock.sleeps) >= 0.0  # slept up to the spin margin, then spun
+
+
+def test_rate_loop_counts_overruns_and_skips_missed_deadlines(clock):
+    loop = RateLoop(100.0, clock.clock, clock.sleep)
+    t0 = loop.start()
+    clock.now += 0.013  # 3 ms late: run the next cycle at once, keep the grid
+    assert loop.wait() == pytest.approx(t0 + 0.01)
+    assert (loop.overruns, loop.skipped) == (1, 0)
+    assert loop.wait() == pytest.approx(t0 + 0.02)
+    clock.now += 0.035  # 3.5 periods of work: skip the missed deadlines, no burst
+    deadline = loop.wait()
+    assert (loop.overruns, loop.skipped) == (2, 2)
+    assert deadline == pytest.approx(t0 + 0.05)
+    assert clock.now - deadline < 0.01
+    assert loop.wait() == pytest.approx(t0 + 0.06)
+
+
+def test_rate_loop_refuses_impossible_rates():
+    for rate in (0, -10, 5000, float("nan")):
+        with pytest.raises(ValueError, match="rate"):
+            RateLoop(rate)
+
+
+def test_loop_timing_stats():
+    times = [0.0, 0.010, 0.020, 0.031, 0.040, 0.050]
+    stats = loop_timing_stats(times, 100.0)
+    assert stats["period_p50_ms"] == pytest.approx(10.0)
+    assert stats["achieved_hz"] == pytest.approx(100.0)
+    assert stats["period_max_error_ms"] == pytest.approx(1.0)
+    assert stats["cycles"] == 6
+
+
+# --- the session, on a fake bus ------------------------------------------------------------
+def test_first_move_ramps_from_the_measured_pose_within_the_speed_cap(calibration, clock):
+    session, bus = make_session(calibration, clock)
+    goal = dict(HOME, shoulder_pan=-45.0, shoulder_lift=45.0, elbow_flex=-45.0, wrist_flex=90.0)
+    session.move(goal, 0.5)  # far too fast: stretched
+    commands = np.array([[g[j] for j in JOINTS] for g in bus.goals])
+    first_step = np.abs(commands[0] - [HOME[j] for j in JOINTS])
+    assert first_step.max() < 0.5  # no jump: the first command is next to the measured pose
+    assert commands[-1] == pytest.approx([goal[j] for j in JOINTS])
+    speed = np.abs(np.diff(commands, axis=0)).max(axis=0) * 100.0  # [deg/s] at 100 Hz
+    assert speed[:5].max() <= MAX_JOINT_SPEED_DEG_S * 1.01
+    assert session.stretched and "stretched" in session.stretched[0]
+    assert session.segments[0].duration > session.segments[0].requested == 0.5
+
+
+def test_move_runs_on_the_rate_grid(calibration, clock):
+    session, bus = make_session(calibration, clock, rate_hz=100.0)
+    session.move(dict(HOME, wrist_flex=35.0), 1.0)
+    session.hold(0.5)
+    times = [c.t_s for c in session.cycles]
+    assert len(times) == 150
+    assert np.diff(times) == pytest.approx(0.01, abs=1e-9)
+    assert times[0] == pytest.approx(0.01)  # the command for t = 0 is where the arm already is
+    assert [c.step for c in session.cycles] == [""] * 150
+    assert all(c.measured is not None for c in session.cycles)
+
+
+def test_course_call_shape_with_a_plain_bus(calibration, clock):
+    bus = FakeBus(calibration, HOME)
+    ArmSession(bus, clock=clock.clock, sleep=clock.sleep)  # registered for this bus
+    move_to_pose(bus, dict(HOME, gripper=50.0), 1.0)
+    hold_position(bus, 0.2)
+    assert bus.pose["gripper"] == pytest.approx(50.0)
+    assert session_for(bus).segments[-1].kind == "hold"
+
+
+def test_command_outside_the_calibrated_range_is_never_sent(calibration, clock):
+    session, bus = make_session(calibration, clock)
+    with pytest.raises(JointLimitError, match="shoulder_pan = 150"):
+        session.move(dict(HOME, shoulder_pan=150.0), 5.0)
+    assert bus.goals == []
+
+
+def test_stalled_joint_aborts_after_the_tracking_timeout(calibration, clock):
+    session, bus = make_session(calibration, clock, stalled=["elbow_flex"])
+    with pytest.raises(TrackingError) as info:
+        session.move(dict(HOME, elbow_flex=30.0), 1.5)
+    message = str(info.value)
+    assert "elbow_flex does not follow" in message and "tolerance 15" in message
+    # the error first exceeded 15 deg, then stayed beyond it for the timeout
+    cycles = session.cycles
+    lag = [abs(now.measured["elbow_flex"] - before.command["elbow_flex"])
+           for before, now in zip(cycles, cycles[1:], strict=False)]
+    first_beyond = 1 + next(i for i, error in enumerate(lag) if error > 15.0)
+    elapsed = cycles[-1].t_s - cycles[first_beyond].t_s
+    assert elapsed == pytest.approx(TRACKING_TIMEOUT_S, abs=0.011)
+    assert all(c.measured["elbow_flex"] == 90.0 for c in cycles)  # the joint never moved
+
+
+def test_gripper_squeezing_a_cube_is_not_a_stall(calibration, clock):
+    session, bus = make_session(calibration, clock, stalled=["gripper"])
+    session.move(dict(HOME, gripper=50.0), 0.5)
+    session.hold(1.0)  # no TrackingError: the gripper is not tracked
+
+
+def fire_once(when, action):
+    """An on_cycle hook running ``action(session)`` once, at the first cycle where ``when``."""
+    def on_cycle(session, cycle):
+        if when(cycle) and not on_cycle.fired:
+            on_cycle.fired.append(cycle.t_s)
+            action(session)
+
+    on_cycle.fired = []
+    return on_cycle
+
+
+def test_an_outage_of_half_a_second_pauses_the_move_and_resumes_it(calibration, clock):
+    """The issue's requirement: a 0.5 s outage (all servos silent) does not end the motion."""
+    outage = fire_once(lambda c: c.t_s >= 0.3,
+                       lambda s: setattr(s.bus, "fail_until", clock.now + 0.5))
+    session, bus = make_session(calibration, clock, on_cycle=outage)
+    goal = dict(HOME, wrist_flex=60.0)
+    session.move(goal, 1.0)
+    cycles = session.cycles
+    blind = [i for i, c in enumerate(cycles) if c.measured is None]
+    assert blind and blind == list(range(blind[0], blind[-1] + 1))  # one outage
+    assert (len(blind) + 1) * 0.01 == pytest.approx(0.5, abs=0.011)
+    held = {c.command["wrist_flex"] for c in cycles[blind[0]:blind[-1] + 2]}
+    assert len(held) == 1  # the trajectory's clock stood still: the last goal repeated
+    flex = np.array([c.command["wrist_flex"] for c in cycles])
+    peak = 30.0 * 1.875 / 1.0  # minimum jerk's peak speed for 30 deg in 1 s [deg/s]
+    assert np.abs(np.diff(flex)).max() <= peak * 0.01 * 1.001  # no jump when reads came back
+    assert flex[-1] == pytest.approx(60.0)
+    assert cycles[-1].t_s == pytest.approx(1.0 + 0.5, abs=0.02)  # it finished 0.5 s later
+    assert len(session.outages) == 1 and session.outages[0][1] == pytest.approx(0.5, abs=0.011)
+
+
+def test_a_longer_outage_stops_the_motion_with_a_bus_error(calibration, clock):
+    outage = fire_once(lambda c: c.t_s >= 0.3,
+                       lambda s: setattr(s.bus, "fail_until", clock.now + 10.0))
+    session, bus = make_session(calibration, clock, on_cycle=outage)
+    with pytest.raises(BusError, match="did not answer for .* no status packet"):
+        session.move(dict(HOME, wrist_flex=60.0), 1.0)
+    blind = [c for c in session.cycles if c.measured is None]
+    assert 0.5 < blind[-1].t_s - blind[0].t_s < 2.0  # tolerated more than the spec's 0.5 s
+    assert len({c.command["wrist_flex"] for c in blind}) == 1  # never ran ahead while blind
+
+
+@pytest.mark.parametrize("joint, bits, stops", [
+    ("elbow_flex", 0x04, "overheated"),
+    ("shoulder_lift", 0x01, "input voltage"),
+    ("wrist_flex", 0x20, "overloaded"),
+    ("gripper", 0x04, "overheated"),
+    ("gripper", 0x20, None),  # the gripper's overload protection is how it squeezes a cube
+])
+def test_a_servo_error_bit_stops_the_motion(calibration, clock, joint, bits, stops):
+    fault = fire_once(lambda c: c.t_s >= 0.2, lambda s: s.bus.status.update({joint: bits}))
+    session, bus = make_session(calibration, clock, on_cycle=fault)
+    if stops is None:
+        session.move(dict(HOME, wrist_flex=40.0), 1.0)
+        return
+    with pytest.raises(ServoFault, match=f"{joint} servo reports: {stops}") as info:
+        session.move(dict(HOME, wrist_flex=40.0), 1.0)
+    assert session.cycles[-1].t_s - fault.fired[0] <= 0.11  # seen within 10 cycles
+    assert "Fix:" in str(info.value)
+
+
+def test_no_setting_makes_a_step_larger_than_the_speed_cap_allows(calibration, clock):
+    """At the highest accepted cap and a zero duration, one cycle moves at most cap x period."""
+    top = SPEED_CAP_LIMIT_DEG_S
+    session, bus = make_session(calibration, clock, max_speed=speed_caps(top))
+    session.move(dict(HOME, shoulder_pan=100.0, elbow_flex=-20.0), 0.0)
+    commands = np.array([[g[j] for j in JOINTS] for g in bus.goals])
+    steps = np.abs(np.diff(commands, axis=0)).max(axis=0)[:5]
+    assert steps.max() <= top * 1.875 * 0.01 * 1.001  # minimum jerk peaks at 1.875 x mean
+    assert top <= 270.0 * 2 / 3 + 1e-9  # 2/3 of the STS3215's no-load speed at 7.4 V
+
+
+def test_a_new_segment_continues_the_grid_after_a_late_cycle(clock):
+    loop = RateLoop(100.0, clock.clock, clock.sleep)
+    t0 = loop.start()
+    loop.wait()
+    clock.now += 0.025  # the last cycle of a move ran long
+    assert loop.resume() == pytest.approx(t0 + 0.03)  # same grid, missed deadlines skipped
+    assert loop.skipped == 2
+    clock.now += 1.0  # idle (e.g. a prompt): a fresh grid
+    assert loop.resume() == pytest.approx(clock.now, abs=1e-5)
+
+
+def test_garbage_collector_is_frozen_during_the_motion(calibration, clock):
+    import gc
+
+    frozen = []
+    session, _ = make_session(calibration, clock,
+                              on_cycle=lambda s, c: frozen.append(gc.get_freeze_count()))
+    plan = hw.validate_plan_for_arm(default_plan(0.2, 0.0), calibration)
+    hw.execute(session, plan, dict(HOME))
+    assert min(frozen) > 1000  # everything alive before the run is skipped by collections
+    assert gc.get_freeze_count() == 0
