@@ -65,7 +65,6 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("Interrupted.", file=sys.stderr)
         return 130
-    print("Torque is off on every servo (teach mode).")
     return 0
 
 

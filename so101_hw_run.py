@@ -239,13 +239,13 @@ def execute(session: ArmSession, plan: Plan, start_pose: Configuration,
         if len(session.cycles) >= 3:
             result.timing = session.timing()
         if not result.usb_lost:
+            try:
+                result.final_pose = session.read_pose()  # where it holds, or is released
+            except (Exception, KeyboardInterrupt):
+                result.final_pose = None
             if result.returned_to_start:
                 result.unreleased = release_torque(bus)
                 result.torque_released = not result.unreleased
-            try:
-                result.final_pose = session.read_pose()
-            except (Exception, KeyboardInterrupt):
-                result.final_pose = None
     if result.aborted is not None:
         raise MotionAborted(f"Pick-and-place aborted: {result.aborted}.", result)
     return result
@@ -268,7 +268,7 @@ def ending(result: RunResult, release: str) -> str:
         names = ", ".join(f"{j} (id {MOTOR_IDS[j]})" for j in result.silent)
         return (f"Not answering: {names}. The other servos hold where they are, torque ON (a "
                 f"powered silent servo holds its last goal). Check the cable and power of the "
-                f"silent servo(s); {hold}")
+                f"silent servo(s). {hold}")
     pose = "" if result.final_pose is None else f" ({format_pose(result.final_pose)})"
     if result.frozen:
         return f"Frozen where it was by a second stop signal{pose}, torque ON. {hold}"

@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import time
 
 import mujoco
 import numpy as np
@@ -20,8 +21,10 @@ import pytest
 pytest.importorskip("lerobot")
 pytestmark = pytest.mark.hw
 
-import pick_place_hw as hw  # noqa: E402
+import pick_place_hw as cli  # noqa: E402
+import so101_hw_run as hw  # noqa: E402
 import so101_mujoco_utils as mu  # noqa: E402
+from benchmarks.bench_hw import measure_loop_timing  # noqa: E402
 from so101_bus import (  # noqa: E402
     ConnectionFailed,
     calibration_mismatch,
@@ -29,7 +32,6 @@ from so101_bus import (  # noqa: E402
     disconnect,
 )
 from so101_calibration import CalibrationError, load_calibration  # noqa: E402
-from so101_control import MAX_MISSED_READS, measure_loop_timing  # noqa: E402
 from so101_forward_kinematics import ARM_JOINTS, JOINTS  # noqa: E402
 from so101_motion import JointLimitError, Plan, Step, default_plan  # noqa: E402
 from virtual_so101 import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
@@ -74,7 +76,7 @@ def full_run():
     with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as arm:
         plan = default_plan(move_duration=0.6, hold_duration=0.1)
         before = arm.reply_stats()
-        result = hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, plan)
+        result = hw.run_on_arm(arm.port, CALIBRATION, plan)
         after = arm.reply_stats()
         # real time the emulator's physics could not keep up with (it drops it) [s]
         slip = (after["wall_time_s"] - before["wall_time_s"]) - (
@@ -225,7 +227,7 @@ def test_cli_run_writes_log_and_plot(arm, tmp_path, capsys):
     plan_path = tmp_path / "nod.json"
     plan_path.write_text(json.dumps(plan))
     log, plot = tmp_path / "run.csv", tmp_path / "run.png"
-    rc = hw.main(["--port", arm.port, "--calibration", str(DEFAULT_CALIBRATION_PATH), "--yes",
+    rc = cli.main(["--port", arm.port, "--calibration", str(DEFAULT_CALIBRATION_PATH), "--yes",
                   "--plan", str(plan_path), "--log", str(log), "--plot", str(plot)])
     out = capsys.readouterr().out
     assert rc == 0, out
@@ -260,11 +262,11 @@ def test_ctrl_c_mid_motion_returns_to_the_start_and_releases(arm):
     start = arm.joint_positions()
     handler = signal.getsignal(signal.SIGINT)
     with pytest.raises(hw.MotionAborted) as info:
-        hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, short_plan(), on_cycle=on_cycle)
+        hw.run_on_arm(arm.port, CALIBRATION, short_plan(), on_cycle=on_cycle)
     result = info.value.result
     assert "stopped by Ctrl-C (during 'swing_right')" in str(info.value)
-    assert "moved slowly back to its starting pose" in str(info.value)
     assert result.returned_to_start and result.unreleased == []
+    assert hw.ending(result, "") == "Back at the starting pose, torque off."
     assert_near(arm.joint_positions(), start, label="after Ctrl-C")
     assert not any(arm.torque_enabled().values())
     assert goals_outside_calibration(arm.goal_log()) == []
@@ -280,7 +282,7 @@ def test_interrupt_inside_a_bus_transaction_is_recovered(arm):
     on_cycle = once_in_swing_right(interrupt_mid_transaction)
     start = arm.joint_positions()
     with pytest.raises(hw.MotionAborted, match="Ctrl-C") as info:
-        hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, short_plan(), on_cycle=on_cycle)
+        hw.run_on_arm(arm.port, CALIBRATION, short_plan(), on_cycle=on_cycle)
     assert info.value.result.returned_to_start
     assert_near(arm.joint_positions(), start, label="after interrupt")
     assert not any(arm.torque_enabled().values())
@@ -298,7 +300,7 @@ def test_a_late_reply_is_dropped_not_taken_for_the_next_one(arm):
         bus.port_handler.is_using = False  # ... as after the SDK gave up waiting
 
     on_cycle = once_in_swing_right(leave_a_reply_on_the_port)
-    result = hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, short_plan(), on_cycle=on_cycle)
+    result = hw.run_on_arm(arm.port, CALIBRATION, short_plan(), on_cycle=on_cycle)
     pan = [c.measured["shoulder_pan"] for c in result.cycles if c.measured is not None]
     assert on_cycle.fired and min(pan) > -32.0 and max(pan) < 32.0
     assert result.stale_bytes == 8  # one status packet with 2 bytes of data
@@ -309,9 +311,11 @@ def test_stalled_joint_aborts_returns_and_releases(arm):
     arm.inject("stall:elbow_flex")  # blocked where it stands (90 deg); swing_left asks for 70
     start = arm.joint_positions()
     with pytest.raises(hw.MotionAborted) as info:
-        hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, short_plan())
+        hw.run_on_arm(arm.port, CALIBRATION, short_plan())
     message = str(info.value)
-    assert "elbow_flex does not follow its command" in message and "swing_left" in message
+    # caught by whichever comes first: the tracking check or the servo's own overload bit
+    assert ("elbow_flex does not follow its command" in message
+            or "elbow_flex servo reports: overloaded" in message) and "swing_left" in message
     result = info.value.result
     assert result.returned_to_start  # the stalled joint did not need to move back
     assert_near(arm.joint_positions(), start, label="after stall")
@@ -319,36 +323,43 @@ def test_stalled_joint_aborts_returns_and_releases(arm):
     assert goals_outside_calibration(arm.goal_log()) == []
 
 
-def test_stall_that_also_blocks_the_way_back_releases_at_once(arm):
-    # Stuck near +30 deg, asked to go to -30, then 0.
+def test_stall_that_also_blocks_the_way_back_holds_with_torque_on(arm):
+    # Stuck near +30 deg, asked to go to -30, then 0: the way back is blocked too.
     on_cycle = once_in_swing_right(lambda session: arm.inject("stall:shoulder_pan"))
     with pytest.raises(hw.MotionAborted) as info:
-        hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, short_plan(), on_cycle=on_cycle)
+        hw.run_on_arm(arm.port, CALIBRATION, short_plan(), on_cycle=on_cycle)
     result = info.value.result
-    assert "shoulder_pan does not follow" in str(info.value)
+    assert "shoulder_pan" in str(info.value)
     assert not result.returned_to_start
-    assert "NOT moved back" in str(info.value) and "torque is off on every servo" in str(info.value)
-    assert not any(arm.torque_enabled().values())
+    assert all(arm.torque_enabled().values())  # held where it stopped, never dropped
+    before = arm.joint_positions()
+    time.sleep(0.5)
+    assert_near(arm.joint_positions(), before, tol_deg=0.5, label="holding")
+    assert hw.ending(result, "R").startswith("The arm is holding where it stopped")
 
 
-def test_servo_that_stops_answering_aborts_and_releases_the_others(arm):
+def test_servo_that_stops_answering_leaves_the_others_holding(arm):
     on_cycle = once_in_swing_right(lambda session: arm.inject("remove:wrist_flex"))
     with pytest.raises(hw.MotionAborted) as info:
-        hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, short_plan(), on_cycle=on_cycle)
-    message = str(info.value)
+        hw.run_on_arm(arm.port, CALIBRATION, short_plan(), on_cycle=on_cycle)
     result = info.value.result
-    assert "Not answering: wrist_flex (id 4)" in message
-    assert "torque could NOT be released on wrist_flex" in message and "power supply" in message
-    assert not result.returned_to_start and result.unreleased == ["wrist_flex"]
-    assert [j for j, on in arm.torque_enabled().items() if on] == ["wrist_flex"]
-    # it stopped: no goal was sent after the failed reads
-    failed = [i for i, c in enumerate(result.cycles) if c.measured is None]
-    assert len(failed) == MAX_MISSED_READS and failed[-1] == len(result.cycles) - 1
+    assert "did not answer" in str(info.value) and "'swing_right'" in str(info.value)
+    assert result.silent == ["wrist_flex"] and not result.returned_to_start
+    assert all(arm.torque_enabled().values())  # nobody released away from the start
+    line = hw.ending(result, "python pick_place_hw.py --release")
+    assert "Not answering: wrist_flex (id 4)" in line and "--release" in line
+    # the plan paused while blind: every blind cycle repeated the last goal
+    blind = [c for c in result.cycles if c.measured is None]
+    assert blind and len({tuple(c.command.values()) for c in blind}) == 1
 
 
-def test_a_dropped_reply_is_ridden_through(arm):
+def test_a_dropped_reply_is_retried_within_the_cycle(arm):
+    # one lost reply: the retry in the same cycle gets it; two: one cycle is blind
     on_cycle = once_in_swing_right(lambda session: arm.inject("drop:3:1"))
-    result = hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, short_plan(), on_cycle=on_cycle)
+    result = hw.run_on_arm(arm.port, CALIBRATION, short_plan(), on_cycle=on_cycle)
+    assert sum(c.measured is None for c in result.cycles) == 0
+    on_cycle = once_in_swing_right(lambda session: arm.inject("drop:3:2"))
+    result = hw.run_on_arm(arm.port, CALIBRATION, short_plan(), on_cycle=on_cycle)
     assert sum(c.measured is None for c in result.cycles) == 1
     assert result.aborted is None and not any(arm.torque_enabled().values())
 
@@ -361,7 +372,7 @@ def test_calibration_that_does_not_match_the_servos_is_refused(arm, tmp_path):
     path.write_text(json.dumps(data))
     before = arm.joint_positions()
     with pytest.raises(CalibrationError) as info:
-        hw.run_on_arm(arm.port, path, short_plan(), robot_id="other_arm")
+        hw.run_on_arm(arm.port, load_calibration(path), short_plan(), robot_id="other_arm")
     message = str(info.value)
     assert "shoulder_lift homing_offset: servo" in message and "--write-calibration" in message
     assert "--robot.id=other_arm" in message
@@ -391,7 +402,7 @@ def test_malformed_calibration_is_refused_before_connecting(arm, tmp_path):
     path = tmp_path / "broken.json"
     path.write_text(json.dumps(data))
     with pytest.raises(CalibrationError, match="gripper.*empty range"):
-        hw.run_on_arm(arm.port, path, short_plan())
+        hw.run_on_arm(arm.port, load_calibration(path), short_plan())
     assert arm.goal_log() == []
 
 
@@ -399,10 +410,10 @@ def test_bad_waypoints_refuse_to_start(arm, tmp_path, capsys):
     plan = short_plan()
     plan.steps[1].configuration["shoulder_pan"] = 115.0  # beyond the model (110)
     with pytest.raises(JointLimitError, match="shoulder_pan = 115"):
-        hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, plan)
+        hw.run_on_arm(arm.port, CALIBRATION, plan)
     path = tmp_path / "plan.json"
     path.write_text(json.dumps({"steps": [{"name": "oops", "configuration": {"shoulder_pan": 0}}]}))
-    rc = hw.main(["--port", arm.port, "--calibration", str(DEFAULT_CALIBRATION_PATH), "--yes",
+    rc = cli.main(["--port", arm.port, "--calibration", str(DEFAULT_CALIBRATION_PATH), "--yes",
                   "--plan", str(path)])
     assert rc == 2 and "'shoulder_lift' is missing" in capsys.readouterr().err
     assert arm.goal_log() == []
@@ -411,22 +422,22 @@ def test_bad_waypoints_refuse_to_start(arm, tmp_path, capsys):
 
 def test_missing_port_and_silent_arm_are_refused(arm, tmp_path):
     with pytest.raises(ConnectionFailed, match="does not exist.*lerobot-find-port"):
-        hw.run_on_arm(str(tmp_path / "ttyACM9"), DEFAULT_CALIBRATION_PATH, short_plan())
+        hw.run_on_arm(str(tmp_path / "ttyACM9"), CALIBRATION, short_plan())
     arm.inject("remove:gripper")
     with pytest.raises(ConnectionFailed) as info:
-        hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, short_plan())
+        hw.run_on_arm(arm.port, CALIBRATION, short_plan())
     assert "Missing motor IDs" in str(info.value) and "power supply" in str(info.value)
     assert arm.goal_log() == []
 
 
 def test_not_confirmed_means_nothing_moves(arm):
     with pytest.raises(hw.NotConfirmed):
-        hw.run_on_arm(arm.port, DEFAULT_CALIBRATION_PATH, short_plan(), confirm=lambda q: False)
+        hw.run_on_arm(arm.port, CALIBRATION, short_plan(), confirm=lambda q: False)
     assert arm.goal_log() == []
 
 
 def test_dry_run_with_the_arm_connected_sends_no_goal(arm, capsys):
-    rc = hw.main(["--dry-run", "--port", arm.port, "--calibration", str(DEFAULT_CALIBRATION_PATH)])
+    rc = cli.main(["--dry-run", "--port", arm.port, "--calibration", str(DEFAULT_CALIBRATION_PATH)])
     out = capsys.readouterr().out
     assert rc == 0
     assert "Measured starting pose" in out and "nothing was sent" in out
@@ -474,7 +485,7 @@ def test_teach_from_the_main_script_stops_on_ctrl_c(arm, capsys):
     presser = threading.Thread(target=press_ctrl_c_once_teaching)
     presser.start()
     try:
-        rc = hw.main(["--teach", "--port", arm.port,
+        rc = cli.main(["--teach", "--port", arm.port,
                       "--calibration", str(DEFAULT_CALIBRATION_PATH)])
     finally:
         presser.join()

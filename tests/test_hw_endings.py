@@ -1,0 +1,185 @@
+"""Every way a run on the (virtual) arm ends, from the shell: signals, a kill, a busy or lost port.
+
+pick_place_hw.py runs as a student runs it, in its own process, against a
+virtual SO-101 started by the test; signals are real signals.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("lerobot")
+pytestmark = [pytest.mark.hw, pytest.mark.slow]
+
+import so101_hw_run as hw  # noqa: E402
+from so101_bus import connect, disconnect  # noqa: E402
+from so101_calibration import load_calibration  # noqa: E402
+from so101_forward_kinematics import ARM_JOINTS  # noqa: E402
+from so101_motion import Plan, Step  # noqa: E402
+from virtual_so101 import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
+
+REPO = Path(__file__).resolve().parent.parent
+CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
+HOME = {"shoulder_pan": 0.0, "shoulder_lift": -90.0, "elbow_flex": 90.0, "wrist_flex": 30.0,
+        "wrist_roll": 0.0, "gripper": 9.0}
+PLAN = {"steps": [
+    {"name": "swing_left", "configuration": dict(HOME, shoulder_pan=40.0, elbow_flex=70.0),
+     "duration": 1.0, "hold": 0.2},
+    {"name": "swing_right", "configuration": dict(HOME, shoulder_pan=-40.0, elbow_flex=70.0),
+     "duration": 2.0, "hold": 0.2}], "return_duration": 1.0}
+
+
+@pytest.fixture
+def arm():
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as virtual:
+        yield virtual
+
+
+def start_run(arm, tmp_path, *extra):
+    """pick_place_hw.py on the virtual arm in its own process, with --log; returns the Popen."""
+    plan = tmp_path / "plan.json"
+    plan.write_text(json.dumps(PLAN))
+    command = [sys.executable, str(REPO / "pick_place_hw.py"), "--port", arm.port,
+               "--calibration", str(DEFAULT_CALIBRATION_PATH), "--yes", "--plan", str(plan),
+               "--log", str(tmp_path / "run.csv"), *extra]
+    return subprocess.Popen(command, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, stdin=subprocess.DEVNULL)
+
+
+def wait_for(condition, timeout=60.0):
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)
+
+
+def swinging(arm):
+    """True once the arm is well on its way to swing_left (mid-motion)."""
+    return lambda: arm.joint_positions()["shoulder_pan"] > 25.0
+
+
+def near_start(arm, tol=2.0):
+    pose = arm.joint_positions()
+    return all(abs(pose[j] - HOME[j]) <= tol for j in ARM_JOINTS)
+
+
+def log_rows(path: Path) -> list[list[str]]:
+    rows = [line.split(",") for line in path.read_text().splitlines()]
+    assert rows[0][:3] == ["t_s", "wall_s", "step"]
+    return rows[1:]
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT])
+def test_a_stop_signal_mid_motion_returns_slowly_and_releases_at_the_start(arm, tmp_path, signum):
+    run = start_run(arm, tmp_path)
+    wait_for(swinging(arm))
+    run.send_signal(signum)
+    out, err = run.communicate(timeout=60)
+    assert run.returncode == 1, err
+    name = {signal.SIGINT: "Ctrl-C"}.get(signum, signal.Signals(signum).name)
+    assert f"stopped by {name} (during 'swing_left')" in err
+    assert err.strip().splitlines()[-1] == "Back at the starting pose, torque off."
+    assert not any(arm.torque_enabled().values())
+    header = (tmp_path / "run.csv").read_text().splitlines()[0].split(",")
+    rows = log_rows(tmp_path / "run.csv")
+    assert rows[-1][2] == "abort_return"  # the log holds the return, to its last cycle
+    released_at = {j: float(rows[-1][header.index(f"meas_{j}")]) for j in ARM_JOINTS}
+    assert all(abs(released_at[j] - HOME[j]) <= 2.0 for j in ARM_JOINTS), released_at
+    assert list(tmp_path.glob(".run.csv.*")) == []
+
+
+def test_a_second_signal_during_the_return_freezes_with_torque_on(arm, tmp_path):
+    run = start_run(arm, tmp_path)
+    wait_for(swinging(arm))
+    run.send_signal(signal.SIGTERM)
+    wait_for(lambda: arm.joint_positions()["shoulder_pan"] < 20.0)  # on its way back
+    run.send_signal(signal.SIGTERM)
+    out, err = run.communicate(timeout=60)
+    assert run.returncode == 1, err
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("Frozen where it was by a second stop signal") and "--release" in last
+    assert all(arm.torque_enabled().values())
+    before = arm.joint_positions()
+    time.sleep(0.5)
+    after = arm.joint_positions()
+    assert all(abs(after[j] - before[j]) < 0.5 for j in ARM_JOINTS)  # holding, not falling
+    assert not near_start(arm, tol=5.0)
+    release = subprocess.run([sys.executable, str(REPO / "pick_place_hw.py"), "--release",
+                              "--yes", "--port", arm.port, "--calibration",
+                              str(DEFAULT_CALIBRATION_PATH)], cwd=REPO, capture_output=True,
+                             text=True, timeout=60)
+    assert release.returncode == 0 and "Torque off on every servo" in release.stdout
+    assert not any(arm.torque_enabled().values())
+
+
+def test_a_killed_run_leaves_its_log_up_to_the_last_flush(arm, tmp_path):
+    run = start_run(arm, tmp_path)
+    wait_for(swinging(arm))
+    time.sleep(0.7)
+    run.kill()
+    run.communicate(timeout=30)
+    assert not (tmp_path / "run.csv").exists()
+    (partial,) = tmp_path.glob(".run.csv.*.part")
+    rows = log_rows(partial)
+    assert len(rows) >= 50 and {r[2] for r in rows} >= {"swing_left"}
+
+
+def test_a_second_program_on_the_port_is_told_it_is_in_use(arm):
+    bus = connect(arm.port, CALIBRATION)
+    try:
+        other = subprocess.run([sys.executable, str(REPO / "read_position.py"), "--port",
+                                arm.port, "--calibration", str(DEFAULT_CALIBRATION_PATH),
+                                "--duration", "0.5"], cwd=REPO, capture_output=True, text=True,
+                               timeout=60)
+    finally:
+        disconnect(bus)
+    assert other.returncode == 2
+    assert "is in use by another program" in other.stderr and f"pid {os.getpid()}" in other.stderr
+    assert "Traceback" not in other.stderr
+
+
+def test_a_pulled_usb_cable_is_named_and_the_arm_holds(arm):
+    def unplug(session, cycle):
+        if cycle.step == "swing_right" and not unplug.done:
+            unplug.done = True
+            arm.inject("unplug")
+
+    unplug.done = False
+    plan = Plan([Step(s["name"], s["configuration"], s["duration"], s["hold"])
+                    for s in PLAN["steps"]], return_duration=1.0)
+    with pytest.raises(hw.MotionAborted, match="USB connection was lost") as info:
+        hw.run_on_arm(arm.port, CALIBRATION, plan, on_cycle=unplug)
+    assert info.value.result.usb_lost
+    assert all(arm.torque_enabled().values())
+    before = arm.joint_positions()
+    time.sleep(0.5)
+    after = arm.joint_positions()
+    assert all(abs(after[j] - before[j]) < 0.5 for j in ARM_JOINTS)
+
+
+def test_read_position_rides_through_a_lost_reply(arm, capsys):
+    import read_position
+
+    import threading
+
+    def drop_replies_once_teaching():  # teach mode releases the torque first
+        wait_for(lambda: not any(arm.torque_enabled().values()))
+        arm.inject("drop:1:4")
+
+    dropper = threading.Thread(target=drop_replies_once_teaching)
+    dropper.start()
+    try:
+        rc = read_position.main(["--port", arm.port, "--calibration",
+                                 str(DEFAULT_CALIBRATION_PATH), "--rate", "20", "--duration", "1"])
+    finally:
+        dropper.join()
+    assert rc == 0
+    assert "Last pose" in capsys.readouterr().out
