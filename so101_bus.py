@@ -217,7 +217,8 @@ def connect(port: str, calibration: Mapping[str, ServoCalibration], *, robot_id:
         ) from None
     try:
         with bus_errors("reading the servos' calibration"):
-            mismatch = calibration_mismatch(bus, calibration) if check_calibration else []
+            mismatch = (with_retries(lambda b: calibration_mismatch(b, calibration), bus)
+                        if check_calibration else [])
         if mismatch:
             if not write_calibration:
                 fix = CALIBRATE_HINT.format(port=port, robot_id=robot_id or "ID")
@@ -319,6 +320,25 @@ def port_lost(bus) -> bool:
     """Whether the bus's port has vanished (the USB cable pulled out, the virtual arm gone)."""
     port = getattr(bus, "port", None) or getattr(bus.port_handler, "port_name", None)
     return isinstance(port, str) and port.startswith("/") and not os.path.exists(port)
+
+
+SETUP_ATTEMPTS = 3  # a setup step (configure, torque on) is tried this often on a glitching bus
+
+
+def with_retries(step, bus, attempts: int = SETUP_ATTEMPTS):
+    """``step(bus)``, tried again (the port flushed) when the bus glitches; torque is not on yet.
+
+    Every setup step here writes registers to fixed values, so repeating one
+    is harmless; the last failure is raised as it came.
+    """
+    for attempt in range(1, attempts + 1):
+        try:
+            return step(bus)
+        except (ConnectionError, RuntimeError) as error:
+            if attempt == attempts or isinstance(error, HardwareError):
+                raise
+            logger.warning("The bus glitched during setup (%s); trying again.", error)
+            recover_port(bus)
 
 
 @contextmanager

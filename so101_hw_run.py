@@ -19,6 +19,7 @@ from functools import lru_cache
 from typing import Any
 
 from so101_bus import (
+    SETUP_ATTEMPTS,
     PortLost,
     bus_errors,
     configure,
@@ -28,6 +29,7 @@ from so101_bus import (
     recover_port,
     release_torque,
     silent_servos,
+    with_retries,
 )
 from so101_calibration import (
     CALIBRATE_HINT,
@@ -292,7 +294,8 @@ def starting_pose(bus, calibration, port: str, robot_id: str | None) -> Configur
     """The measured pose, clamped into the calibration; refused if far outside it."""
     limits = calibrated_limits(calibration)
     with bus_errors("reading the starting pose"):
-        measured = {j: float(v) for j, v in bus.sync_read("Present_Position").items()}
+        raw = bus.sync_read("Present_Position", num_retry=SETUP_ATTEMPTS - 1)
+    measured = {j: float(v) for j, v in raw.items()}
     start = clamp_to_limits(measured, limits)
     for joint in JOINTS:
         if abs(start[joint] - measured[joint]) > LIMIT_SLACK_DEG:
@@ -364,8 +367,8 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
             raise NotConfirmed("Not confirmed: nothing moved.")
         armed = True
         with bus_errors("configuring the servos and enabling torque"):
-            configure(bus)
-            enable_torque_in_place(bus)
+            with_retries(configure, bus)
+            with_retries(enable_torque_in_place, bus)
         return execute(session, plan, start, return_on_abort=return_on_abort)
     except MotionAborted:
         raise

@@ -166,9 +166,9 @@ def test_a_pulled_usb_cable_is_named_and_the_arm_holds(arm):
 
 
 def test_read_position_rides_through_a_lost_reply(arm, capsys):
-    import read_position
-
     import threading
+
+    import read_position
 
     def drop_replies_once_teaching():  # teach mode releases the torque first
         wait_for(lambda: not any(arm.torque_enabled().values()))
