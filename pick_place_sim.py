@@ -2,32 +2,29 @@
 
 from __future__ import annotations
 
-import os
+import so101_display  # first: without a display, offscreen rendering through EGL
 
-# Offscreen rendering without a display needs Mesa's EGL, chosen before mujoco loads.
-if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-    os.environ.setdefault("MUJOCO_GL", "egl")
+# isort: split
+import argparse
+import functools
+import json
+import logging
+import math
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
 
-import argparse  # noqa: E402
-import functools  # noqa: E402
-import json  # noqa: E402
-import logging  # noqa: E402
-import math  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from collections.abc import Sequence  # noqa: E402
-from dataclasses import asdict, dataclass, field  # noqa: E402
-from pathlib import Path  # noqa: E402
+import mujoco
+import numpy as np
 
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
-
-import so101_mujoco_utils as utils  # noqa: E402
-from so101_cartesian_plan import add_cartesian_arguments, plan_from_arguments  # noqa: E402
-from so101_contact_pairs import use_explicit_contact_pairs  # noqa: E402
-from so101_forward_kinematics import ARM_JOINTS, TOOL_SITE, get_forward_kinematics  # noqa: E402
-from so101_meshes import ensure_meshes  # noqa: E402
-from so101_motion import (  # noqa: E402
+import so101_mujoco_utils as utils
+from so101_cartesian_plan import add_cartesian_arguments, plan_from_arguments
+from so101_contact_pairs import use_explicit_contact_pairs
+from so101_forward_kinematics import ARM_JOINTS, TOOL_SITE, get_forward_kinematics
+from so101_meshes import ensure_meshes
+from so101_motion import (
     Plan,
     PlanError,
     Step,
@@ -37,7 +34,7 @@ from so101_motion import (  # noqa: E402
     run_plan,
     validate_plan,
 )
-from so101_render import (  # noqa: E402
+from so101_render import (
     DEFAULT_CAMERA,
     DEFAULT_FPS,
     DEFAULT_SIZE,
@@ -282,6 +279,7 @@ def run_pick_place(
     quality: str = "fast",
     progress: bool = True,
     timestep: float | None = None,
+    show_ui: bool = False,
 ) -> RunReport:
     """Run a pick-and-place plan in simulation and measure what happened to the cube.
 
@@ -299,6 +297,7 @@ def run_pick_place(
         progress: progress bar while recording.
         timestep: physics step [s] instead of the model's 4 ms (to check
             that a result does not depend on it).
+        show_ui: mode "viewer": show MuJoCo's side panels from the start.
 
     Returns:
         The run report.
@@ -349,9 +348,7 @@ def run_pick_place(
                                   overlays=overlays, quality=QUALITY[quality],
                                   total_time=total_duration(plan), progress=progress)
         elif mode == "viewer":
-            from mujoco import viewer as passive_viewer
-
-            inner = passive_viewer.launch_passive(m, d)
+            inner = so101_display.launch_viewer(m, d, show_ui=show_ui)
             with inner.lock():
                 inner.user_scn.ngeom = 0
                 add_overlays(inner.user_scn, overlays)
@@ -378,7 +375,9 @@ def run_pick_place(
             except utils.ViewerClosed:
                 pass
     finally:
-        if inner is not None:
+        if mode == "viewer" and inner is not None:
+            so101_display.close_viewer(inner)  # and wait for its render thread: no crash at exit
+        elif inner is not None:
             inner.close()
     return report
 
@@ -453,6 +452,8 @@ not placed (with --strict), 2 bad input (plan file, options).""")
     parser.add_argument("--headless", action="store_true", help="no viewer (default when there "
                         "is no display)")
     parser.add_argument("--record", type=Path, metavar="PATH.mp4", help="record a video")
+    parser.add_argument("--ui", action="store_true", help="viewer: show MuJoCo's side panels "
+                        "(Tab / Shift+Tab toggle them)")
     parser.add_argument("--fps", type=float, default=DEFAULT_FPS, help="video frame rate "
                         "(default %(default)g)")
     parser.add_argument("--size", type=_size, default=DEFAULT_SIZE, metavar="WxH",
@@ -481,7 +482,7 @@ not placed (with --strict), 2 bad input (plan file, options).""")
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
 
-    mode, video = choose_mode(args.headless, args.record, utils.has_display())
+    mode, video = choose_mode(args.headless, args.record, so101_display.has_display())
     if mode == "record" and args.record is None:
         print(f"No display: running headless and recording {video}", file=sys.stderr)
     try:
@@ -496,7 +497,7 @@ not placed (with --strict), 2 bad input (plan file, options).""")
                          args.cube_turn) if args.cube else None
         report = run_pick_place(plan, cube=cube, mode=mode, video=video, fps=args.fps,
                                 size=args.size, camera=args.camera, quality=args.quality,
-                                progress=not args.no_progress)
+                                progress=not args.no_progress, show_ui=args.ui)
     except (PlanError, RenderError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

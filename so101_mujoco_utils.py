@@ -14,12 +14,17 @@ here and only here (:func:`to_radians`, :func:`from_radians`):
 Motion is timed on simulation time (``d.time``): a headless run
 (``viewer=None``) is deterministic and runs as fast as the CPU allows; with a
 viewer it is paced to real time and stops with :class:`ViewerClosed` when the
-window is closed.
+window is closed. The first time :func:`move_to_pose` or :func:`hold_position`
+sees MuJoCo's passive viewer, they arrange for the interpreter to close it and
+wait for its render thread at exit (``so101_display.guard_viewer_exit``), so a
+script that leaves its ``with mujoco.viewer.launch_passive(...)`` block right
+after a move exits cleanly instead of crashing in MuJoCo's GLFW teardown.
 """
 
 from __future__ import annotations
 
 import math
+import sys
 import time
 from collections.abc import Mapping
 from functools import lru_cache
@@ -28,6 +33,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+import so101_display
+from so101_display import has_display  # noqa: F401  (re-exported: the scripts' display check)
 from so101_forward_kinematics import JOINTS, TOOL_SITE
 from so101_meshes import ensure_meshes
 from so101_motion import Configuration, Trajectory, check_configuration
@@ -156,6 +163,13 @@ def send_position_command(d: mujoco.MjData, cfg: Mapping[str, float]) -> None:
             d.ctrl[act] = angles[name]
 
 
+def _guard_passive_viewer(viewer) -> None:
+    """On first sight of MuJoCo's passive viewer, make the interpreter's exit wait for it."""
+    passive = sys.modules.get("mujoco.viewer")
+    if passive is not None and isinstance(viewer, passive.Handle):
+        so101_display.guard_viewer_exit(viewer)
+
+
 def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> None:
     """Step the simulation to time ``until`` [s], following ``path`` if given.
 
@@ -165,6 +179,8 @@ def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> 
     ``mj_step(m, d, n)`` call. Same physics as a per-step Python loop, with
     about 1 us of Python per step instead of about 10.
     """
+    if viewer is not None:
+        _guard_passive_viewer(viewer)
     realtime = viewer is not None and not getattr(viewer, "offscreen", False)
     every_step = viewer is not None and getattr(viewer, "sync_every_step", False)
     dt = m.opt.timestep
@@ -269,10 +285,3 @@ def get_object_pose(m: mujoco.MjModel, d: mujoco.MjData) -> tuple[np.ndarray, np
     """Simulated object-frame pose (position (3,) [m], rotation (3, 3)) from the last kinematics."""
     site = d.site(TOOL_SITE)
     return site.xpos.copy(), site.xmat.reshape(3, 3).copy()
-
-
-def has_display() -> bool:
-    """Whether an interactive viewer can open (an X11 or Wayland display is set)."""
-    import os
-
-    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))

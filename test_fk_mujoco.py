@@ -8,6 +8,9 @@ import math
 import sys
 from pathlib import Path
 
+import so101_display  # first: without a display, offscreen rendering through EGL
+
+# isort: split
 import mujoco
 import numpy as np
 
@@ -27,7 +30,6 @@ from so101_mujoco_utils import (
     SCENE_PATH,
     ViewerClosed,
     get_object_pose,
-    has_display,
     hold_position,
     load_model,
     send_position_command,
@@ -282,17 +284,23 @@ def fk_table_markdown() -> str:
     return "\n".join(lines) + "\n"
 
 
-def run_viewer(m: mujoco.MjModel, d: mujoco.MjData, position, rotation, seconds: float) -> None:
-    """The course's test: the passive viewer with the cylinder, holding the pose for ``seconds``."""
-    import mujoco.viewer
+def run_viewer(m: mujoco.MjModel, d: mujoco.MjData, position, rotation, seconds: float,
+               show_ui: bool = False) -> None:
+    """The course's test: the passive viewer with the cylinder, holding the pose for ``seconds``.
 
-    with mujoco.viewer.launch_passive(m, d) as viewer:
-        show_cylinder(viewer.user_scn, position, rotation)
+    The viewer starts framed like the video (``so101_display.VIEWER_CAMERA``)
+    and is closed, its render thread finished, before this returns.
+    """
+    with so101_display.open_viewer(m, d, show_ui=show_ui) as viewer:
+        with viewer.lock():
+            show_cylinder(viewer.user_scn, position, rotation)
         viewer.sync()
+        start = d.time
         try:
             hold_position(m, d, viewer, seconds)
         except ViewerClosed:
-            log.info("Viewer closed before the end of the hold.")
+            log.info("Viewer closed: the hold was cut short (%.1f of %.1f s).",
+                     d.time - start, seconds)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -305,6 +313,8 @@ def main(argv: list[str] | None = None) -> int:
                              f"{DEFAULT_SCREENSHOT.relative_to(_HERE)})")
     parser.add_argument("--seconds", type=float, default=HOLD_TIME,
                         help="how long to hold the pose [s] (default %(default)s)")
+    parser.add_argument("--ui", action="store_true",
+                        help="show MuJoCo's side panels in the viewer (Tab, Shift+Tab toggle)")
     parser.add_argument("--frames", type=Path, nargs="?", const=FRAMES_PATH, metavar="PATH",
                         help="render the FK frames picture instead "
                              f"(default {FRAMES_PATH.relative_to(_HERE)})")
@@ -340,13 +350,13 @@ def main(argv: list[str] | None = None) -> int:
           f"{np.linalg.norm(position - site_position):.2e} m, rotation error "
           f"{np.abs(rotation - site_rotation).max():.2e}")
 
-    headless = args.headless or not has_display()
+    headless = args.headless or not so101_display.has_display()
     if headless:
         if not args.headless:
             log.info("No display found: running headless.")
         hold_position(m, d, None, args.seconds)
     else:
-        run_viewer(m, d, position, rotation, args.seconds)
+        run_viewer(m, d, position, rotation, args.seconds, show_ui=args.ui)
     screenshot = args.screenshot or (DEFAULT_SCREENSHOT if headless else None)
     if screenshot is not None:
         render_screenshot(m, d, position, rotation, screenshot)

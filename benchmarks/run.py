@@ -25,9 +25,10 @@ from pathlib import Path
 _HERE = Path(__file__).resolve().parent
 REPO = _HERE.parent
 sys.path.insert(0, str(REPO))
-if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-    os.environ.setdefault("MUJOCO_GL", "egl")
 
+import so101_display  # noqa: E402, F401  (before mujoco: EGL when there is no display)
+
+# isort: split
 from benchmarks.bench_fk import bench_fk  # noqa: E402
 from benchmarks.bench_hw import bench_hw  # noqa: E402
 from benchmarks.bench_ik import bench_ik  # noqa: E402

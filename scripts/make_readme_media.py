@@ -2,21 +2,19 @@
 
 from __future__ import annotations
 
-import os
-
-if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-    os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported
-
-import argparse  # noqa: E402
-import sys  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-import mujoco  # noqa: E402
-import numpy as np  # noqa: E402
+import argparse
+import sys
+from pathlib import Path
 
 _HERE = Path(__file__).resolve().parent
 REPO = _HERE.parent
 sys.path.insert(0, str(REPO))
+
+import so101_display  # noqa: E402, F401  (before mujoco: EGL when there is no display)
+
+# isort: split
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
 
 import so101_mujoco_utils as utils  # noqa: E402
 from pick_place_sim import INITIAL_KEYFRAME, CubeStart, build_model, total_duration  # noqa: E402

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
 
@@ -11,9 +10,8 @@ import pytest
 
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
-# Offscreen rendering on machines without a display (CI): Mesa's EGL.
-if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-    os.environ.setdefault("MUJOCO_GL", "egl")
+# Offscreen rendering on machines without a display (CI): Mesa's EGL, chosen before mujoco loads.
+import so101_display  # noqa: E402, F401
 
 
 def assert_transforms_close(g_actual, g_expected, pos_tol: float = 1e-9, rot_tol: float = 1e-9,

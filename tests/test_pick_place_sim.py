@@ -362,6 +362,7 @@ class FakePassiveViewer:
         import mujoco
 
         self.user_scn = mujoco.MjvScene(model, maxgeom=10)
+        self.cam = mujoco.MjvCamera()
         self.lock = contextlib.nullcontext
         self.syncs, self.closed = syncs, False
 
@@ -381,7 +382,8 @@ def test_viewer_mode_shows_the_target_cubes_and_stops_when_closed(monkeypatch, s
 
     opened = []
 
-    def launch_passive(m, d):
+    def launch_passive(m, d, **options):
+        assert not options["show_left_ui"] and not options["show_right_ui"]  # panels hidden
         opened.append(FakePassiveViewer(m, syncs))
         return opened[-1]
 
