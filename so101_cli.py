@@ -33,7 +33,7 @@ class ArgumentParser(argparse.ArgumentParser):
         """Print ``prog: error: message`` in one line and exit with status 2."""
         message = " ".join(message.split())
         if "Fix:" not in message:
-            message += " Fix: see --help."
+            message = message.rstrip(".") + ". Fix: see --help."
         self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message}\n")
 
 
@@ -60,15 +60,15 @@ def number(low: float = -math.inf, high: float = math.inf, unit: str = "", *,
         except ValueError:
             kind = "a whole number" if integer else "a number"
             raise argparse.ArgumentTypeError(
-                f"{text!r} is not {kind}; the value must be in {allowed}. "
-                f"Fix: give {kind} in {allowed}.") from None
+                f"{text!r} is not {kind}; it must be {allowed}. "
+                f"Fix: give {kind} {allowed}.") from None
         if not math.isfinite(value):
             raise argparse.ArgumentTypeError(
-                f"{text!r} is not a finite number; the value must be in {allowed}. "
-                f"Fix: give a number in {allowed}.")
+                f"{text!r} is not a finite number; it must be {allowed}. "
+                f"Fix: give a number {allowed}.")
         if value < low or value > high or (low_open and value == low):
             raise argparse.ArgumentTypeError(
-                f"{text} is outside {allowed}. Fix: give a number in {allowed}.")
+                f"{text} is not {allowed}. Fix: give a number {allowed}.")
         return value
 
     parse.__name__ = "number"
@@ -77,7 +77,7 @@ def number(low: float = -math.inf, high: float = math.inf, unit: str = "", *,
 
 def range_help(low: float, high: float, unit: str = "", low_open: bool = False) -> str:
     """The allowed range as ``--help`` shows it, e.g. ``in [0, 600] s``."""
-    return f"in {format_range(low, high, unit, low_open)}".replace("%", "%%")
+    return format_range(low, high, unit, low_open).replace("%", "%%")
 
 
 def report_unexpected(error: BaseException, verbose: bool) -> int:

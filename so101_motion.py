@@ -97,8 +97,8 @@ def describe_value(value) -> str:
 
 
 def format_range(low: float, high: float, unit: str = "", low_open: bool = False) -> str:
-    """An interval for messages: ``[0, 600] s``, ``(0, 250] frames/s``, ``>= 0 m``."""
-    text = ("(" if low_open else "[") + f"{low:g}, {high:g}]"
+    """An interval for messages: ``in [0, 600] s``, ``in (0, 0.01] s``, ``>= 1 frames/s``."""
+    text = "in " + ("(" if low_open else "[") + f"{low:g}, {high:g}]"
     if math.isinf(high):
         text = (">" if low_open else ">=") + f" {low:g}"
     return f"{text} {unit}".rstrip()
@@ -139,18 +139,18 @@ Fix: write the number without quotes.
     """
     allowed = format_range(low, high, unit, low_open)
     if not is_finite_number(value):
-        default = f"give a number in {allowed}."
+        default = f"give a number {allowed}."
         if isinstance(value, str):
             default = "write the number without quotes."
             fix = f"write the number without quotes; {fix}" if fix else ""
         kind = "a finite number" if isinstance(value, numbers.Real) and not isinstance(
             value, (bool, np.bool_)) else "a number"
-        raise error(f"{name} must be {kind} in {allowed}, got {describe_value(value)}. "
+        raise error(f"{name} must be {kind} {allowed}, got {describe_value(value)}. "
                     f"Fix: {fix or default}")
     number = float(value)
     if number < low or number > high or (low_open and number == low):
         raise error(f"{name} = {describe_value(value)} {unit}".rstrip()
-                    + f" is outside {allowed}. Fix: {fix or f'give a number in {allowed}.'}")
+                    + f" is not {allowed}. Fix: {fix or f'give a number {allowed}.'}")
     return number
 
 

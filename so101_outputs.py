@@ -52,7 +52,7 @@ def check_output_path(path: str | Path, option: str, inputs: Iterable[str | Path
                               "character. Fix: choose another file name.")
     target = Path(path).expanduser()
     if str(path) == "" or target.is_dir() or str(path).endswith(os.sep):
-        raise OutputPathError(f"{option} {path}: is a folder; give a file name, e.g. "
+        raise OutputPathError(f"{option} {path}: is a folder. Fix: give a file name, e.g. "
                               f"{option} {target / 'out'}{_suffix_hint(option)}.")
     suffixes = tuple(suffixes)
     if suffixes and target.suffix.lower() not in suffixes:
