@@ -232,7 +232,8 @@ def check_cube_start(plan: Plan, cube: CubeStart) -> np.ndarray:
     try:
         get_inverse_kinematics(centre, approach=None)
     except PlanError as error:
-        raise PlanError(f"{where}: out of the arm's reach ({error}). Fix: a smaller "
+        reason = str(error).split(" Fix:")[0]
+        raise PlanError(f"{where}: out of the arm's reach ({reason}). Fix: a smaller "
                         "--cube-offset, or a pick position the arm reaches.") from None
     return centre
 
@@ -589,7 +590,10 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("-v", "--verbose", action="store_true", help="log details (and show "
                         "the traceback of an unexpected error)")
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # bad options (one line printed) or --help: the exit code
+        return stop.code
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
     try:

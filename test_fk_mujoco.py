@@ -330,7 +330,10 @@ def main(argv: list[str] | None = None) -> int:
                              f"(default {TABLE_PATH.relative_to(_HERE)}; '-' prints it)")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # bad options (one line printed) or --help: the exit code
+        return stop.code
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     try:
         return _run(args)
