@@ -308,6 +308,11 @@ def run_viewer(m: mujoco.MjModel, d: mujoco.MjData, position, rotation, seconds:
             log.info("Viewer closed before the end of the hold.")
 
 
+def _shown(path: Path) -> str:
+    """A default path for --help: relative to the repository when inside it."""
+    return str(path.relative_to(_HERE)) if path.is_relative_to(_HERE) else str(path)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the FK test (viewer or headless), or draw the frames picture / the table."""
     parser = ArgumentParser(description=__doc__.splitlines()[0],
@@ -318,16 +323,16 @@ def main(argv: list[str] | None = None) -> int:
                         help="no viewer (automatic when there is no display)")
     parser.add_argument("--screenshot", type=Path, metavar="PATH.png",
                         help=f"save a PNG from camera '{SCREENSHOT_CAMERA}' (headless default: "
-                             f"{DEFAULT_SCREENSHOT.relative_to(_HERE)})")
+                             f"{_shown(DEFAULT_SCREENSHOT)})")
     parser.add_argument("--seconds", type=number(*HOLD_RANGE, "s"), default=HOLD_TIME,
                         help=f"how long to hold the pose [s], {range_help(*HOLD_RANGE, 's')} "
                              "(default %(default)s)")
     parser.add_argument("--frames", type=Path, nargs="?", const=FRAMES_PATH, metavar="PATH.png",
                         help="render the FK frames picture instead "
-                             f"(default {FRAMES_PATH.relative_to(_HERE)})")
+                             f"(default {_shown(FRAMES_PATH)})")
     parser.add_argument("--table", type=Path, nargs="?", const=TABLE_PATH, metavar="PATH",
                         help="write the markdown table of the g_xx factors instead "
-                             f"(default {TABLE_PATH.relative_to(_HERE)}; '-' prints it)")
+                             f"(default {_shown(TABLE_PATH)}; '-' prints it)")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
     try:
