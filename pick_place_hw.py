@@ -26,7 +26,6 @@ from so101_control import (
     TRACKING_TIMEOUT_S,
     TRACKING_TOLERANCE_DEG,
     TRACKING_TOLERANCE_LIMIT_DEG,
-    check_number,
     signals_as_interrupt,
     speed_caps,
 )
@@ -43,7 +42,7 @@ from so101_hw_run import (
     validate_plan_for_arm,
 )
 from so101_hw_teach import format_configuration, format_plan, teach
-from so101_motion import PROFILES, PlanError, default_plan, load_plan
+from so101_motion import PROFILES, PlanError, check_number, default_plan, load_plan
 from so101_outputs import check_output_path
 
 logger = logging.getLogger("pick_place_hw")
@@ -219,8 +218,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(args) -> int:
-    check_number("--move-duration", args.move_duration, 0.0, MAX_MOVE_DURATION_S, "s")
-    check_number("--hold", args.hold, 0.0, MAX_MOVE_DURATION_S, "s")
+    check_number(args.move_duration, "--move-duration", 0.0, MAX_MOVE_DURATION_S, "s")
+    check_number(args.hold, "--hold", 0.0, MAX_MOVE_DURATION_S, "s")
     check_run_settings(args.rate, args.max_speed, args.tracking_tolerance)
     plan = plan_from_arguments(args) or (
         load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold))

@@ -20,28 +20,55 @@ import mujoco
 import numpy as np
 
 import so101_mujoco_utils as utils
-from so101_cartesian_plan import add_cartesian_arguments, plan_from_arguments
+from so101_cartesian_plan import (
+    CUBE_YAW_RANGE,
+    add_cartesian_arguments,
+    plan_from_arguments,
+)
+from so101_cli import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
+    ArgumentParser,
+    number,
+    range_help,
+    report_unexpected,
+)
 from so101_contact_pairs import use_explicit_contact_pairs
-from so101_forward_kinematics import ARM_JOINTS, TOOL_SITE, get_forward_kinematics
+from so101_forward_kinematics import (
+    ARM_JOINTS,
+    TOOL_SITE,
+    KinematicsInputError,
+    get_forward_kinematics,
+)
+from so101_inverse_kinematics import get_inverse_kinematics
 from so101_meshes import ensure_meshes
 from so101_motion import (
+    MAX_DURATION,
     Plan,
     PlanError,
     Step,
+    check_number,
     default_plan,
     load_plan,
     pick_and_place_steps,
     run_plan,
     validate_plan,
 )
+from so101_outputs import OutputPathError, check_output_path, write_text_atomic
 from so101_render import (
     DEFAULT_CAMERA,
     DEFAULT_FPS,
     DEFAULT_SIZE,
+    FRAME_EDGE_RANGE,
+    MIN_FPS,
     QUALITY,
     RenderError,
+    RenderSettingError,
     VideoRecorder,
     add_overlays,
+    check_fps,
+    check_frame_size,
+    max_fps,
     target_cubes,
     use_render_meshes,
 )
@@ -67,6 +94,10 @@ HELD_DISTANCE = 0.015  # [m] cube centre this close to the object frame = in the
 # falling (a cube tipping over on the table rises at most 5.4 mm).
 AIRBORNE_HEIGHT = 0.010  # [m]
 MONITOR_PERIOD = 0.01  # [s] of simulation time between checks of the cube
+
+# Ranges of the command line's numbers (the --help text shows them).
+CUBE_OFFSET_RANGE_MM = (-100.0, 100.0)  # [mm] each of --cube-offset DX DY: a perturbation
+TIMESTEP_RANGE = (0.0, 0.01)  # [s] run_pick_place's timestep, lower end excluded
 
 log = logging.getLogger("pick_place_sim")
 
@@ -148,9 +179,60 @@ def _remove_visuals(spec: mujoco.MjSpec) -> None:
 
 
 @functools.lru_cache(maxsize=1)
+def _scene_model() -> mujoco.MjModel:
+    """The scene without cube and visual meshes (for its limits, table and timestep)."""
+    return build_model(physics_only=True)
+
+
 def scene_limits() -> dict[str, tuple[float, float]]:
     """Joint limits of the scene's arm in user units ([deg], gripper [0, 100])."""
-    return utils.joint_limits(build_model(physics_only=True))
+    return utils.joint_limits(_scene_model())
+
+
+def table_extent() -> tuple[tuple[float, float], tuple[float, float]]:
+    """The table top's x and y ranges [m] in the world (the scene's geom "table")."""
+    m = _scene_model()
+    centre, half = m.geom("table").pos, m.geom("table").size
+    return ((float(centre[0] - half[0]), float(centre[0] + half[0])),
+            (float(centre[1] - half[1]), float(centre[1] + half[1])))
+
+
+def check_cube_start(plan: Plan, cube: CubeStart) -> np.ndarray:
+    """Refuse a cube start that is off the table or out of the arm's reach, before the run.
+
+    Args:
+        plan: the plan (its pick step gives the nominal position).
+        cube: the perturbation.
+
+    Returns:
+        The cube's start centre [m].
+
+    Raises:
+        so101_motion.PlanError: naming the position, the table or the reach, and the fix.
+    """
+    for axis, value in zip("xy", cube.offset, strict=True):
+        check_number(value, f"cube offset {axis}", CUBE_OFFSET_RANGE_MM[0] / 1000.0,
+                      CUBE_OFFSET_RANGE_MM[1] / 1000.0, "m")
+    check_number(cube.yaw, "cube turn", *CUBE_YAW_RANGE, "deg")
+    pick, _ = pick_and_place_steps(plan)
+    centre, _ = cube.pose(pick.configuration)
+    (x_low, x_high), (y_low, y_high) = table_extent()
+    half = 0.5 * CUBE_EDGE
+    where = (f"The cube would start at ({centre[0]:.3f}, {centre[1]:.3f}) m (waypoint "
+             f"'{pick.name}' plus the offset ({cube.offset[0] * 1e3:g}, "
+             f"{cube.offset[1] * 1e3:g}) mm)")
+    if not (x_low + half <= centre[0] <= x_high - half and y_low + half <= centre[1] <= y_high
+            - half):
+        raise PlanError(f"{where}: off the table, which spans x in [{x_low:g}, {x_high:g}] m "
+                        f"and y in [{y_low:g}, {y_high:g}] m. Fix: a smaller --cube-offset, or "
+                        "a pick position on the table.")
+    try:
+        get_inverse_kinematics(centre, approach=None)
+    except PlanError as error:
+        reason = str(error).split(" Fix:")[0]
+        raise PlanError(f"{where}: out of the arm's reach ({reason}). Fix: a smaller "
+                        "--cube-offset, or a pick position the arm reaches.") from None
+    return centre
 
 
 class CubeMonitor:
@@ -307,12 +389,18 @@ def run_pick_place(
         so101_render.RenderError: the video cannot be written as asked.
     """
     if mode not in ("headless", "viewer", "record"):
-        raise ValueError(f"mode must be 'headless', 'viewer' or 'record', got {mode!r}.")
+        raise PlanError(f"mode must be 'headless', 'viewer' or 'record', got {mode!r}.")
     if quality not in QUALITY:
-        raise RenderError(f"Unknown quality '{quality}'; choose one of {', '.join(QUALITY)}.")
-    if timestep is not None and not (math.isfinite(timestep) and 0 < timestep <= 0.01):
-        raise ValueError(f"timestep must be in (0, 0.01] s, got {timestep!r}.")
+        raise RenderSettingError(f"Unknown quality {quality!r}; choose one of "
+                                 f"{', '.join(QUALITY)}.")
+    if timestep is not None:
+        timestep = check_number(timestep, "timestep", *TIMESTEP_RANGE, "s", low_open=True)
     plan = validate_plan(plan or default_plan(), scene_limits())
+    if cube is not None:
+        check_cube_start(plan, cube)
+    if mode == "record":
+        check_fps(fps, 1.0 / (timestep or _scene_model().opt.timestep))
+        check_frame_size(size, "Video size")
     # Visual meshes have no mass and no contact: the physics is bit for bit the
     # same with the render-only meshes, which compile 4x faster and draw 3x
     # faster, and without any (headless). Only the interactive viewer shows
@@ -340,7 +428,7 @@ def run_pick_place(
         if step is not None:
             current.append(step)
 
-    inner, frames, completed = None, 0, True
+    inner, frames, completed, finished = None, 0, True, False
     wall0 = time.perf_counter()
     try:
         if mode == "record":
@@ -374,9 +462,12 @@ def run_pick_place(
                     utils.hold_position(m, d, monitor, 0.1)
             except utils.ViewerClosed:
                 pass
+        finished = True
     finally:
         if mode == "viewer" and inner is not None:
             so101_display.close_viewer(inner)  # and wait for its render thread: no crash at exit
+        elif isinstance(inner, VideoRecorder):
+            inner.close(complete=finished)  # renamed over the target only when complete
         elif inner is not None:
             inner.close()
     return report
@@ -424,16 +515,23 @@ def choose_mode(headless: bool, record: Path | None, display: bool) -> tuple[str
 
 
 def _size(text: str) -> tuple[int, int]:
+    low, high = FRAME_EDGE_RANGE
     try:
         width, height = (int(v) for v in text.lower().split("x"))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"size must look like 640x480, got '{text}'") from None
-    return width, height
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a size; give WIDTHxHEIGHT in px, each even and in "
+            f"[{low}, {high}]. Fix: e.g. --size 640x480.") from None
+    try:
+        return check_frame_size((width, height), "size")
+    except RenderSettingError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse the command line, run, print the summary; returns the exit code."""
-    parser = argparse.ArgumentParser(
+    duration = (0.0, MAX_DURATION, "s")
+    parser = ArgumentParser(
         description=__doc__.splitlines()[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=f"""Modes:
@@ -445,66 +543,103 @@ def main(argv: Sequence[str] | None = None) -> int:
                                unless --record is given
   --record PATH.mp4            offscreen video (any machine; MUJOCO_GL=egl)
 
+Output files (--record, --json) are checked before the run and written beside
+the target, then renamed over it when complete: an interrupted run (Ctrl-C)
+leaves an existing file as it was.
+
 Exit code: 0 done (even if the grasp failed, unless --strict), 1 the cube was
-not placed (with --strict), 2 bad input (plan file, options).""")
-    parser.add_argument("--plan", type=Path, help="waypoint file (.json or .toml) replacing the "
-                        "built-in plan; see waypoints/")
+not placed (with --strict) or an unexpected error (rerun with -v for the
+traceback), 2 bad input (plan file, options), 130 interrupted.""")
+    parser.add_argument("--plan", type=Path, help="waypoint file (.json or .toml, UTF-8) "
+                        "replacing the built-in plan; see waypoints/")
     parser.add_argument("--headless", action="store_true", help="no viewer (default when there "
                         "is no display)")
     parser.add_argument("--record", type=Path, metavar="PATH.mp4", help="record a video")
     parser.add_argument("--ui", action="store_true", help="viewer: show MuJoCo's side panels "
                         "(Tab / Shift+Tab toggle them)")
-    parser.add_argument("--fps", type=float, default=DEFAULT_FPS, help="video frame rate "
-                        "(default %(default)g)")
+    parser.add_argument("--fps", type=number(MIN_FPS, math.inf, "frames/s"), default=DEFAULT_FPS,
+                        help=f"video frame rate [frames/s], from {MIN_FPS:g} up to one frame per "
+                        "physics step (1 / timestep) (default %(default)g)")
     parser.add_argument("--size", type=_size, default=DEFAULT_SIZE, metavar="WxH",
-                        help="video size (default 640x480)")
+                        help="video size [px], each edge even and in "
+                        f"[{FRAME_EDGE_RANGE[0]}, {FRAME_EDGE_RANGE[1]}] (default 640x480)")
     parser.add_argument("--camera", default=DEFAULT_CAMERA, help="camera (default %(default)s)")
     parser.add_argument("--quality", choices=sorted(QUALITY), default="fast",
                         help="video quality preset (default %(default)s)")
     parser.add_argument("--cube", action=argparse.BooleanOptionalAction, default=True,
                         help="put a free 26 mm cube at the pick position (default on)")
-    parser.add_argument("--cube-offset", type=float, nargs=2, default=(0.0, 0.0),
-                        metavar=("DX", "DY"), help="displace the cube's start [mm], world x, y")
-    parser.add_argument("--cube-turn", type=float, default=0.0, metavar="DEG",
+    parser.add_argument("--cube-offset", type=number(*CUBE_OFFSET_RANGE_MM, "mm"), nargs=2,
+                        default=(0.0, 0.0), metavar=("DX", "DY"),
+                        help="displace the cube's start [mm], world x, y, each "
+                        f"{range_help(*CUBE_OFFSET_RANGE_MM, 'mm')}; it must stay on the table "
+                        "and within reach")
+    parser.add_argument("--cube-turn", type=number(*CUBE_YAW_RANGE, "deg"), default=0.0,
+                        metavar="DEG",
                         help="turn the cube's start about z [deg] away from where the plan "
-                        "expects it (a perturbation; for --pick/--place see --cube-yaw)")
-    parser.add_argument("--move-duration", type=float, default=2.0, help="built-in plan: "
-                        "seconds per main move (default %(default)g)")
-    parser.add_argument("--hold", type=float, default=0.5, help="built-in plan: seconds held at "
-                        "each course configuration (default %(default)g)")
+                        f"expects it, {range_help(*CUBE_YAW_RANGE, 'deg')} (a perturbation; for "
+                        "--pick/--place see --cube-yaw)")
+    parser.add_argument("--move-duration", type=number(*duration), default=2.0,
+                        help="built-in plan: seconds per main move, "
+                        f"{range_help(*duration)} (default %(default)g)")
+    parser.add_argument("--hold", type=number(*duration), default=0.5,
+                        help="built-in plan: seconds held at each course configuration, "
+                        f"{range_help(*duration)} (default %(default)g)")
     add_cartesian_arguments(parser)
     parser.add_argument("--json", type=Path, metavar="PATH", help="write the run report as JSON")
     parser.add_argument("--strict", action="store_true", help="exit 1 unless the cube is placed "
                         "within tolerance")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log details")
-    args = parser.parse_args(argv)
+    parser.add_argument("-v", "--verbose", action="store_true", help="log details (and show "
+                        "the traceback of an unexpected error)")
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # bad options (one line printed) or --help: the exit code
+        return stop.code
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
-
-    mode, video = choose_mode(args.headless, args.record, so101_display.has_display())
-    if mode == "record" and args.record is None:
-        print(f"No display: running headless and recording {video}", file=sys.stderr)
     try:
+        return _run(parser, args)
+    except KeyboardInterrupt:
+        print("Interrupted (Ctrl-C): nothing was written; existing output files are as they "
+              "were.", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as error:
+        return report_unexpected(error, args.verbose)
+
+
+def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    """Check the outputs and the plan, run, report (see :func:`main`)."""
+    mode, video = choose_mode(args.headless, args.record, so101_display.has_display())
+    try:
+        json_path = None
+        check_fps(args.fps, max_fps(_scene_model()), "--fps")
+        if mode == "record":
+            video = check_output_path(video, "--record", inputs=[args.plan], suffixes=(".mp4",))
+        if args.json is not None:
+            json_path = check_output_path(args.json, "--json", inputs=[args.plan])
+            if video is not None and json_path == video:
+                raise OutputPathError(f"--json {args.json}: is the --record file too. Fix: "
+                                      "give the report its own name, e.g. report.json.")
+        if mode == "record" and args.record is None:
+            print(f"No display: running headless and recording {video}", file=sys.stderr)
         plan = plan_from_arguments(args)
         if plan is None:
             if args.cube_yaw is not None:
                 raise PlanError("--cube-yaw sets the cube's yaw for a Cartesian plan: give "
                                 "--pick and --place too (--cube-turn perturbs any plan's cube).")
-            plan = load_plan(args.plan) if args.plan else default_plan(args.move_duration,
-                                                                       args.hold)
+            plan = load_plan(args.plan, scene_limits()) if args.plan else default_plan(
+                args.move_duration, args.hold)
         cube = CubeStart((args.cube_offset[0] / 1000.0, args.cube_offset[1] / 1000.0),
                          args.cube_turn) if args.cube else None
         report = run_pick_place(plan, cube=cube, mode=mode, video=video, fps=args.fps,
                                 size=args.size, camera=args.camera, quality=args.quality,
                                 progress=not args.no_progress, show_ui=args.ui)
-    except (PlanError, RenderError) as error:
+    except (PlanError, RenderError, OutputPathError, KinematicsInputError) as error:
         print(f"error: {error}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     print(report.summary())
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(asdict(report), indent=2) + "\n")
+    if json_path is not None:
+        write_text_atomic(json_path, json.dumps(asdict(report), indent=2) + "\n")
     if args.strict and not report.success:
         return 1
     return 0

@@ -9,10 +9,10 @@ from pathlib import Path
 
 from so101_bus import FIND_PORT_HINT, connect, disconnect
 from so101_calibration import HardwareError, find_calibration, load_calibration
-from so101_control import check_number, signals_as_interrupt
+from so101_control import signals_as_interrupt
 from so101_hw_run import release_arm
 from so101_hw_teach import MAX_TEACH_RATE_HZ, TEACH_RATE_HZ, teach
-from so101_motion import PlanError
+from so101_motion import PlanError, check_number
 
 RATE_HZ = TEACH_RATE_HZ  # printing rate [Hz]
 MAX_DURATION_S = 86_400.0  # --duration at most a day [s]
@@ -39,10 +39,10 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s: %(message)s")
     try:
         with signals_as_interrupt():
-            check_number("--rate", args.rate, 0.0, MAX_TEACH_RATE_HZ, "Hz", lower_open=True)
+            check_number(args.rate, "--rate", 0.0, MAX_TEACH_RATE_HZ, "Hz", low_open=True)
             if args.duration is not None:
-                check_number("--duration", args.duration, 0.0, MAX_DURATION_S, "s",
-                             lower_open=True)
+                check_number(args.duration, "--duration", 0.0, MAX_DURATION_S, "s",
+                             low_open=True)
             path = args.calibration or find_calibration(args.robot_id, args.port)
             calibration = load_calibration(path, args.robot_id)
             if args.release:

@@ -15,9 +15,11 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from so101_cli import number, range_help
 from so101_forward_kinematics import get_forward_kinematics
 from so101_inverse_kinematics import (
     GRIPPER_OPEN,
+    POSITION_LIMIT,
     UnreachableError,
     as_position,
     get_inverse_kinematics,
@@ -27,12 +29,24 @@ from so101_motion import (
     STARTING_CONFIGURATION,
     Plan,
     PlanError,
-    is_finite_number,
+    check_number,
     pick_and_place_plan,
 )
 
 DEFAULT_LIFT_HEIGHT = 0.10
 """Height of the lift and carry waypoints above the pick and place positions [m]."""
+
+LIFT_HEIGHT_RANGE = (0.0, 0.30)
+"""Allowed lift height [m]: from none up to 30 cm (the arm's reach decides what is reachable)."""
+
+APPROACH_HEIGHT_RANGE = (0.0, 0.30)
+"""Allowed height of approach and depart above pre_grasp and retreat [m]."""
+
+SLIDE_RANGE = (0.0, 0.05)
+"""Allowed slide of pre_grasp and retreat off the grasps [m]."""
+
+CUBE_YAW_RANGE = (-180.0, 180.0)
+"""Allowed cube yaw [deg] (a cube repeats every 90 deg)."""
 
 APPROACH_HEIGHT = 0.05
 """Height of the approach waypoint above pre_grasp [m]."""
@@ -94,7 +108,10 @@ def cartesian_plan(
 
     Raises:
         UnreachableError: a waypoint cannot be reached (the message names it).
-        ValueError: malformed arguments.
+        so101_motion.PlanError: a height, slide, yaw or duration outside its
+            range (``LIFT_HEIGHT_RANGE``, ``APPROACH_HEIGHT_RANGE``,
+            ``SLIDE_RANGE``, ``CUBE_YAW_RANGE``, ``so101_motion.MAX_DURATION``).
+        so101_forward_kinematics.KinematicsInputError: a malformed position.
 
     Example (the FK positions of the course's configurations give its grasps back)::
 
@@ -106,10 +123,13 @@ def cartesian_plan(
         {'shoulder_pan': -45.0, 'shoulder_lift': 45.0, 'elbow_flex': -45.0, 'wrist_flex': 90.0, \
 'wrist_roll': 0.0, 'gripper': 50.0}
     """
-    for name, value in (("lift_height", lift_height), ("approach_height", approach_height),
-                        ("slide", slide)):
-        if not is_finite_number(value) or value < 0.0:
-            raise ValueError(f"{name} must be a number of metres >= 0, got {value!r}.")
+    lift_height = check_number(lift_height, "lift_height", *LIFT_HEIGHT_RANGE, "m")
+    approach_height = check_number(approach_height, "approach_height", *APPROACH_HEIGHT_RANGE,
+                                   "m")
+    slide = check_number(slide, "slide", *SLIDE_RANGE, "m")
+    for name, value in (("cube_yaw_deg", cube_yaw_deg), ("place_yaw_deg", place_yaw_deg)):
+        if value is not None:
+            check_number(value, name, *CUBE_YAW_RANGE, "deg")
     if place_yaw_deg is None:
         place_yaw_deg = cube_yaw_deg
     pick = np.array(as_position(pick_xyz))
@@ -157,18 +177,22 @@ def add_cartesian_arguments(parser: argparse.ArgumentParser, cube_yaw: bool = Tr
     group = parser.add_argument_group(
         "Cartesian pick-and-place", "give the cube's positions instead of joint angles; the "
         "waypoints are computed by inverse kinematics (top-down grasps)")
-    group.add_argument("--pick", type=float, nargs=3, metavar=("X", "Y", "Z"),
+    coordinate = (-POSITION_LIMIT, POSITION_LIMIT, "m")
+    group.add_argument("--pick", type=number(*coordinate), nargs=3, metavar=("X", "Y", "Z"),
                        help="centre of the cube to pick [m] in the base frame (z = 0.013 on "
-                       "the table); needs --place")
-    group.add_argument("--place", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                       f"the table), each {range_help(*coordinate)}; needs --place")
+    group.add_argument("--place", type=number(*coordinate), nargs=3, metavar=("X", "Y", "Z"),
                        help="where to put the cube's centre [m]; needs --pick")
     if cube_yaw:
-        group.add_argument("--cube-yaw", type=float, default=None, metavar="DEG",
-                           help="the cube's yaw in the world [deg]; the wrist turns to it "
+        group.add_argument("--cube-yaw", type=number(*CUBE_YAW_RANGE, "deg"), default=None,
+                           metavar="DEG",
+                           help="the cube's yaw in the world [deg], "
+                           f"{range_help(*CUBE_YAW_RANGE, 'deg')}; the wrist turns to it "
                            "(default: wrist_roll stays near 0, as in the course's plan)")
-    group.add_argument("--lift-height", type=float, default=DEFAULT_LIFT_HEIGHT, metavar="M",
-                       help="lift and carry this high above pick and place [m] "
-                       "(default %(default)g)")
+    group.add_argument("--lift-height", type=number(*LIFT_HEIGHT_RANGE, "m"),
+                       default=DEFAULT_LIFT_HEIGHT, metavar="M",
+                       help="lift and carry this high above pick and place [m], "
+                       f"{range_help(*LIFT_HEIGHT_RANGE, 'm')} (default %(default)g)")
 
 
 def plan_from_arguments(args: argparse.Namespace) -> Plan | None:

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import gc
 import logging
-import math
 import signal
 import sys
 import threading
@@ -46,6 +45,7 @@ from so101_motion import (
     PlanError,
     Trajectory,
     check_configuration,
+    check_number,
     unit,
 )
 
@@ -667,16 +667,4 @@ def signals_as_interrupt():
 
 def check_rate(rate_hz) -> float:
     """The control loop's rate [Hz], refused outside [MIN_RATE_HZ, MAX_RATE_HZ]."""
-    return check_number("--rate", rate_hz, MIN_RATE_HZ, MAX_RATE_HZ, "Hz")
-
-
-def check_number(name: str, value, lower: float, upper: float, unit_: str,
-                 lower_open: bool = False) -> float:
-    """``value`` as a float, refused (PlanError naming it) unless finite and in its range."""
-    low = "(" if lower_open else "["
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
-            math.isfinite(value) and (lower < value if lower_open else lower <= value)
-            and value <= upper):
-        raise PlanError(f"{name} {value!r} is out of range: allowed {low}{lower:g}, {upper:g}] "
-                        f"{unit_}. Fix: give a value in that range.")
-    return float(value)
+    return check_number(rate_hz, "--rate", MIN_RATE_HZ, MAX_RATE_HZ, "Hz")

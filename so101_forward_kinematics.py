@@ -36,6 +36,8 @@ Example (the course's test configuration)::
 from __future__ import annotations
 
 import math
+import numbers
+import operator
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -61,6 +63,23 @@ BODY_OF_FRAME = {
 
 TOOL_SITE = "object_frame"
 
+ANGLE_RANGE_DEG = (-360.0, 360.0)
+"""Joint angles the FK accepts [deg]: one turn either way.
+
+Every pose is reached within it; a larger angle is almost surely a mistake
+(radians summed as degrees, an angle never wrapped) and loses precision
+(at 1e12 deg a float resolves only 1e-4 deg). The arm's own joint limits are
+narrower (``so101_mujoco_utils.joint_limits``).
+"""
+
+
+class KinematicsInputError(ValueError):
+    """An argument of a kinematics function is missing, not a number, or out of its range."""
+
+
+class KinematicsTypeError(KinematicsInputError, TypeError):
+    """An argument of a kinematics function has the wrong type (text, None, a boolean)."""
+
 # The gripper mount's small tilt about the wrist_roll axis, exactly as the
 # upstream quaternion (0.0172091, -0.0172091, 0.706897, 0.706897) encodes it:
 # that quaternion is Rz(180) Rx(90) Rz(phi) with phi = 2 atan2(-0.0172091, 0.706897).
@@ -80,21 +99,47 @@ _FIXED = {
 
 
 def Rx(thetadeg: float) -> np.ndarray:
-    """Rotation matrix about x by ``thetadeg`` [deg]."""
-    c, s = _cos_sin(thetadeg)
+    """Rotation matrix about x by ``thetadeg`` [deg] (in ``ANGLE_RANGE_DEG``)."""
+    c, s = _cos_sin(check_angle(thetadeg, "thetadeg"))
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
 def Ry(thetadeg: float) -> np.ndarray:
-    """Rotation matrix about y by ``thetadeg`` [deg]."""
-    c, s = _cos_sin(thetadeg)
+    """Rotation matrix about y by ``thetadeg`` [deg] (in ``ANGLE_RANGE_DEG``)."""
+    c, s = _cos_sin(check_angle(thetadeg, "thetadeg"))
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
 def Rz(thetadeg: float) -> np.ndarray:
-    """Rotation matrix about z by ``thetadeg`` [deg]."""
-    c, s = _cos_sin(thetadeg)
+    """Rotation matrix about z by ``thetadeg`` [deg] (in ``ANGLE_RANGE_DEG``)."""
+    c, s = _cos_sin(check_angle(thetadeg, "thetadeg"))
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def check_angle(value, name: str) -> float:
+    """``value`` as a float if it is a number of degrees in ``ANGLE_RANGE_DEG``.
+
+    Args:
+        value: the angle [deg].
+        name: what to call it in the message, e.g. ``"wrist_roll"``.
+
+    Raises:
+        KinematicsTypeError: text, None, a boolean or another non-number.
+        KinematicsInputError: NaN, an infinity, or outside the range.
+    """
+    if type(value) is not float:  # ints, numpy scalars; rejects text and booleans
+        value = _as_degrees(name, value)
+    if not ANGLE_RANGE_DEG[0] <= value <= ANGLE_RANGE_DEG[1]:  # also false for NaN
+        low, high = ANGLE_RANGE_DEG
+        if not math.isfinite(value):
+            raise KinematicsInputError(
+                f"{name} must be a finite number of degrees in [{low:g}, {high:g}], got "
+                f"{value!r}. Fix: give a finite angle.")
+        raise KinematicsInputError(
+            f"{name} = {value:g} deg is outside [{low:g}, {high:g}] deg (the FK takes each angle "
+            "within one turn). Fix: wrap it into [-180, 180] deg (and check it is not in "
+            "radians or a sum of angles).")
+    return value
 
 
 def _cos_sin(thetadeg: float) -> tuple[float, float]:
@@ -140,23 +185,28 @@ def _joint_transform(name: str, theta_deg: float) -> np.ndarray:
 
 
 def get_gw1(theta1_deg: float) -> np.ndarray:
-    """Pose of frame 1 (shoulder) in the world, shoulder_pan = ``theta1_deg`` [deg]."""
-    return _joint_transform("w1", theta1_deg)
+    """Pose of frame 1 (shoulder) in the world, shoulder_pan = ``theta1_deg`` [deg].
+
+    Raises:
+        KinematicsInputError: the angle is not a finite number in ``ANGLE_RANGE_DEG``
+            (a :class:`KinematicsTypeError` for text, None or a boolean).
+    """
+    return _joint_transform("w1", check_angle(theta1_deg, "shoulder_pan"))
 
 
 def get_g12(theta2_deg: float) -> np.ndarray:
     """Pose of frame 2 (upper arm) in frame 1, shoulder_lift = ``theta2_deg`` [deg]."""
-    return _joint_transform("12", theta2_deg)
+    return _joint_transform("12", check_angle(theta2_deg, "shoulder_lift"))
 
 
 def get_g23(theta3_deg: float) -> np.ndarray:
     """Pose of frame 3 (lower arm) in frame 2, elbow_flex = ``theta3_deg`` [deg]."""
-    return _joint_transform("23", theta3_deg)
+    return _joint_transform("23", check_angle(theta3_deg, "elbow_flex"))
 
 
 def get_g34(theta4_deg: float) -> np.ndarray:
     """Pose of frame 4 (wrist) in frame 3, wrist_flex = ``theta4_deg`` [deg]."""
-    return _joint_transform("34", theta4_deg)
+    return _joint_transform("34", check_angle(theta4_deg, "wrist_flex"))
 
 
 def get_g45(theta5_deg: float) -> np.ndarray:
@@ -165,7 +215,7 @@ def get_g45(theta5_deg: float) -> np.ndarray:
     The fixed rotation keeps the gripper mount's tilt of about -2.79 deg
     (``GRIPPER_MOUNT_TILT_DEG``) exactly as the upstream model has it.
     """
-    return _joint_transform("45", theta5_deg)
+    return _joint_transform("45", check_angle(theta5_deg, "wrist_roll"))
 
 
 def get_g5t() -> np.ndarray:
@@ -176,31 +226,39 @@ def get_g5t() -> np.ndarray:
 def _read_angles(position_dict: Mapping[str, float]) -> list[float]:
     """The five arm joint angles [deg] of a configuration, validated (see :func:`joint_angles`)."""
     angles = []
+    low, high = ANGLE_RANGE_DEG
     for joint in ARM_JOINTS:
         try:
             value = position_dict[joint]
         except (KeyError, TypeError, IndexError):
-            raise ValueError(
+            error = KinematicsInputError if isinstance(position_dict, Mapping) else \
+                KinematicsTypeError
+            raise error(
                 f"Configuration has no '{joint}' angle; expected a dict with keys "
-                f"{', '.join(ARM_JOINTS)} (degrees), got {_describe_keys(position_dict)}."
+                f"{', '.join(ARM_JOINTS)} (degrees), got {_describe_keys(position_dict)}. "
+                "Fix: give all five arm joints."
             ) from None
-        if type(value) is not float:  # ints, numpy scalars; rejects text and booleans
-            value = _as_degrees(joint, value)
-        if not math.isfinite(value):
-            raise ValueError(f"Joint '{joint}' must be finite, got {value!r} degrees.")
+        if type(value) is not float or not low <= value <= high:
+            value = check_angle(value, f"Joint '{joint}'")
         angles.append(value)
     return angles
 
 
-def _as_degrees(joint: str, value) -> float:
-    if isinstance(value, (str, bytes, bool, np.bool_)):
-        raise ValueError(f"Joint '{joint}' must be a number of degrees, got {value!r}.")
+def _as_degrees(name: str, value) -> float:
+    """``float(value)`` for a number; KinematicsTypeError for text, None, booleans and the rest."""
+    if isinstance(value, (str, bytes, bool, np.bool_)) or value is None:
+        raise KinematicsTypeError(f"{name} must be a number of degrees, got {value!r} "
+                                  f"({type(value).__name__}). Fix: pass a number"
+                                  + (" without quotes." if isinstance(value, str) else "."))
     try:
         return float(value)
     except OverflowError:
-        raise ValueError(f"Joint '{joint}' must be finite, got {value!r} degrees.") from None
+        raise KinematicsInputError(f"{name} must be a finite number of degrees, got an "
+                                   "integer too large for a float. Fix: give a finite "
+                                   "angle.") from None
     except (TypeError, ValueError):
-        raise ValueError(f"Joint '{joint}' must be a number of degrees, got {value!r}.") from None
+        raise KinematicsTypeError(f"{name} must be a number of degrees, got "
+                                  f"{type(value).__name__}. Fix: pass a number.") from None
 
 
 def _describe_keys(position_dict) -> str:
@@ -220,8 +278,9 @@ def joint_angles(position_dict: Mapping[str, float]) -> np.ndarray:
         (5,) angles [deg] in ``ARM_JOINTS`` order.
 
     Raises:
-        ValueError: a joint is missing, or its value is not a finite number
-            (text and booleans are refused).
+        KinematicsInputError: a joint is missing, or its value is not a finite
+            number in ``ANGLE_RANGE_DEG`` (a ValueError; text, None and
+            booleans raise its subclass :class:`KinematicsTypeError`, also a TypeError).
     """
     return np.array(_read_angles(position_dict))
 
@@ -236,7 +295,8 @@ def get_frame_chain(position_dict: Mapping[str, float]) -> dict[str, np.ndarray]
         Frame name (``FRAMES``: "w", "1".."5", "t") -> ``g_w<frame>`` (4, 4).
 
     Raises:
-        ValueError: a joint is missing or not a finite number.
+        KinematicsInputError: a joint is missing or not a finite number in
+            ``ANGLE_RANGE_DEG`` (see :func:`joint_angles`).
     """
     theta = _read_angles(position_dict)
     factors = (get_gw1(theta[0]), get_g12(theta[1]), get_g23(theta[2]),
@@ -315,7 +375,8 @@ def get_forward_kinematics(position_dict: Mapping[str, float]) -> tuple[np.ndarr
         object frame in the world (``g_wt``).
 
     Raises:
-        ValueError: a joint is missing or not a finite number.
+        KinematicsInputError: a joint is missing or not a finite number in
+            ``ANGLE_RANGE_DEG`` (see :func:`joint_angles`).
     """
     th1, th2, th3, th4, th5 = _read_angles(position_dict)
     cos, sin = math.cos, math.sin
@@ -361,6 +422,45 @@ def _cos_sin_from_half(half: np.ndarray, cos: np.ndarray, sin: np.ndarray,
     sin *= scratch
 
 
+def _batch_angles(angles_deg) -> np.ndarray:
+    """The (N, 5) float array of a batch, checked (see :func:`get_forward_kinematics_batch`)."""
+    shape_text = f"an (N, {len(ARM_JOINTS)}) array with columns {', '.join(ARM_JOINTS)}"
+    try:
+        raw = np.asarray(angles_deg)
+    except (TypeError, ValueError):  # ragged nested lists
+        raise KinematicsInputError(f"angles_deg must be {shape_text} [deg]; got a ragged or "
+                                   f"malformed {type(angles_deg).__name__}.") from None
+    if raw.ndim != 2 or raw.shape[1] != len(ARM_JOINTS):
+        raise KinematicsInputError(f"angles_deg must be {shape_text}; got shape {raw.shape}.")
+    if raw.dtype.kind == "O":
+        for (row, col), value in np.ndenumerate(raw):
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+                _as_degrees(f"Joint '{ARM_JOINTS[col]}' of configuration {row}", value)
+                raise KinematicsTypeError(  # pragma: no cover - _as_degrees raised
+                    f"Joint '{ARM_JOINTS[col]}' of configuration {row} is not a number.")
+        try:
+            raw = raw.astype(float)
+        except OverflowError:
+            raise KinematicsInputError("angles_deg holds an integer too large for a float. "
+                                       "Fix: give finite angles [deg].") from None
+    elif raw.dtype.kind not in "iuf":
+        raise KinematicsTypeError(f"angles_deg must hold numbers [deg], got an array of "
+                                  f"{raw.dtype} (kind '{raw.dtype.kind}'). Fix: pass floats, "
+                                  "e.g. np.asarray(angles, dtype=float) of numbers, not text.")
+    theta = np.asarray(raw, dtype=float)
+    low, high = ANGLE_RANGE_DEG
+    bad = ~((theta >= low) & (theta <= high))  # NaN fails both comparisons
+    if bad.any():
+        row, col = np.argwhere(bad)[0]
+        value = theta[row, col]
+        problem = "is not finite" if not math.isfinite(value) else \
+            f"= {value:g} deg is outside [{low:g}, {high:g}] deg"
+        raise KinematicsInputError(
+            f"Joint '{ARM_JOINTS[col]}' of configuration {row} {problem} (the FK takes each "
+            "angle within one turn). Fix: give finite angles wrapped into [-180, 180] deg.")
+    return theta
+
+
 def get_forward_kinematics_batch(angles_deg, chunk: int = 8192) -> tuple[np.ndarray, np.ndarray]:
     """Object-frame poses for many configurations at once.
 
@@ -375,27 +475,24 @@ def get_forward_kinematics_batch(angles_deg, chunk: int = 8192) -> tuple[np.ndar
         ``(positions, rotations)``: (N, 3) [m] and (N, 3, 3).
 
     Raises:
-        ValueError: wrong shape, non-numeric or non-finite angles, or chunk < 1.
+        KinematicsInputError: wrong shape, angles that are not finite or outside
+            ``ANGLE_RANGE_DEG`` (naming the joint and the row), or chunk < 1;
+            :class:`KinematicsTypeError` for text, booleans or other
+            non-numbers, and a chunk that is not a whole number.
     """
+    theta = _batch_angles(angles_deg)
+    if isinstance(chunk, (bool, np.bool_)):
+        raise KinematicsTypeError(f"chunk must be a whole number >= 1, got {chunk!r}. "
+                                  "Fix: pass an int such as 8192.")
     try:
-        theta = np.asarray(angles_deg, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"angles_deg must be numbers [deg] in an (N, {len(ARM_JOINTS)}) array; "
-            f"could not convert {type(angles_deg).__name__} to floats."
-        ) from None
-    if theta.ndim != 2 or theta.shape[1] != len(ARM_JOINTS):
-        raise ValueError(
-            f"angles_deg must have shape (N, {len(ARM_JOINTS)}) with columns "
-            f"{', '.join(ARM_JOINTS)}; got {np.shape(angles_deg)}."
-        )
-    if not np.isfinite(theta).all():
-        row, col = np.argwhere(~np.isfinite(theta))[0]
-        raise ValueError(
-            f"Joint '{ARM_JOINTS[col]}' of configuration {row} is not finite: {theta[row, col]!r}."
-        )
+        chunk = operator.index(chunk)
+    except TypeError:
+        raise KinematicsTypeError(f"chunk must be a whole number >= 1, got {chunk!r} "
+                                  f"({type(chunk).__name__}). Fix: pass an int such as "
+                                  "8192.") from None
     if chunk < 1:
-        raise ValueError(f"chunk must be >= 1, got {chunk!r}.")
+        raise KinematicsInputError(f"chunk must be a whole number >= 1, got {chunk!r}. "
+                                   "Fix: pass an int such as 8192.")
     n = theta.shape[0]
     positions = np.empty((n, 3))
     rotations = np.empty((n, 3, 3))

@@ -51,7 +51,6 @@ from so101_control import (
     Segment,
     StopRequested,
     capped_duration,
-    check_number,
     check_rate,
     gc_frozen,
     speed_caps,
@@ -65,6 +64,7 @@ from so101_motion import (
     Limits,
     Plan,
     Step,
+    check_number,
     run_plan,
     unit,
     validate_plan,
@@ -116,17 +116,16 @@ def validate_plan_for_arm(plan: Plan, calibration: Mapping[str, Any] | None,
         except JointLimitError as error:
             raise JointLimitError(f"{error} (calibrated range of this arm, from {source}; if the "
                                   "range looks too small, recalibrate)") from None
-    check_number("The plan's return_duration", plan.return_duration, 0.0, 600.0, "s")
     return plan
 
 
 def check_run_settings(rate_hz: float, max_joint_speed: float, tracking_tolerance: float) -> None:
     """Refuse a setting outside its documented range (PlanError naming it), before connecting."""
     check_rate(rate_hz)
-    check_number("--max-speed", max_joint_speed, 0.0, SPEED_CAP_LIMIT_DEG_S, "deg/s",
-                 lower_open=True)
-    check_number("--tracking-tolerance", tracking_tolerance, 0.0, TRACKING_TOLERANCE_LIMIT_DEG,
-                 "deg", lower_open=True)
+    check_number(max_joint_speed, "--max-speed", 0.0, SPEED_CAP_LIMIT_DEG_S, "deg/s",
+                 low_open=True)
+    check_number(tracking_tolerance, "--tracking-tolerance", 0.0, TRACKING_TOLERANCE_LIMIT_DEG,
+                 "deg", low_open=True)
 
 
 @dataclass

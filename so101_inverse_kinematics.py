@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import logging
 import math
+import numbers
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -61,6 +62,9 @@ from so101_forward_kinematics import (
     _FIXED,
     ARM_JOINTS,
     GRIPPER_MOUNT_TILT_DEG,
+    KinematicsInputError,
+    KinematicsTypeError,
+    check_angle,
     get_forward_kinematics,
     get_forward_kinematics_batch,
     get_g5t,
@@ -71,7 +75,14 @@ from so101_forward_kinematics import (
     get_gw1,
     joint_angles,
 )
-from so101_motion import STARTING_CONFIGURATION, PlanError
+from so101_motion import (
+    GRIPPER_RANGE,
+    STARTING_CONFIGURATION,
+    PlanError,
+    check_number,
+    describe_value,
+    is_finite_number,
+)
 
 # Joint limits [rad]: the ``range`` attributes of model/so101.xml (upstream
 # so101_new_calib). Kept here so that a solve needs no MuJoCo; a test checks
@@ -95,6 +106,13 @@ MIN_HEIGHT = CUBE_HALF_SIZE - 0.001
 
 GRIPPER_OPEN = float(STARTING_CONFIGURATION["gripper"])
 """Gripper opening of the course's open configurations [0, 100]."""
+
+POSITION_LIMIT = 10.0
+"""Largest coordinate of a target accepted as input [m]; the arm reaches about 0.5 m.
+
+A target further out is refused as malformed (a position in millimetres?)
+before any arithmetic that could overflow.
+"""
 
 REFINE_TOL = 1e-12
 """FK residual [m] or [rad] above which a closed-form result is refined numerically."""
@@ -425,15 +443,45 @@ class _Search:
 # ---------------------------------------------------------------------------
 # Public solver.
 def as_position(position) -> tuple[float, float, float]:
-    """A position as three finite floats (x, y, z) [m]; ValueError otherwise."""
+    """A position as three finite floats (x, y, z) [m], each within ``POSITION_LIMIT``.
+
+    Raises:
+        KinematicsTypeError: not three numbers (text, None and booleans are refused).
+        KinematicsInputError: a coordinate is not finite or beyond ``POSITION_LIMIT``.
+    """
     try:
-        x, y, z = (float(v) for v in position)
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"position must be three numbers (x, y, z) [m], got {position!r}.") from None
-    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-        raise ValueError(f"position must be finite, got {position!r}.")
-    return x, y, z
+        values = list(position)
+    except TypeError:
+        values = None
+    if isinstance(position, (str, bytes)) or values is None or len(values) != 3:
+        raise KinematicsTypeError(
+            f"position must be three numbers (x, y, z) [m], got {describe_value(position)}. "
+            "Fix: pass a tuple such as (0.2, 0.0, 0.013).")
+    out = []
+    for axis, value in zip("xyz", values, strict=True):
+        if isinstance(value, (str, bytes, bool, np.bool_)) or value is None or not isinstance(
+                value, numbers.Real):
+            raise KinematicsTypeError(
+                f"position {axis} must be a number [m], got {describe_value(value)}. Fix: pass "
+                "three numbers (x, y, z) [m] without quotes.")
+        if not is_finite_number(value):
+            raise KinematicsInputError(
+                f"position {axis} must be finite, got {describe_value(value)} (position "
+                f"{describe_value(list(values))}). Fix: pass three finite numbers [m].")
+        out.append(check_number(value, f"position {axis}", -POSITION_LIMIT, POSITION_LIMIT, "m",
+                                error=KinematicsInputError,
+                                fix="give the position in metres, in the base frame."))
+    return out[0], out[1], out[2]
+
+
+def _check_gripper(value) -> float:
+    """The gripper opening as a float in ``GRIPPER_RANGE``."""
+    low, high = GRIPPER_RANGE
+    error = KinematicsInputError if is_finite_number(value) or (
+        isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))) \
+        else KinematicsTypeError
+    return check_number(value, "gripper", low, high, "%", error=error,
+                        fix=f"give an opening in [{low:g}, {high:g}] (0 closed, 100 open).")
 
 
 def get_inverse_kinematics(
@@ -483,19 +531,30 @@ def get_inverse_kinematics(
         UnreachableError: the target is below the table, too far, too close,
             or needs a joint beyond its limit; the message says which and by
             how much.
-        ValueError: malformed arguments.
+        so101_forward_kinematics.KinematicsInputError: malformed arguments (a
+            ValueError; text, None and booleans where numbers belong raise its
+            subclass ``KinematicsTypeError``, also a TypeError): a position
+            beyond ``POSITION_LIMIT``, a yaw or pitch outside ``ANGLE_RANGE_DEG``,
+            a gripper outside [0, 100].
     """
     p = as_position(position)
     if approach not in ("down", "pitch", None):
-        raise ValueError(f"approach must be 'down', 'pitch' or None, got {approach!r}.")
+        raise KinematicsInputError(f"approach must be 'down', 'pitch' or None, got "
+                                   f"{describe_value(approach)}. Fix: use one of those.")
     if approach == "pitch":
-        if pitch_deg is None or not math.isfinite(pitch_deg):
-            raise ValueError(f"approach='pitch' needs a finite pitch_deg (90 = top-down), "
-                             f"got {pitch_deg!r}.")
+        if pitch_deg is None:
+            raise KinematicsInputError("approach='pitch' needs a finite pitch_deg (90 = "
+                                       "top-down), got None. Fix: pass pitch_deg.")
+        pitch_deg = check_angle(pitch_deg, "pitch_deg")
     elif pitch_deg is not None:
-        raise ValueError(f"pitch_deg needs approach='pitch' (got approach={approach!r}).")
-    if yaw_deg is not None and not math.isfinite(yaw_deg):
-        raise ValueError(f"yaw_deg must be a finite number of degrees or None, got {yaw_deg!r}.")
+        raise KinematicsInputError(f"pitch_deg needs approach='pitch' (got approach="
+                                   f"{approach!r}). Fix: pass approach='pitch' or no pitch_deg.")
+    if yaw_deg is not None:
+        yaw_deg = check_angle(yaw_deg, "yaw_deg")
+    min_height = check_number(min_height, "min_height", -POSITION_LIMIT, POSITION_LIMIT, "m",
+                              error=KinematicsInputError)
+    if gripper is not None:
+        gripper = _check_gripper(gripper)
     if p[2] < min_height:
         short = min_height - p[2]
         raise UnreachableError(
@@ -505,7 +564,8 @@ def get_inverse_kinematics(
     reference = _DEFAULT_REFERENCE if initial is None else [
         math.radians(v) for v in joint_angles(initial)]
     if gripper is None:
-        gripper = GRIPPER_OPEN if initial is None else initial.get("gripper", GRIPPER_OPEN)
+        gripper = GRIPPER_OPEN if initial is None else _check_gripper(
+            initial.get("gripper", GRIPPER_OPEN))
     psi = None if approach is None else math.radians(90.0 if approach == "down" else pitch_deg)
     yaw = None if yaw_deg is None or approach is None else math.radians(yaw_deg)
     theta = _solve(p, psi, yaw, reference)

@@ -41,15 +41,124 @@ class JointLimitError(PlanError):
     """A joint target lies outside the joint's limits."""
 
 
+MAX_DURATION = 600.0
+"""Longest move, hold or return [s] of a plan or a simulated motion (ten minutes).
+
+A simulated second is 250 physics steps; a longer duration is almost surely a
+typo (milliseconds for seconds) and would keep the simulator busy for hours.
+"""
+
+GRIPPER_RANGE = (0.0, 100.0)
+"""Gripper opening at the user boundary [0, 100]: 0 closed end, 100 open end of its range."""
+
+
 def unit(joint: str) -> str:
     """Unit of a joint's value at the user boundary: "deg" or "%" (gripper)."""
     return "%" if joint == "gripper" else "deg"
 
 
 def is_finite_number(value) -> bool:
-    """True for a finite int or float (numpy scalars included), False for bools and the rest."""
-    return (not isinstance(value, (bool, np.bool_)) and isinstance(value, numbers.Real)
-            and math.isfinite(value))
+    """True for a finite int or float (numpy scalars included), False for bools and the rest.
+
+    Integers too large for a float (``10**400``) are not finite numbers here.
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an int beyond the float range
+        return False
+
+
+def describe_value(value) -> str:
+    """A short, one-line description of a value for an error message.
+
+    Example:
+        >>> describe_value(10**400), describe_value("2.0"), describe_value(float("nan"))
+        ('an integer of about 401 digits', "'2.0' (text)", 'nan')
+    """
+    if isinstance(value, (bool, np.bool_)):
+        return f"{bool(value)} (a boolean)"
+    if isinstance(value, str):
+        text = value if len(value) <= 40 else value[:37] + "..."
+        return f"{text!r} (text)"
+    if isinstance(value, numbers.Integral):
+        number = int(value)
+        if abs(number) < 10**24:
+            return str(number)
+        digits = int(abs(number).bit_length() * math.log10(2.0)) + 1  # no str(): 4300-digit cap
+        return f"{'-' if number < 0 else ''}an integer of about {digits} digits"
+    if isinstance(value, numbers.Real):
+        return f"{float(value):g}"
+    if value is None:
+        return "None (null)"
+    text = repr(value).replace("\n", " ")
+    return (text if len(text) <= 40 else text[:37] + "...") + f" (a {type(value).__name__})"
+
+
+def format_range(low: float, high: float, unit: str = "", low_open: bool = False) -> str:
+    """An interval for messages: ``in [0, 600] s``, ``in (0, 0.01] s``, ``>= 1 frames/s``."""
+    text = "in " + ("(" if low_open else "[") + f"{low:g}, {high:g}]"
+    if math.isinf(high):
+        text = (">" if low_open else ">=") + f" {low:g}"
+    return f"{text} {unit}".rstrip()
+
+
+def check_number(value, name: str, low: float = -math.inf, high: float = math.inf,
+                 unit: str = "", *, low_open: bool = False, fix: str = "",
+                 error: type[Exception] = PlanError) -> float:
+    """A finite real number within ``[low, high]`` (``(low, high]`` if ``low_open``) as a float.
+
+    Booleans, text and ``None`` are not numbers here; NaN, infinities and
+    integers beyond the float range are not finite.
+
+    Args:
+        value: the value to check.
+        name: what the user calls it (for the message), e.g. ``"waypoint 2 'lift': duration"``.
+        low: smallest allowed value.
+        high: largest allowed value.
+        unit: unit for the message, e.g. ``"s"``.
+        low_open: exclude ``low`` itself.
+        fix: what to do instead (default: give a number in the range).
+        error: the exception class to raise (a ValueError subclass of the caller's family).
+
+    Returns:
+        The value as a float.
+
+    Raises:
+        error: one line naming ``name``, the value, the allowed range and the fix.
+
+    Example:
+        >>> check_number(2, "duration", 0.0, 600.0, "s")
+        2.0
+        >>> check_number("2", "duration", 0.0, 600.0, "s")
+        Traceback (most recent call last):
+        ...
+        so101_motion.PlanError: duration must be a number in [0, 600] s, got '2' (text). \
+Fix: write the number without quotes.
+    """
+    allowed = format_range(low, high, unit, low_open)
+    if not is_finite_number(value):
+        default = f"give a number {allowed}."
+        if isinstance(value, str):
+            default = "write the number without quotes."
+            fix = f"write the number without quotes; {fix}" if fix else ""
+        kind = "a finite number" if isinstance(value, numbers.Real) and not isinstance(
+            value, (bool, np.bool_)) else "a number"
+        raise error(f"{name} must be {kind} {allowed}, got {describe_value(value)}. "
+                    f"Fix: {fix or default}")
+    number = float(value)
+    if number < low or number > high or (low_open and number == low):
+        raise error(f"{name} = {describe_value(value)} {unit}".rstrip()
+                    + f" is not {allowed}. Fix: {fix or f'give a number {allowed}.'}")
+    return number
+
+
+def check_duration(value, name: str, error: type[Exception] = PlanError) -> float:
+    """A duration [s] in ``[0, MAX_DURATION]`` as a float (see :func:`check_number`)."""
+    return check_number(value, name, 0.0, MAX_DURATION, "s", error=error,
+                        fix=f"give a number of seconds (not milliseconds) in [0, "
+                            f"{MAX_DURATION:g}].")
 
 
 def check_configuration(cfg: Mapping[str, float], limits: Limits, where: str = "") -> Configuration:
@@ -82,7 +191,12 @@ def check_configuration(cfg: Mapping[str, float], limits: Limits, where: str = "
             raise PlanError(f"{prefix}joint '{joint}' is missing; give all of {', '.join(limits)}.")
         value = cfg[joint]
         if not is_finite_number(value):
-            raise PlanError(f"{prefix}joint '{joint}' must be a finite number, got {value!r}.")
+            lower, upper = limits[joint]
+            within = (f" within its limits [{lower:g}, {upper:g}] {unit(joint)}"
+                      if math.isfinite(lower) and math.isfinite(upper) else f" [{unit(joint)}]")
+            raise PlanError(f"{prefix}joint '{joint}' must be a finite number{within}, got "
+                            f"{describe_value(value)}. Fix: give {joint} a number"
+                            + (" without quotes." if isinstance(value, str) else "."))
         lower, upper = limits[joint]
         if not lower <= value <= upper:
             bound = lower if value < lower else upper
@@ -124,10 +238,11 @@ class Trajectory:
     profile: str = "minimum_jerk"
 
     def __post_init__(self):
-        if self.profile not in PROFILES:
-            raise PlanError(f"Unknown profile '{self.profile}'; use one of {', '.join(PROFILES)}.")
-        if not (math.isfinite(self.duration) and self.duration >= 0.0):
-            raise PlanError(f"Duration must be >= 0 s, got {self.duration!r}.")
+        if not isinstance(self.profile, str) or self.profile not in PROFILES:
+            raise PlanError(f"Unknown profile {self.profile!r}; use one of {', '.join(PROFILES)}.")
+        # Finite and >= 0; no upper bound here: a trajectory only stores its ends.
+        object.__setattr__(self, "duration", check_number(self.duration, "Trajectory duration",
+                                                          0.0, math.inf, "s"))
 
     def fraction(self, t: float) -> float:
         """Fraction of the way from start to goal at time ``t`` [s] (0 before, 1 after)."""
@@ -266,6 +381,8 @@ def pick_and_place_plan(
         The plan: approach, pre_grasp, start_open, start_closed, lift, carry,
         final_closed, final_open, retreat, depart; then back to the initial pose.
     """
+    move_duration = check_duration(move_duration, "move_duration")
+    hold_duration = check_duration(hold_duration, "hold_duration")
     closed = {"gripper": GRIPPER_CLOSED}
     short = 0.5 * move_duration
     waypoints = [
@@ -298,56 +415,132 @@ def pick_and_place_steps(plan: Plan) -> tuple[Step, Step]:
     return by_name.get(PICK_STEP, plan.steps[0]), by_name.get(PLACE_STEP, plan.steps[-1])
 
 
-def validate_plan(plan: Plan, limits: Limits) -> Plan:
+def validate_plan(plan: Plan, limits: Limits, source: str = "") -> Plan:
     """Check every step before anything moves.
 
     Args:
         plan: the plan.
         limits: joint name -> (lower, upper) [deg] (gripper [0, 100]).
+        source: where the plan came from, for messages (e.g. the file).
 
     Returns:
-        The same plan with configurations normalised to floats.
+        The same plan with configurations and durations normalised to floats.
 
     Raises:
-        PlanError: empty plan, duplicate names, bad durations or configurations.
+        PlanError: empty plan, duplicate names, bad durations (each in
+            [0, ``MAX_DURATION``] s), a ``return_to_start`` that is not a
+            boolean, or bad configurations.
     """
-    if not plan.steps:
-        raise PlanError("The plan has no steps.")
-    seen = set()
+    prefix = f"{source}, " if source else ""
+    check_plan_settings(plan, source)
     for i, step in enumerate(plan.steps):
-        where = f"waypoint {i + 1} '{step.name}'"
-        if step.name in seen:
-            raise PlanError(f"{where}: the name is used twice; give each waypoint its own name.")
-        seen.add(step.name)
-        for label, value in (("duration", step.duration), ("hold", step.hold)):
-            if not is_finite_number(value) or value < 0:
-                raise PlanError(f"{where}: {label} must be a number of seconds >= 0, "
-                                f"got {value!r}.")
+        where = f"{prefix}waypoint {i + 1} '{step.name}'"
         step.configuration = check_configuration(step.configuration, limits, where)
     return plan
+
+
+def check_plan_settings(plan: Plan, source: str = "") -> Plan:
+    """Check a plan's structure, names and durations (everything but the joint limits).
+
+    Args:
+        plan: the plan.
+        source: where the plan came from, for messages.
+
+    Returns:
+        The same plan, durations as floats.
+
+    Raises:
+        PlanError: naming the waypoint and the field.
+    """
+    prefix = f"{source}, " if source else ""
+    if not plan.steps:
+        raise PlanError(f"{prefix}the plan has no steps. Fix: give at least one waypoint.")
+    seen = set()
+    for i, step in enumerate(plan.steps):
+        if not isinstance(step.name, str) or not step.name:
+            raise PlanError(f"{prefix}waypoint {i + 1}: name must be non-empty text, got "
+                            f"{describe_value(step.name)}. Fix: give it a name in quotes.")
+        where = f"{prefix}waypoint {i + 1} '{step.name}'"
+        if step.name in seen:
+            raise PlanError(f"{where}: the name is used twice. Fix: give each waypoint its own "
+                            "name.")
+        seen.add(step.name)
+        if not isinstance(step.configuration, Mapping):
+            raise PlanError(f"{where}: configuration must be a table of joint values, got "
+                            f"{describe_value(step.configuration)}.")
+        step.duration = check_duration(step.duration, f"{where}: duration")
+        step.hold = check_duration(step.hold, f"{where}: hold")
+    if not isinstance(plan.return_to_start, (bool, np.bool_)):
+        raise PlanError(f"{prefix}return_to_start must be true or false, got "
+                        f"{describe_value(plan.return_to_start)}. Fix: write true or false "
+                        "without quotes.")
+    plan.return_to_start = bool(plan.return_to_start)
+    plan.return_duration = check_duration(plan.return_duration, f"{prefix}return_duration")
+    return plan
+
+
+STEP_KEYS = ("name", "configuration", "duration", "hold")
+"""Keys of a waypoint in a plan file."""
+
+PLAN_KEYS = ("steps", "return_to_start", "return_duration")
+"""Top-level keys of a plan file."""
+
+
+def read_text_file(path: str | Path, what: str, error: type[Exception] = PlanError) -> str:
+    """The text of a UTF-8 file (a byte-order mark is tolerated).
+
+    Args:
+        path: the file.
+        what: what the file is, for messages, e.g. "Waypoint file".
+        error: the exception class to raise.
+
+    Raises:
+        error: the file cannot be read, or is not UTF-8 text (the message
+            names the file and says to save it as UTF-8).
+    """
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as problem:
+        raise error(f"Cannot read {what.lower()} '{path}': {problem.strerror}. Fix: check the "
+                    "path.") from None
+    except ValueError as problem:  # e.g. an embedded NUL character
+        raise error(f"Cannot read {what.lower()} '{path}': {problem}. Fix: check the "
+                    "path.") from None
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise error(f"{what} '{path}' is UTF-16 text, not UTF-8. Fix: save it as UTF-8.")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as problem:
+        raise error(f"{what} '{path}' is not UTF-8 text (byte {problem.start} is "
+                    f"0x{data[problem.start]:02x}). Fix: save it as UTF-8.") from None
 
 
 def load_plan(path: str | Path, limits: Limits | None = None) -> Plan:
     """Read a plan from a JSON or TOML waypoint file.
 
-    The file holds ``steps``: a list of tables with ``name``, ``configuration``
-    (all six joints, [deg], gripper [0, 100]) and optional ``duration`` and
-    ``hold`` [s]; optionally ``return_to_start`` (bool) and ``return_duration`` [s].
+    The file is UTF-8 (a byte-order mark is tolerated) and holds ``steps``: a
+    list of tables with ``name`` (text), ``configuration`` (all six joints,
+    [deg], gripper [0, 100]) and optional ``duration`` and ``hold`` [s] (each
+    in [0, ``MAX_DURATION``]); optionally ``return_to_start`` (true or
+    false) and ``return_duration`` [s].
 
     Args:
         path: a ``.json`` or ``.toml`` file.
-        limits: if given, the plan is validated against them.
+        limits: if given, the configurations are checked against them too.
+
+    Returns:
+        The plan; its structure, names and durations are checked.
 
     Raises:
-        PlanError: unreadable file or wrong structure, with the file and the fix.
+        PlanError: unreadable file, wrong structure or a bad value, naming the
+            file, the waypoint, the field and the fix.
     """
     path = Path(path)
+    text = read_text_file(path, "Waypoint file")
+    kind = "TOML" if path.suffix.lower() == ".toml" else "JSON"
     try:
-        text = path.read_text()
-    except OSError as error:
-        raise PlanError(f"Cannot read waypoint file '{path}': {error.strerror}.") from None
-    try:
-        if path.suffix.lower() == ".toml":
+        if kind == "TOML":
             if sys.version_info >= (3, 11):
                 import tomllib
             else:  # pragma: no cover - Python 3.10
@@ -355,33 +548,45 @@ def load_plan(path: str | Path, limits: Limits | None = None) -> Plan:
             data = tomllib.loads(text)
         else:
             data = json.loads(text)
+    except RecursionError:
+        raise PlanError(f"Waypoint file '{path}' is nested too deeply to be a plan. Fix: see "
+                        "waypoints/example.json for the layout.") from None
     except ValueError as error:  # JSONDecodeError and TOMLDecodeError are ValueErrors
-        raise PlanError(f"Waypoint file '{path}' is not valid {path.suffix[1:].upper() or 'JSON'}: "
-                        f"{error}.") from None
+        message = str(error).replace("\n", " ")
+        raise PlanError(f"Waypoint file '{path}' is not valid {kind}: {message}. Fix: correct "
+                        "the syntax there.") from None
     if not isinstance(data, dict) or not isinstance(data.get("steps"), list):
-        raise PlanError(f"Waypoint file '{path}' must contain a list 'steps' of waypoints "
-                        "(see waypoints/example.json).")
-    known = {"steps", "return_to_start", "return_duration"}
-    extra = set(data) - known
-    if extra:
-        raise PlanError(f"Waypoint file '{path}': unknown key(s) {sorted(extra)}; "
-                        f"allowed: {sorted(known)}.")
+        raise PlanError(f"Waypoint file '{path}' must contain a list 'steps' of waypoints. "
+                        "Fix: see waypoints/example.json for the layout.")
+    _refuse_unknown_keys(data, PLAN_KEYS, f"Waypoint file '{path}'")
     steps = []
     for i, raw in enumerate(data["steps"]):
         where = f"'{path}', waypoint {i + 1}"
         if not isinstance(raw, dict) or not isinstance(raw.get("configuration"), dict):
             raise PlanError(f"{where}: each waypoint needs a 'configuration' table "
-                            "of joint values.")
-        extra = set(raw) - {"name", "configuration", "duration", "hold"}
-        if extra:
-            raise PlanError(f"{where}: unknown key(s) {sorted(extra)}; allowed: "
-                            "name, configuration, duration, hold.")
-        steps.append(Step(str(raw.get("name", f"waypoint_{i + 1}")), dict(raw["configuration"]),
+                            "of joint values. Fix: see waypoints/example.json.")
+        _refuse_unknown_keys(raw, STEP_KEYS, where)
+        steps.append(Step(raw.get("name", f"waypoint_{i + 1}"), dict(raw["configuration"]),
                           raw.get("duration", 2.0), raw.get("hold", 0.5)))
-    plan = Plan(steps, bool(data.get("return_to_start", True)), data.get("return_duration", 2.0))
+    plan = Plan(steps, data.get("return_to_start", True), data.get("return_duration", 2.0))
     if limits is not None:
-        validate_plan(plan, limits)
+        validate_plan(plan, limits, f"'{path}'")
+    else:
+        check_plan_settings(plan, f"'{path}'")
+        for i, step in enumerate(plan.steps):  # numbers only; the limits come later
+            check_configuration(step.configuration, {j: (-math.inf, math.inf) for j in JOINTS},
+                                f"'{path}', waypoint {i + 1} '{step.name}'")
     return plan
+
+
+def _refuse_unknown_keys(table: Mapping, known: tuple[str, ...], where: str) -> None:
+    """PlanError for keys of ``table`` not in ``known``, with a "did you mean"."""
+    extra = [key for key in table if key not in known]
+    if extra:
+        close = difflib.get_close_matches(str(extra[0]), known, n=1)
+        hint = f" Did you mean '{close[0]}'?" if close else ""
+        raise PlanError(f"{where}: unknown key(s) {sorted(map(str, extra))}; allowed: "
+                        f"{', '.join(known)}.{hint}")
 
 
 def run_plan(

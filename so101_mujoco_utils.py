@@ -19,6 +19,9 @@ sees MuJoCo's passive viewer, they arrange for the interpreter to close it and
 wait for its render thread at exit (``so101_display.guard_viewer_exit``), so a
 script that leaves its ``with mujoco.viewer.launch_passive(...)`` block right
 after a move exits cleanly instead of crashing in MuJoCo's GLFW teardown.
+A move or hold lasts at most ``so101_motion.MAX_DURATION``
+(600 s); its memory does not grow with its duration (commands are computed
+``COMMAND_BLOCK_STEPS`` physics steps at a time).
 """
 
 from __future__ import annotations
@@ -37,12 +40,21 @@ import so101_display
 from so101_display import has_display  # noqa: F401  (re-exported: the scripts' display check)
 from so101_forward_kinematics import JOINTS, TOOL_SITE
 from so101_meshes import ensure_meshes
-from so101_motion import Configuration, Trajectory, check_configuration
+from so101_motion import (
+    GRIPPER_RANGE,
+    Configuration,
+    Trajectory,
+    check_configuration,
+    check_duration,
+)
 
 _HERE = Path(__file__).resolve().parent
 MODEL_DIR = _HERE / "model"
 SCENE_PATH = MODEL_DIR / "scene.xml"
 VIEWER_SYNC_PERIOD = 1.0 / 60.0  # [s] of simulation time between viewer updates
+# Physics steps whose commands are computed at once (one numpy evaluation of
+# the profile): a move's memory is this many rows, whatever its duration.
+COMMAND_BLOCK_STEPS = 4096
 
 
 class ViewerClosed(Exception):
@@ -77,7 +89,7 @@ def joint_limits(m: mujoco.MjModel) -> dict[str, tuple[float, float]]:
     limits = {}
     for name, _, _, lower, upper in _joint_table(m):
         if name == "gripper":
-            limits[name] = (0.0, 100.0)
+            limits[name] = GRIPPER_RANGE
         else:
             limits[name] = (math.degrees(lower), math.degrees(upper))
     return limits
@@ -173,9 +185,10 @@ def _guard_passive_viewer(viewer) -> None:
 def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> None:
     """Step the simulation to time ``until`` [s], following ``path`` if given.
 
-    A move's commands are computed for all its steps up front (one numpy
-    evaluation of the profile) and set before each physics step; a hold keeps
-    the command, so the steps between two viewer updates run in one
+    A move's commands are computed ``COMMAND_BLOCK_STEPS`` steps at a time
+    (one numpy evaluation of the profile per block, so memory does not grow
+    with the duration) and set before each physics step; a hold keeps the
+    command, so the steps between two viewer updates run in one
     ``mj_step(m, d, n)`` call. Same physics as a per-step Python loop, with
     about 1 us of Python per step instead of about 10.
     """
@@ -187,14 +200,14 @@ def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> 
     n_steps = round((until - d.time) / dt)
     if n_steps <= 0:
         return
+    block_start = block_stop = 0  # steps [block_start, block_stop) have their commands in rows
     if path is not None:
         # The unit conversion is affine per joint, so interpolating in radians
         # is the same path as interpolating in user units.
         actuators = np.array([act for name, _, act, *_ in _joint_table(m) if name in path.goal])
         start = np.array(list(to_radians(m, {j: path.start[j] for j in path.goal}).values()))
         delta = np.array(list(to_radians(m, path.goal).values())) - start
-        elapsed = d.time - t0 + dt * np.arange(n_steps)  # [s] at the start of each step
-        commands = start + path.fractions(elapsed)[:, None] * delta  # [rad], one row per step
+        elapsed0 = d.time - t0  # [s] at the start of the first step
         ctrl = d.ctrl
         if np.array_equal(actuators, np.arange(m.nu)):
             actuators = slice(None)  # all of them, in order: plain row copies
@@ -203,7 +216,7 @@ def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> 
     done = 0
     while done < n_steps:
         if viewer is None:
-            chunk = n_steps - done
+            chunk = min(n_steps - done, COMMAND_BLOCK_STEPS)
         elif every_step:
             chunk = 1
         else:
@@ -211,7 +224,12 @@ def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> 
         if path is None:
             mujoco.mj_step(m, d, chunk)
         else:
-            for row in commands[done:done + chunk]:
+            if done >= block_stop:
+                block_start, block_stop = done, min(done + COMMAND_BLOCK_STEPS, n_steps)
+                elapsed = elapsed0 + dt * np.arange(block_start, block_stop)  # [s] per step
+                rows = start + path.fractions(elapsed)[:, None] * delta  # [rad], one per step
+            chunk = min(chunk, block_stop - done)
+            for row in rows[done - block_start:done - block_start + chunk]:
                 ctrl[actuators] = row
                 mujoco.mj_step(m, d)
         done += chunk
@@ -253,15 +271,17 @@ def move_to_pose(
             (paced to real time) or any object with ``sync()`` and
             ``is_running()`` (e.g. an offscreen recorder).
         cfg: target configuration ([deg], gripper [0, 100]).
-        duration: time for the move [s].
+        duration: time for the move [s], in [0, ``MAX_DURATION``].
         profile: "minimum_jerk" (smooth, default) or "linear" (the course's).
 
     Raises:
         so101_motion.JointLimitError: the target is outside the limits.
+        so101_motion.PlanError: a duration that is not a number in [0, MAX_DURATION] s.
         ViewerClosed: the viewer window was closed.
     """
     goal = validate(m, cfg, "move_to_pose target")
-    path = Trajectory(get_command(m, d), goal, float(duration), profile)
+    duration = check_duration(duration, "move_to_pose duration")
+    path = Trajectory(get_command(m, d), goal, duration, profile)
     t0 = d.time
     _advance(m, d, viewer, t0 + path.duration, path, t0)
 
@@ -273,12 +293,14 @@ def hold_position(m: mujoco.MjModel, d: mujoco.MjData, viewer, duration: float) 
         m: the model.
         d: the simulation data.
         viewer: as for :func:`move_to_pose`.
-        duration: [s].
+        duration: [s], in [0, ``MAX_DURATION``].
 
     Raises:
+        so101_motion.PlanError: a duration that is not a number in [0, MAX_DURATION] s.
         ViewerClosed: the viewer window was closed.
     """
-    _advance(m, d, viewer, d.time + float(duration), None, d.time)
+    duration = check_duration(duration, "hold_position duration")
+    _advance(m, d, viewer, d.time + duration, None, d.time)
 
 
 def get_object_pose(m: mujoco.MjModel, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:

@@ -30,7 +30,7 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def check_output_path(path: str | Path, option: str, inputs: Iterable[str | Path | None] = (),
-                      overwrite: bool = True) -> Path:
+                      overwrite: bool = True, suffixes: Iterable[str] = ()) -> Path:
     """Check that ``path`` can be written, before anything runs; creates its folder.
 
     Args:
@@ -38,6 +38,8 @@ def check_output_path(path: str | Path, option: str, inputs: Iterable[str | Path
         option: how the user named it (for the message), e.g. ``"--log"``.
         inputs: the run's input files; the output may not be one of them.
         overwrite: False refuses an existing file (the message names ``--force``).
+        suffixes: the file name must end in one of these (case-insensitive),
+            e.g. ``(".mp4",)``; empty: any name.
 
     Returns:
         The path, absolute.
@@ -45,10 +47,18 @@ def check_output_path(path: str | Path, option: str, inputs: Iterable[str | Path
     Raises:
         OutputPathError: naming the option, the path and the fix.
     """
+    if "\0" in str(path):
+        raise OutputPathError(f"{option} {str(path)!r}: a file name cannot contain a NUL "
+                              "character. Fix: choose another file name.")
     target = Path(path).expanduser()
     if str(path) == "" or target.is_dir() or str(path).endswith(os.sep):
-        raise OutputPathError(f"{option} {path}: is a folder; give a file name, e.g. "
+        raise OutputPathError(f"{option} {path}: is a folder. Fix: give a file name, e.g. "
                               f"{option} {target / 'out'}{_suffix_hint(option)}.")
+    suffixes = tuple(suffixes)
+    if suffixes and target.suffix.lower() not in suffixes:
+        raise OutputPathError(f"{option} {path}: the file name must end in "
+                              f"{' or '.join(suffixes)}. Fix: e.g. {option} "
+                              f"{target.with_suffix(suffixes[0])}.")
     for source in inputs:
         if source is not None and (_same_file(target, Path(source))
                                    or target.resolve() == Path(source).expanduser().resolve()):
@@ -73,14 +83,19 @@ def check_output_path(path: str | Path, option: str, inputs: Iterable[str | Path
 
 
 def _suffix_hint(option: str) -> str:
-    return {"--log": ".csv", "--plot": ".png", "--json": ".json", "--record": ".mp4"}.get(
-        option, "")
+    return {"--log": ".csv", "--plot": ".png", "--json": ".json", "--record": ".mp4",
+            "--screenshot": ".png", "--frames": ".png", "--table": ".md"}.get(option, "")
 
 
 def temporary_beside(path: str | Path) -> Path:
-    """A new, empty temporary file in the folder of ``path`` (same file system: rename works)."""
+    """A new, empty temporary file in the folder of ``path`` (same file system: rename works).
+
+    Its name ends in the target's suffix (``.clip.mp4.k2j4.part.mp4``), so writers
+    that choose the format by the extension (ffmpeg, imageio, matplotlib) write
+    the target's format.
+    """
     target = Path(path)
-    handle, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part",
+    handle, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{target.suffix}",
                                     dir=target.parent)
     os.close(handle)
     return Path(name)
@@ -107,8 +122,7 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
         yield temporary
         os.replace(temporary, target)
     finally:
-        if temporary.exists():
-            temporary.unlink()
+        temporary.unlink(missing_ok=True)
 
 
 def write_text_atomic(path: str | Path, text: str) -> Path:

@@ -33,7 +33,7 @@ Example::
 from __future__ import annotations
 
 import logging
-import math
+import os
 import queue
 import threading
 from collections.abc import Iterable, Mapping, Sequence
@@ -49,6 +49,13 @@ from so101_meshes import ensure_render_meshes
 DEFAULT_CAMERA = "pick_place"
 DEFAULT_SIZE = (640, 480)  # [px] width, height
 DEFAULT_FPS = 30.0  # [frames/s]
+MIN_FPS = 1.0  # [frames/s]; the most is one frame per physics step (see max_fps)
+# Each frame is drawn into MuJoCo's offscreen buffer of exactly the frame's
+# size (FrameRenderer sets offwidth/offheight), colour and depth, 8 bytes a
+# pixel before multisampling: 4096 x 4096 is 134 MB and minutes per frame on
+# a CPU renderer; 10000 x 10000 would be 800 MB. 4096 px also stays within
+# the renderbuffer size of the OpenGL drivers we target (llvmpipe 16384).
+FRAME_EDGE_RANGE = (16, 4096)  # [px] width and height of a video frame or picture
 CUBE_HALFWIDTH = 0.013  # [m] the course's 26 mm cubes
 START_RGBA = (1.0, 0.0, 0.0, 0.2)  # translucent red: where the cube is picked
 FINAL_RGBA = (0.0, 1.0, 0.0, 0.2)  # translucent green: where it is placed
@@ -61,6 +68,69 @@ log = logging.getLogger(__name__)
 
 class RenderError(RuntimeError):
     """Offscreen rendering or video writing cannot start as asked."""
+
+
+class RenderSettingError(RenderError, ValueError):
+    """A rendering setting (size, fps, camera, path) is not valid; nothing was rendered."""
+
+
+def max_fps(m: mujoco.MjModel) -> float:
+    """Highest video frame rate [frames/s] the simulation can sample: one frame per physics step."""
+    return 1.0 / m.opt.timestep
+
+
+def check_fps(fps, highest: float, name: str = "fps") -> float:
+    """A frame rate [frames/s] in [``MIN_FPS``, ``highest``] as a float.
+
+    Args:
+        fps: the frame rate.
+        highest: the most the simulation can sample (:func:`max_fps`).
+        name: what the user calls it, for the message.
+
+    Raises:
+        RenderSettingError: naming the value, the range and why the maximum.
+    """
+    from so101_motion import check_number
+
+    return check_number(fps, name, MIN_FPS, highest, "frames/s", error=RenderSettingError,
+                        fix=f"give at most {highest:g} (the simulation steps every "
+                            f"{1000.0 / highest:g} ms, so a higher rate would repeat states and "
+                            "shorten the video).")
+
+
+def check_frame_size(size, name: str = "size", even: bool = True) -> tuple[int, int]:
+    """A frame size (width, height) [px], each edge a whole number in ``FRAME_EDGE_RANGE``.
+
+    Args:
+        size: (width, height).
+        name: what the user calls it, for the message.
+        even: both edges even (H.264 with yuv420p needs it).
+
+    Raises:
+        RenderSettingError: naming the size, the range and the fix.
+    """
+    low, high = FRAME_EDGE_RANGE
+    allowed = f"whole numbers in [{low}, {high}] px{', both even' if even else ''}"
+    try:
+        width, height = size
+        ok = all(isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+                 for v in (width, height))
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise RenderSettingError(f"{name} must be (width, height), {allowed}; got {size!r}. "
+                                 "Fix: e.g. 640x480.")
+    width, height = int(width), int(height)
+    if not (low <= width <= high and low <= height <= high):
+        raise RenderSettingError(
+            f"{name} {width}x{height}: each edge must be in [{low}, {high}] px (MuJoCo renders "
+            f"into an offscreen buffer of the frame's size; {high} px is the largest allowed). "
+            "Fix: e.g. 1920x1080 or smaller.")
+    if even and (width % 2 or height % 2):
+        raise RenderSettingError(f"{name} {width}x{height}: width and height must be even "
+                                 "(H.264, yuv420p). Fix: e.g. "
+                                 f"{width + width % 2}x{height + height % 2}.")
+    return width, height
 
 
 @dataclass(frozen=True)
@@ -171,6 +241,19 @@ def use_render_meshes(spec: mujoco.MjSpec) -> mujoco.MjSpec:
     return spec
 
 
+def check_camera(m: mujoco.MjModel, camera) -> str:
+    """The camera's name if the model has it.
+
+    Raises:
+        RenderSettingError: naming the cameras the model has.
+    """
+    names = [m.camera(i).name for i in range(m.ncam)]
+    if not isinstance(camera, str) or camera not in names:
+        raise RenderSettingError(f"Unknown camera {camera!r}; the model has: {', '.join(names)}. "
+                                 "Fix: choose one of those.")
+    return camera
+
+
 def _scene_option() -> mujoco.MjvOption:
     """Visual groups as the viewer shows them: world, arm meshes; no collision boxes or sites."""
     option = mujoco.MjvOption()
@@ -193,19 +276,16 @@ class FrameRenderer:
             built with :func:`use_render_meshes`); default ``m``.
 
     Raises:
-        RenderError: unknown camera, odd size or a render model that does not match.
+        RenderSettingError: unknown camera, a size outside ``FRAME_EDGE_RANGE``.
+        RenderError: a render model that does not match.
     """
 
     def __init__(self, m: mujoco.MjModel, d: mujoco.MjData, size: Sequence[int] = DEFAULT_SIZE,
                  camera: str = DEFAULT_CAMERA, overlays: Iterable[Overlay] = (),
                  quality: RenderQuality = QUALITY["fast"],
                  render_model: mujoco.MjModel | None = None):
-        width, height = (int(v) for v in size)
-        if width <= 0 or height <= 0:
-            raise RenderError(f"Frame size must be positive, got {width}x{height}.")
-        names = [m.camera(i).name for i in range(m.ncam)]
-        if camera not in names:
-            raise RenderError(f"Unknown camera '{camera}'; the model has: {', '.join(names)}.")
+        width, height = check_frame_size(size, "Frame size", even=False)
+        check_camera(m, camera)
         self.m, self.d = m, d
         self.m_render = render_model if render_model is not None else m
         if self.m_render.nq != m.nq:
@@ -255,12 +335,19 @@ class VideoRecorder:
     to the encoder (an ffmpeg process) from a background thread, so rendering
     the next frame overlaps with handing over the last one.
 
+    The video is written to a temporary file beside ``path`` and renamed over
+    it by ``close()`` (or the end of a ``with`` block without an exception):
+    an interrupted or failed recording never replaces an existing video.
+    ``close(complete=False)`` discards the recording.
+
     Args:
         m: the physics model.
         d: its data.
         path: output ``.mp4`` file (its folder is created).
-        fps: frames per second of simulation time [1/s].
-        size: (width, height) [px], both even (H.264 with yuv420p).
+        fps: frames per second of simulation time [1/s], in
+            [``MIN_FPS``, :func:`max_fps`]: at most one frame per physics step.
+        size: (width, height) [px], both even (H.264 with yuv420p), each in
+            ``FRAME_EDGE_RANGE``.
         camera: camera name.
         overlays: boxes drawn into every frame (e.g. :func:`target_cubes`).
         quality: rendering settings.
@@ -269,7 +356,7 @@ class VideoRecorder:
         progress: show a progress bar (tqdm, on stderr).
 
     Raises:
-        RenderError: bad size, fps, path or camera.
+        RenderSettingError: bad size, fps, path or camera (nothing is written).
     """
 
     offscreen = True
@@ -284,24 +371,34 @@ class VideoRecorder:
         import imageio.v2 as imageio
         from tqdm import tqdm
 
+        from so101_outputs import OutputPathError, check_output_path, temporary_beside
+
         path = Path(path)
         if path.suffix.lower() != ".mp4":
-            raise RenderError(f"Video path '{path}' must end in .mp4.")
-        if not (math.isfinite(fps) and fps > 0):
-            raise RenderError(f"fps must be a positive number, got {fps!r}.")
-        width, height = (int(v) for v in size)
-        if width % 2 or height % 2 or width < 16 or height < 16:
-            raise RenderError(f"Video size {width}x{height}: width and height must be even "
-                              "and at least 16 px (H.264, yuv420p).")
-        self.d, self.fps, self.path = d, float(fps), path
+            raise RenderSettingError(f"Video path '{path}' must end in .mp4. Fix: e.g. "
+                                     f"{path.with_suffix('.mp4')}.")
+        fps = check_fps(fps, max_fps(m))
+        width, height = check_frame_size(size, "Video size")
+        try:
+            path = check_output_path(path, "video")
+        except OutputPathError as error:
+            raise RenderSettingError(str(error)) from None
+        self.d, self.fps, self.path = d, fps, path
         self.frames_written = 0
         self._half_step = 0.5 * m.opt.timestep
         self._t0 = d.time
         self._frames = FrameRenderer(m, d, (width, height), camera, overlays, quality, render_model)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        self._writer = imageio.get_writer(
-            str(path), fps=self.fps, codec=VIDEO_CODEC, pixelformat="yuv420p", quality=None,
-            macro_block_size=1, ffmpeg_params=list(VIDEO_PARAMS), ffmpeg_log_level="error")
+        self._temporary = temporary_beside(path)
+        self._closed = False
+        try:
+            self._writer = imageio.get_writer(
+                str(self._temporary), format="FFMPEG", fps=self.fps, codec=VIDEO_CODEC,
+                pixelformat="yuv420p", quality=None, macro_block_size=1,
+                ffmpeg_params=list(VIDEO_PARAMS), ffmpeg_log_level="error")
+        except BaseException:
+            self._temporary.unlink(missing_ok=True)
+            self._frames.close()
+            raise
         self._queue: queue.Queue = queue.Queue(maxsize=8)
         self._write_error: BaseException | None = None
         self._thread = threading.Thread(target=self._write_loop, name="video-writer", daemon=True)
@@ -309,7 +406,11 @@ class VideoRecorder:
         expected = None if total_time is None else 1 + int(total_time * self.fps + 1e-9)
         self._bar = tqdm(total=expected, unit="frame", desc=f"Recording {path.name}",
                          disable=not progress, leave=False)
-        self.capture()
+        try:
+            self.capture()
+        except BaseException:
+            self.close(complete=False)
+            raise
 
     def is_running(self) -> bool:
         """Always true: an offscreen recorder has no window to close."""
@@ -337,25 +438,42 @@ class VideoRecorder:
                 except Exception as error:  # reported by capture() / close()
                     self._write_error = error
 
-    def close(self) -> None:
-        """Finish the MP4 file and free the renderer.
+    def close(self, complete: bool = True) -> None:
+        """Finish the MP4 file, rename it over ``path`` and free the renderer.
+
+        Args:
+            complete: False discards the recording (after an error or Ctrl-C):
+                the temporary file is removed and an existing ``path`` is untouched.
 
         Raises:
-            RenderError: the encoder failed.
+            RenderError: the encoder failed (the temporary file is removed).
         """
-        self._bar.close()
-        self._queue.put(None)
-        self._thread.join()
-        self._writer.close()
-        self._frames.close()
-        if self._write_error is not None:
-            raise RenderError(f"Writing '{self.path}' failed: {self._write_error}")
-        log.info("Wrote %d frames (%.2f s at %g fps) to %s", self.frames_written,
-                 self.frames_written / self.fps, self.fps, self.path)
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._bar.close()
+            self._queue.put(None)
+            self._thread.join()
+            try:
+                self._writer.close()
+            except Exception as error:  # ffmpeg gone (e.g. killed by Ctrl-C with us)
+                if self._write_error is None:
+                    self._write_error = error
+            self._frames.close()
+            if complete and self._write_error is not None:
+                raise RenderError(f"Writing '{self.path}' failed: {self._write_error}. "
+                                  f"Nothing was written to '{self.path}'.")
+            if complete:
+                os.replace(self._temporary, self.path)
+                log.info("Wrote %d frames (%.2f s at %g fps) to %s", self.frames_written,
+                         self.frames_written / self.fps, self.fps, self.path)
+        finally:
+            self._temporary.unlink(missing_ok=True)
 
     def __enter__(self) -> VideoRecorder:
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, exc_type, *exc) -> None:
+        self.close(complete=exc_type is None)
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import logging
 import math
 import sys
@@ -14,6 +13,14 @@ import so101_display  # first: without a display, offscreen rendering through EG
 import mujoco
 import numpy as np
 
+from so101_cli import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
+    ArgumentParser,
+    number,
+    range_help,
+    report_unexpected,
+)
 from so101_forward_kinematics import (
     _FIXED,
     ARM_JOINTS,
@@ -26,7 +33,9 @@ from so101_forward_kinematics import (
     get_forward_kinematics,
     get_frame_chain,
 )
+from so101_motion import MAX_DURATION, PlanError
 from so101_mujoco_utils import (
+    MODEL_DIR,
     SCENE_PATH,
     ViewerClosed,
     get_object_pose,
@@ -35,6 +44,7 @@ from so101_mujoco_utils import (
     send_position_command,
     set_initial_pose,
 )
+from so101_outputs import OutputPathError, atomic_output, check_output_path, write_text_atomic
 
 _HERE = Path(__file__).resolve().parent
 
@@ -48,6 +58,7 @@ TEST_CONFIGURATION = {
     "gripper": 10.0,
 }
 HOLD_TIME = 20.0  # [s] of simulation time the arm holds the pose (real time in the viewer)
+HOLD_RANGE = (0.0, MAX_DURATION)  # [s] allowed --seconds
 
 # The course's show_cylinder: along the object frame's z axis, centred on it.
 CYLINDER_RADIUS = 0.0245  # [m]
@@ -132,8 +143,8 @@ def render_screenshot(m: mujoco.MjModel, d: mujoco.MjData, position, rotation, p
         renderer.update_scene(d, camera=camera)
         show_cylinder(renderer.scene, position, rotation)
         pixels = renderer.render()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    iio.imwrite(path, pixels)
+    with atomic_output(path) as temporary:
+        iio.imwrite(temporary, pixels, extension=".png")
     return pixels
 
 
@@ -230,9 +241,11 @@ def render_frames(path: Path, configuration=FRAMES_CONFIGURATION, size=FRAMES_SI
             "x red, y green, z blue; each joint turns about its frame's z",
             transform=ax.transAxes, fontsize=14, va="top",
             bbox={"boxstyle": "round", "fc": "white", "alpha": 0.85})
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    try:
+        with atomic_output(path) as temporary:
+            fig.savefig(temporary, dpi=dpi, format="png")
+    finally:
+        plt.close(fig)
     return path
 
 
@@ -303,34 +316,69 @@ def run_viewer(m: mujoco.MjModel, d: mujoco.MjData, position, rotation, seconds:
                      d.time - start, seconds)
 
 
+def _shown(path: Path) -> str:
+    """A default path for --help: relative to the repository when inside it."""
+    return str(path.relative_to(_HERE)) if path.is_relative_to(_HERE) else str(path)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the FK test (viewer or headless), or draw the frames picture / the table."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ArgumentParser(description=__doc__.splitlines()[0],
+                            epilog="Output files are checked before anything runs and written "
+                            "beside the target, then renamed over it. Exit code: 0 done, 1 an "
+                            "unexpected error (rerun with -v for the traceback), 2 bad input.")
     parser.add_argument("--headless", action="store_true",
                         help="no viewer (automatic when there is no display)")
-    parser.add_argument("--screenshot", type=Path, metavar="PATH",
+    parser.add_argument("--screenshot", type=Path, metavar="PATH.png",
                         help=f"save a PNG from camera '{SCREENSHOT_CAMERA}' (headless default: "
-                             f"{DEFAULT_SCREENSHOT.relative_to(_HERE)})")
-    parser.add_argument("--seconds", type=float, default=HOLD_TIME,
-                        help="how long to hold the pose [s] (default %(default)s)")
+                             f"{_shown(DEFAULT_SCREENSHOT)})")
+    parser.add_argument("--seconds", type=number(*HOLD_RANGE, "s"), default=HOLD_TIME,
+                        help=f"how long to hold the pose [s], {range_help(*HOLD_RANGE, 's')} "
+                             "(default %(default)s)")
     parser.add_argument("--ui", action="store_true",
                         help="show MuJoCo's side panels in the viewer (Tab, Shift+Tab toggle)")
-    parser.add_argument("--frames", type=Path, nargs="?", const=FRAMES_PATH, metavar="PATH",
+    parser.add_argument("--frames", type=Path, nargs="?", const=FRAMES_PATH, metavar="PATH.png",
                         help="render the FK frames picture instead "
-                             f"(default {FRAMES_PATH.relative_to(_HERE)})")
+                             f"(default {_shown(FRAMES_PATH)})")
     parser.add_argument("--table", type=Path, nargs="?", const=TABLE_PATH, metavar="PATH",
                         help="write the markdown table of the g_xx factors instead "
-                             f"(default {TABLE_PATH.relative_to(_HERE)}; '-' prints it)")
-    args = parser.parse_args(argv)
+                             f"(default {_shown(TABLE_PATH)}; '-' prints it)")
+    parser.add_argument("-v", "--verbose", action="store_true",
+                        help="show the traceback of an unexpected error")
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # bad options (one line printed) or --help: the exit code
+        return stop.code
     logging.basicConfig(level=logging.INFO, format="%(message)s")
+    try:
+        return _run(args)
+    except (OutputPathError, PlanError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("Interrupted (Ctrl-C): existing output files are as they were.", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as error:
+        return report_unexpected(error, args.verbose)
 
+
+def _run(args) -> int:
+    """Check the output paths, then do what ``args`` ask (see :func:`main`)."""
+    inputs = [SCENE_PATH, MODEL_DIR / "so101.xml"]
+    png = (".png",)
+    if args.table is not None and str(args.table) != "-":
+        args.table = check_output_path(args.table, "--table", inputs)
+    if args.frames is not None:
+        args.frames = check_output_path(args.frames, "--frames", inputs, suffixes=png)
+    if args.screenshot is not None:
+        args.screenshot = check_output_path(args.screenshot, "--screenshot", inputs,
+                                            suffixes=png)
     if args.table is not None:
         table = fk_table_markdown()
         if str(args.table) == "-":
             print(table, end="")
         else:
-            args.table.parent.mkdir(parents=True, exist_ok=True)
-            args.table.write_text(table)
+            write_text_atomic(args.table, table)
             print(f"FK table written to {args.table}")
         if args.frames is None:
             return 0
@@ -351,13 +399,15 @@ def main(argv: list[str] | None = None) -> int:
           f"{np.abs(rotation - site_rotation).max():.2e}")
 
     headless = args.headless or not so101_display.has_display()
+    screenshot = args.screenshot or (DEFAULT_SCREENSHOT if headless else None)
+    if screenshot is not None:  # checked before the hold, not after it
+        screenshot = check_output_path(screenshot, "--screenshot", inputs, suffixes=png)
     if headless:
         if not args.headless:
             log.info("No display found: running headless.")
         hold_position(m, d, None, args.seconds)
     else:
         run_viewer(m, d, position, rotation, args.seconds, show_ui=args.ui)
-    screenshot = args.screenshot or (DEFAULT_SCREENSHOT if headless else None)
     if screenshot is not None:
         render_screenshot(m, d, position, rotation, screenshot)
         print(f"Screenshot written to {screenshot}")

@@ -134,4 +134,4 @@ def test_numbers_out_of_range_are_refused_with_the_range(option, value, capsys):
     assert cli.main(["--dry-run", option, value]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and err.startswith("Refused, nothing moved: " + option)
-    assert "allowed [" in err or "allowed (" in err
+    assert "Fix:" in err and ("[0, " in err or "(0, " in err or "[20, 500]" in err)

@@ -178,6 +178,7 @@ def test_every_reachable_pitched_target_is_solved():
         arm_pitch = angles[1] + angles[2] + angles[3]
         heading = np.array([math.cos(math.radians(angles[0])), -math.sin(math.radians(angles[0]))])
         pitch = arm_pitch if heading @ (position[:2] - centre) >= 0.0 else 180.0 - arm_pitch
+        pitch = (pitch + 180.0) % 360.0 - 180.0  # the same approach, within ANGLE_RANGE_DEG
         solved = ik.get_inverse_kinematics(position, "pitch", None, pitch_deg=pitch)
         assert_in_limits(solved)
         got, got_rotation = get_forward_kinematics(solved)

@@ -1,0 +1,98 @@
+"""Command-line plumbing shared by the scripts: one-line errors, checked numbers, exit codes.
+
+Every script answers bad input with one line on stderr that names the option,
+the value, the allowed range and the fix, and exits with status 2
+(:class:`ArgumentParser`, :func:`number`); an unexpected exception is one
+line with a hint to rerun with ``-v`` for the traceback, exit status 1
+(:func:`report_unexpected`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Callable
+
+from so101_motion import format_range
+
+EXIT_BAD_INPUT = 2
+"""Exit status for input the script refuses (nothing ran)."""
+
+EXIT_FAILED = 1
+"""Exit status for a run that failed (or an unexpected error)."""
+
+EXIT_INTERRUPTED = 130
+"""Exit status after Ctrl-C (128 + SIGINT, as the shell reports it)."""
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """An ``argparse.ArgumentParser`` whose errors are one line (no usage block), exit status 2."""
+
+    def error(self, message: str):
+        """Print ``prog: error: message`` in one line and exit with status 2."""
+        message = " ".join(message.split())
+        if "Fix:" not in message:
+            message = message.rstrip(".") + ". Fix: see --help."
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message}\n")
+
+
+def number(low: float = -math.inf, high: float = math.inf, unit: str = "", *,
+           low_open: bool = False, integer: bool = False) -> Callable[[str], float]:
+    """An argparse ``type`` for a finite number within a range.
+
+    Args:
+        low: smallest allowed value.
+        high: largest allowed value.
+        unit: the unit, for messages and help, e.g. ``"s"``.
+        low_open: exclude ``low``.
+        integer: accept whole numbers only (returns an int).
+
+    Returns:
+        A function text -> number that raises ``argparse.ArgumentTypeError``
+        with the value, the range and the fix (argparse adds the option's name).
+    """
+    allowed = format_range(low, high, unit, low_open)
+
+    def parse(text: str):
+        try:
+            value = int(text) if integer else float(text)
+        except ValueError:
+            kind = "a whole number" if integer else "a number"
+            raise argparse.ArgumentTypeError(
+                f"{text!r} is not {kind}; it must be {allowed}. "
+                f"Fix: give {kind} {allowed}.") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(
+                f"{text!r} is not a finite number; it must be {allowed}. "
+                f"Fix: give a number {allowed}.")
+        if value < low or value > high or (low_open and value == low):
+            raise argparse.ArgumentTypeError(
+                f"{text} is not {allowed}. Fix: give a number {allowed}.")
+        return value
+
+    parse.__name__ = "number"
+    return parse
+
+
+def range_help(low: float, high: float, unit: str = "", low_open: bool = False) -> str:
+    """The allowed range as ``--help`` shows it, e.g. ``in [0, 600] s``."""
+    return format_range(low, high, unit, low_open).replace("%", "%%")
+
+
+def report_unexpected(error: BaseException, verbose: bool) -> int:
+    """Report an unexpected exception in one line (or re-raise it with ``-v``).
+
+    Args:
+        error: the exception caught at the top of ``main()``.
+        verbose: the script's ``-v``: re-raise for the full traceback.
+
+    Returns:
+        ``EXIT_FAILED``.
+    """
+    if verbose:
+        raise error
+    text = " ".join(str(error).split()) or "(no message)"
+    print(f"error: unexpected {type(error).__name__}: {text} (a bug? rerun with -v for the "
+          "traceback)", file=sys.stderr)
+    return EXIT_FAILED
