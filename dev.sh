@@ -41,7 +41,7 @@ if [ ! -f "$venv/.complete" ]; then
   rm -rf "$venv"
   mkdir -p "$root"
   "$python" -m venv "$venv"
-  "$venv/bin/python" -m pip install --quiet --upgrade pip "setuptools>=68" wheel
+  "$venv/bin/python" -m pip install --quiet --upgrade pip "setuptools>=77" wheel
   "$venv/bin/python" -m pip install --quiet --progress-bar off -e ".${extras:+[$extras]}"
   touch "$venv/.complete"
   # Keep the two newest environments of this kind; each hw one is ~9 GB.
@@ -50,7 +50,7 @@ fi
 # The venv is shared by clones: point its editable install at this clone.
 "$venv/bin/python" -m pip install --quiet --no-deps --no-build-isolation -e . >/dev/null 2>&1 \
   || "$venv/bin/python" -m pip install --quiet --no-deps -e . >/dev/null
-"$venv/bin/python" so101_meshes.py >/dev/null
+"$venv/bin/python" -m so101_kinematics.sim.meshes >/dev/null
 
 if [ -z "${DISPLAY:-}${WAYLAND_DISPLAY:-}" ]; then
   export MUJOCO_GL="${MUJOCO_GL:-egl}"

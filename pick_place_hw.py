@@ -7,16 +7,16 @@ import logging
 import sys
 from pathlib import Path
 
-from so101_bus import FIND_PORT_HINT, LerobotMissing, connect, disconnect
-from so101_calibration import (
+from so101_kinematics.calibration import (
     CalibrationError,
     HardwareError,
     calibrated_limits,
     find_calibration,
     load_calibration,
 )
-from so101_cartesian_plan import add_cartesian_arguments, plan_from_arguments
-from so101_control import (
+from so101_kinematics.cartesian_plan import add_cartesian_arguments, plan_from_arguments
+from so101_kinematics.hw.bus import FIND_PORT_HINT, LerobotMissing, connect, disconnect
+from so101_kinematics.hw.control import (
     DEFAULT_RATE_HZ,
     MAX_JOINT_SPEED_DEG_S,
     MAX_RATE_HZ,
@@ -29,8 +29,8 @@ from so101_control import (
     signals_as_interrupt,
     speed_caps,
 )
-from so101_hw_log import CycleLog, plot_log
-from so101_hw_run import (
+from so101_kinematics.hw.log import CycleLog, plot_log
+from so101_kinematics.hw.run import (
     RELEASE_HINT,
     MotionAborted,
     NotConfirmed,
@@ -41,9 +41,9 @@ from so101_hw_run import (
     run_on_arm,
     validate_plan_for_arm,
 )
-from so101_hw_teach import format_configuration, format_plan, teach
-from so101_motion import PROFILES, PlanError, check_number, default_plan, load_plan
-from so101_outputs import check_output_path
+from so101_kinematics.hw.teach import format_configuration, format_plan, teach
+from so101_kinematics.motion import PROFILES, PlanError, check_number, default_plan, load_plan
+from so101_kinematics.outputs import check_output_path
 
 logger = logging.getLogger("pick_place_hw")
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import so101_display  # first: without a display, offscreen rendering through EGL
+import so101_kinematics.display as so101_display  # first: EGL when there is no display
 
 # isort: split
 import argparse
@@ -20,20 +20,6 @@ import mujoco
 import numpy as np
 
 import so101_mujoco_utils as utils
-from so101_cartesian_plan import (
-    CUBE_YAW_RANGE,
-    add_cartesian_arguments,
-    plan_from_arguments,
-)
-from so101_cli import (
-    EXIT_BAD_INPUT,
-    EXIT_INTERRUPTED,
-    ArgumentParser,
-    number,
-    range_help,
-    report_unexpected,
-)
-from so101_contact_pairs import use_explicit_contact_pairs
 from so101_forward_kinematics import (
     ARM_JOINTS,
     TOOL_SITE,
@@ -41,8 +27,20 @@ from so101_forward_kinematics import (
     get_forward_kinematics,
 )
 from so101_inverse_kinematics import get_inverse_kinematics
-from so101_meshes import ensure_meshes
-from so101_motion import (
+from so101_kinematics.cartesian_plan import (
+    CUBE_YAW_RANGE,
+    add_cartesian_arguments,
+    plan_from_arguments,
+)
+from so101_kinematics.cli import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
+    ArgumentParser,
+    number,
+    range_help,
+    report_unexpected,
+)
+from so101_kinematics.motion import (
     MAX_DURATION,
     Plan,
     PlanError,
@@ -54,8 +52,10 @@ from so101_motion import (
     run_plan,
     validate_plan,
 )
-from so101_outputs import OutputPathError, check_output_path, write_text_atomic
-from so101_render import (
+from so101_kinematics.outputs import OutputPathError, check_output_path, write_text_atomic
+from so101_kinematics.sim.contact_pairs import use_explicit_contact_pairs
+from so101_kinematics.sim.meshes import ensure_meshes
+from so101_kinematics.sim.render import (
     DEFAULT_CAMERA,
     DEFAULT_FPS,
     DEFAULT_SIZE,

@@ -7,12 +7,12 @@ import logging
 import sys
 from pathlib import Path
 
-from so101_bus import FIND_PORT_HINT, connect, disconnect
-from so101_calibration import HardwareError, find_calibration, load_calibration
-from so101_control import signals_as_interrupt
-from so101_hw_run import release_arm
-from so101_hw_teach import MAX_TEACH_RATE_HZ, TEACH_RATE_HZ, teach
-from so101_motion import PlanError, check_number
+from so101_kinematics.calibration import HardwareError, find_calibration, load_calibration
+from so101_kinematics.hw.bus import FIND_PORT_HINT, connect, disconnect
+from so101_kinematics.hw.control import signals_as_interrupt
+from so101_kinematics.hw.run import release_arm
+from so101_kinematics.hw.teach import MAX_TEACH_RATE_HZ, TEACH_RATE_HZ, teach
+from so101_kinematics.motion import PlanError, check_number
 
 RATE_HZ = TEACH_RATE_HZ  # printing rate [Hz]
 MAX_DURATION_S = 86_400.0  # --duration at most a day [s]

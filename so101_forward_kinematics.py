@@ -43,6 +43,13 @@ from pathlib import Path
 
 import numpy as np
 
+from so101_kinematics.errors import (
+    KinematicsInputError as KinematicsInputError,
+)
+from so101_kinematics.errors import (
+    KinematicsTypeError as KinematicsTypeError,
+)
+
 ARM_JOINTS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
 """Joints that move the object frame, base to tip."""
 
@@ -72,13 +79,6 @@ Every pose is reached within it; a larger angle is almost surely a mistake
 narrower (``so101_mujoco_utils.joint_limits``).
 """
 
-
-class KinematicsInputError(ValueError):
-    """An argument of a kinematics function is missing, not a number, or out of its range."""
-
-
-class KinematicsTypeError(KinematicsInputError, TypeError):
-    """An argument of a kinematics function has the wrong type (text, None, a boolean)."""
 
 # The gripper mount's small tilt about the wrist_roll axis, exactly as the
 # upstream quaternion (0.0172091, -0.0172091, 0.706897, 0.706897) encodes it:

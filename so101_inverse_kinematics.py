@@ -75,10 +75,10 @@ from so101_forward_kinematics import (
     get_gw1,
     joint_angles,
 )
-from so101_motion import (
+from so101_kinematics.errors import UnreachableError as UnreachableError
+from so101_kinematics.motion import (
     GRIPPER_RANGE,
     STARTING_CONFIGURATION,
-    PlanError,
     check_number,
     describe_value,
     is_finite_number,
@@ -127,24 +127,6 @@ log = logging.getLogger(__name__)
 
 _LIMIT_SLACK = 1e-9  # [rad]: a solution this close outside a limit is clipped onto it
 _DEFAULT_REFERENCE = [math.radians(REFERENCE_CONFIGURATION[joint]) for joint in ARM_JOINTS]
-
-
-class UnreachableError(PlanError):
-    """No configuration within the joint limits puts the object frame at the target.
-
-    Attributes:
-        reason: "below_table", "too_far", "too_close", "joint_limit" or
-            "no_convergence".
-        distance: how far off the target is: [m] for the reach reasons, [deg]
-            beyond the limit for "joint_limit".
-        joint: the joint at its limit for "joint_limit", else None.
-    """
-
-    def __init__(self, message: str, reason: str, distance: float, joint: str | None = None):
-        super().__init__(message)
-        self.reason = reason
-        self.distance = distance
-        self.joint = joint
 
 
 # ---------------------------------------------------------------------------

@@ -36,17 +36,18 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-import so101_display
-from so101_display import has_display  # noqa: F401  (re-exported: the scripts' display check)
+import so101_kinematics.display as so101_display
 from so101_forward_kinematics import JOINTS, TOOL_SITE
-from so101_meshes import ensure_meshes
-from so101_motion import (
+from so101_kinematics.display import has_display  # noqa: F401  (re-exported: the scripts' display check)
+from so101_kinematics.errors import ViewerClosed as ViewerClosed
+from so101_kinematics.motion import (
     GRIPPER_RANGE,
     Configuration,
     Trajectory,
     check_configuration,
     check_duration,
 )
+from so101_kinematics.sim.meshes import ensure_meshes
 
 _HERE = Path(__file__).resolve().parent
 MODEL_DIR = _HERE / "model"
@@ -55,10 +56,6 @@ VIEWER_SYNC_PERIOD = 1.0 / 60.0  # [s] of simulation time between viewer updates
 # Physics steps whose commands are computed at once (one numpy evaluation of
 # the profile): a move's memory is this many rows, whatever its duration.
 COMMAND_BLOCK_STEPS = 4096
-
-
-class ViewerClosed(Exception):
-    """The viewer window was closed; the motion stopped early."""
 
 
 def load_model(path: str | Path = SCENE_PATH) -> mujoco.MjModel:

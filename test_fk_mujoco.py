@@ -7,20 +7,12 @@ import math
 import sys
 from pathlib import Path
 
-import so101_display  # first: without a display, offscreen rendering through EGL
+import so101_kinematics.display as so101_display  # first: EGL when there is no display
 
 # isort: split
 import mujoco
 import numpy as np
 
-from so101_cli import (
-    EXIT_BAD_INPUT,
-    EXIT_INTERRUPTED,
-    ArgumentParser,
-    number,
-    range_help,
-    report_unexpected,
-)
 from so101_forward_kinematics import (
     _FIXED,
     ARM_JOINTS,
@@ -33,7 +25,21 @@ from so101_forward_kinematics import (
     get_forward_kinematics,
     get_frame_chain,
 )
-from so101_motion import MAX_DURATION, PlanError
+from so101_kinematics.cli import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
+    ArgumentParser,
+    number,
+    range_help,
+    report_unexpected,
+)
+from so101_kinematics.motion import MAX_DURATION, PlanError
+from so101_kinematics.outputs import (
+    OutputPathError,
+    atomic_output,
+    check_output_path,
+    write_text_atomic,
+)
 from so101_mujoco_utils import (
     MODEL_DIR,
     SCENE_PATH,
@@ -44,7 +50,6 @@ from so101_mujoco_utils import (
     send_position_command,
     set_initial_pose,
 )
-from so101_outputs import OutputPathError, atomic_output, check_output_path, write_text_atomic
 
 _HERE = Path(__file__).resolve().parent
 

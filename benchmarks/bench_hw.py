@@ -12,7 +12,11 @@ Figures (need the hw extra, lerobot):
 
 from __future__ import annotations
 
+import statistics
+import time
+
 from benchmarks.common import summarize
+from so101_kinematics.virtual.protocol import INST_SYNC_READ
 
 
 def bench_hw(quick: bool) -> dict:
@@ -21,7 +25,6 @@ def bench_hw(quick: bool) -> dict:
         import lerobot  # noqa: F401
     except ImportError:
         return {"_hw_skipped": "lerobot is not installed (pip install -e '.[hw]')"}
-    from virtual_so101 import measure_cycle
 
     out: dict = {}
     samples: dict[str, list[float]] = {}
@@ -55,10 +58,16 @@ def measure_loop_timing(rates_hz=(100.0, 200.0), seconds: float = 3.0, wire_timi
         rate -> ``achieved_hz``, ``period_p50_ms``, ``period_p99_error_ms``,
         ``period_max_error_ms``, ``cycles``, ``overruns``, ``skipped``.
     """
-    from so101_bus import configure, connect, disconnect, enable_torque_in_place, release_torque
-    from so101_calibration import load_calibration
-    from so101_control import ArmSession, gc_frozen
-    from virtual_so101 import DEFAULT_CALIBRATION_PATH, VirtualSO101
+    from so101_kinematics.calibration import load_calibration
+    from so101_kinematics.hw.bus import (
+        configure,
+        connect,
+        disconnect,
+        enable_torque_in_place,
+        release_torque,
+    )
+    from so101_kinematics.hw.control import ArmSession, gc_frozen
+    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
 
     results = {}
     with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, wire_timing=wire_timing) as arm:
@@ -88,3 +97,142 @@ def _swing_wrist(session, seconds: float) -> dict[str, float]:
         elapsed = session.cycles[-1].wall_s
     session.move(home, 0.5)
     return session.timing()
+
+
+def virtual_arm_bus(arm, degrees: bool = True):
+    """A lerobot ``FeetechMotorsBus`` for the arm with its calibration (needs lerobot).
+
+    Args:
+        arm: the virtual arm.
+        degrees: arm joints in DEGREES (else RANGE_M100_100); the gripper is RANGE_0_100.
+    """
+    from lerobot.motors import Motor, MotorCalibration, MotorNormMode
+    from lerobot.motors.feetech import FeetechMotorsBus
+
+    body = MotorNormMode.DEGREES if degrees else MotorNormMode.RANGE_M100_100
+    motors = {name: Motor(entry["id"], "sts3215",
+                          MotorNormMode.RANGE_0_100 if name == "gripper" else body)
+              for name, entry in arm.calibration.items()}
+    calibration = {name: MotorCalibration(**entry) for name, entry in arm.calibration.items()}
+    return FeetechMotorsBus(port=arm.port, motors=motors, calibration=calibration)
+
+
+class _LoopbackSerial:
+    """A stand-in for the bus's pyserial port that answers SYNC_READs instantly, in-process.
+
+    Timing lerobot against it gives the host's own cost of a cycle (packing,
+    parsing, decoding), which a real arm costs too.
+    """
+
+    def __init__(self, replies: bytes):
+        self.replies = replies
+        self.buffer = bytearray()
+        self.is_open = True
+
+    def write(self, data) -> int:
+        if len(data) > 4 and data[4] == INST_SYNC_READ:
+            self.buffer += self.replies
+        return len(data)
+
+    def read(self, size: int = 1) -> bytes:
+        out = bytes(self.buffer[:size])
+        del self.buffer[:size]
+        return out
+
+    @property
+    def in_waiting(self) -> int:
+        return len(self.buffer)
+
+    def flush(self) -> None:
+        pass
+
+    def reset_input_buffer(self) -> None:
+        self.buffer.clear()
+
+    def close(self) -> None:
+        self.is_open = False
+
+
+def _time_cycles(bus, n: int, warmup: int, on_warm=None) -> list[float]:
+    """Durations [s] of n sync_read(Present_Position) + sync_write(Goal_Position) cycles."""
+    times = []
+    for i in range(n + warmup):
+        t0 = time.perf_counter()
+        present = bus.sync_read("Present_Position", normalize=False)
+        bus.sync_write("Goal_Position", present, normalize=False)
+        if i == warmup - 1 and on_warm is not None:
+            on_warm()
+        if i >= warmup:
+            times.append(time.perf_counter() - t0)
+    return sorted(times)
+
+
+def measure_cycle(n: int = 1000, wire_timing: bool = True, arm=None,
+                  warmup: int = 50) -> dict[str, float]:
+    """Time lerobot's 6-motor sync_read + sync_write cycle against the virtual arm (needs lerobot).
+
+    Each cycle reads Present_Position and writes it back as Goal_Position (raw
+    ticks), as a teleoperation loop does. The same cycles are then timed
+    against an in-process loopback port, which gives lerobot's own (host) cost;
+    what remains of the cycle after the wire time and the host cost is what
+    the emulator adds (its wake-up and processing).
+
+    Args:
+        n: cycles to time.
+        wire_timing: emulate the wire's byte time.
+        arm: an existing virtual arm (else one is started and closed).
+        warmup: cycles run before timing.
+
+    Returns:
+        ``cycle_median_ms`` / ``cycle_p99_ms`` (client side); ``wire_ms``
+        (88 bytes x 10 bits at the bus's baud rate, 0 without wire timing);
+        ``overhead_median_ms`` / ``_p99_ms`` (cycle - wire); ``host_median_ms``
+        (lerobot's cost, loopback); ``emulator_added_median_ms`` (cycle median -
+        wire - host median: without wire timing, the emulator's whole share,
+        i.e. wake-ups, processing and the pty; with wire timing the host's work
+        partly overlaps the sync_write's wire time, so it reads lower); the
+        emulator's lateness behind each reply's due time
+        (``emulator_lateness_median_ms`` / ``_p99_ms``) and ``late_replies``.
+    """
+    from so101_kinematics.virtual.arm import VirtualSO101
+    from so101_kinematics.virtual.protocol import BITS_PER_BYTE, cycle_wire_bytes, status_packet
+
+    own = arm is None
+    arm = arm or VirtualSO101(wire_timing=wire_timing)
+    bus = None
+    try:
+        arm.set_wire_timing(wire_timing)
+        bus = virtual_arm_bus(arm)
+        bus.connect()
+        times = _time_cycles(bus, n, warmup, on_warm=arm.clear_stats)
+        stats = arm.reply_stats()
+        wire_ms = cycle_wire_bytes() * BITS_PER_BYTE / bus.port_handler.getBaudRate() * 1e3
+        wire_ms = wire_ms if wire_timing else 0.0
+        present = bus.sync_read("Present_Position", normalize=False)
+        replies = b"".join(status_packet(bus.motors[name].id, 0, value.to_bytes(2, "little"))
+                           for name, value in present.items())
+        serial_port = bus.port_handler.ser
+        bus.port_handler.ser = _LoopbackSerial(replies)
+        try:
+            host = _time_cycles(bus, n, warmup)
+        finally:
+            bus.port_handler.ser = serial_port
+        median, p99 = 1e3 * statistics.median(times), 1e3 * times[int(0.99 * (len(times) - 1))]
+        host_median = 1e3 * statistics.median(host)
+        return {
+            "cycles": n, "wire_timing": wire_timing, "wire_ms": wire_ms,
+            "cycle_median_ms": median, "cycle_p99_ms": p99,
+            "overhead_median_ms": median - wire_ms, "overhead_p99_ms": p99 - wire_ms,
+            "host_median_ms": host_median,
+            "emulator_added_median_ms": median - wire_ms - host_median,
+            "emulator_lateness_median_ms": stats["lateness_median_ms"],
+            "emulator_lateness_p99_ms": stats["lateness_p99_ms"],
+            "late_replies": stats["late_replies"],
+        }
+    finally:
+        if bus is not None:
+            bus.disconnect(disable_torque=False)
+        if own:
+            arm.close()
+
+

@@ -37,8 +37,8 @@ def bench_pick_place(quick: bool) -> dict:
 
     from benchmarks.common import summarize
     from pick_place_sim import CubeStart, build_model, run_pick_place
-    from so101_motion import FINAL_CONFIGURATION, STARTING_CONFIGURATION
-    from so101_render import QUALITY, FrameRenderer, target_cubes
+    from so101_kinematics.motion import FINAL_CONFIGURATION, STARTING_CONFIGURATION
+    from so101_kinematics.sim.render import QUALITY, FrameRenderer, target_cubes
 
     out: dict = {}
     run_pick_place()  # warm-up: compile caches, meshes

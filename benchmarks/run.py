@@ -26,7 +26,7 @@ _HERE = Path(__file__).resolve().parent
 REPO = _HERE.parent
 sys.path.insert(0, str(REPO))
 
-import so101_display  # noqa: E402, F401  (before mujoco: EGL when there is no display)
+import so101_kinematics.display as so101_display  # noqa: E402, F401  (before mujoco: EGL when there is no display)
 
 # isort: split
 from benchmarks.bench_fk import bench_fk  # noqa: E402

@@ -36,7 +36,7 @@ def _spin(stop_at: float) -> None:
 
 def soak(runs: int = 20, busy: int = 2) -> list[dict]:
     """Run the README's hardware command ``runs`` times with ``busy`` spinning processes."""
-    from virtual_so101 import DEFAULT_CALIBRATION_PATH, VirtualSO101
+    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
 
     results = []
     spinners = [multiprocessing.Process(target=_spin, args=(time.time() + 3600,), daemon=True)
@@ -82,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{completed} of {len(results)} runs completed with {args.busy} busy processes; "
           f"{sum(r['outages'] for r in results)} outages ridden through.")
     if args.json:
-        from so101_outputs import write_text_atomic
+        from so101_kinematics.outputs import write_text_atomic
 
         write_text_atomic(args.json, json.dumps({"busy": args.busy, "runs": results}, indent=2))
     return 0 if completed == len(results) else 1

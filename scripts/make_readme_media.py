@@ -10,7 +10,7 @@ _HERE = Path(__file__).resolve().parent
 REPO = _HERE.parent
 sys.path.insert(0, str(REPO))
 
-import so101_display  # noqa: E402, F401  (before mujoco: EGL when there is no display)
+import so101_kinematics.display as so101_display  # noqa: E402, F401  (before mujoco: EGL when there is no display)
 
 # isort: split
 import mujoco  # noqa: E402
@@ -18,8 +18,8 @@ import numpy as np  # noqa: E402
 
 import so101_mujoco_utils as utils  # noqa: E402
 from pick_place_sim import INITIAL_KEYFRAME, CubeStart, build_model, total_duration  # noqa: E402
-from so101_motion import default_plan, pick_and_place_steps, run_plan  # noqa: E402
-from so101_render import QUALITY, FrameRenderer, target_cubes  # noqa: E402
+from so101_kinematics.motion import default_plan, pick_and_place_steps, run_plan  # noqa: E402
+from so101_kinematics.sim.render import QUALITY, FrameRenderer, target_cubes  # noqa: E402
 
 PNG_PATH = REPO / "docs" / "pick_place.png"
 GIF_PATH = REPO / "docs" / "pick_place.gif"

@@ -11,7 +11,7 @@ import pytest
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 # Offscreen rendering on machines without a display (CI): Mesa's EGL, chosen before mujoco loads.
-import so101_display  # noqa: E402, F401
+import so101_kinematics.display as so101_display  # noqa: E402, F401
 
 
 def assert_transforms_close(g_actual, g_expected, pos_tol: float = 1e-9, rot_tol: float = 1e-9,
@@ -60,7 +60,7 @@ def run_default_plan(m, d, after_step) -> None:
     import mujoco
 
     import so101_mujoco_utils as utils
-    from so101_motion import default_plan, run_plan
+    from so101_kinematics.motion import default_plan, run_plan
 
     mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
     mujoco.mj_forward(m, d)
@@ -73,7 +73,7 @@ def run_default_plan(m, d, after_step) -> None:
 @pytest.fixture
 def calibration():
     """The virtual arm's lerobot calibration (calibration/virtual_so101.json), loaded."""
-    from so101_calibration import load_calibration
+    from so101_kinematics.calibration import load_calibration
 
     return load_calibration(REPO / "calibration" / "virtual_so101.json")
 

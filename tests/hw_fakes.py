@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import types
 
-from so101_calibration import MOTOR_IDS
-from so101_control import ArmSession
 from so101_forward_kinematics import JOINTS
+from so101_kinematics.calibration import MOTOR_IDS
+from so101_kinematics.hw.control import ArmSession
 
 HOME = {"shoulder_pan": 0.0, "shoulder_lift": -90.0, "elbow_flex": 90.0, "wrist_flex": 30.0,
         "wrist_roll": 0.0, "gripper": 9.0}

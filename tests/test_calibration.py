@@ -15,8 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import virtual_so101_calibration as vcal
-from so101_calibration import (
+import so101_kinematics.virtual.calibration as vcal
+from so101_forward_kinematics import JOINTS
+from so101_kinematics.calibration import (
     CalibrationError,
     HardwareError,
     ServoCalibration,
@@ -24,8 +25,7 @@ from so101_calibration import (
     ticks_to_user,
     user_to_ticks,
 )
-from so101_forward_kinematics import JOINTS
-from virtual_sts3215 import VirtualServo
+from so101_kinematics.virtual.servo import VirtualServo
 
 SHIPPED = Path(__file__).resolve().parent.parent / "calibration" / "virtual_so101.json"
 TICKS_PER_RAD = 4095 / (2 * math.pi)  # lerobot's DEGREES scale: 360 deg = 4095 ticks

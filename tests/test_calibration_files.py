@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from hw_fakes import HOME, FakeBus, FakeClock, make_session  # noqa: F401
 
-from so101_bus import make_bus
-from so101_calibration import (
+from so101_forward_kinematics import JOINTS
+from so101_kinematics.calibration import (
     MOTOR_IDS,
     CalibrationError,
     ServoCalibration,
@@ -20,7 +20,7 @@ from so101_calibration import (
     load_calibration,
     ticks_to_user,
 )
-from so101_forward_kinematics import JOINTS
+from so101_kinematics.hw.bus import make_bus
 
 REPO = Path(__file__).resolve().parent.parent
 VIRTUAL_CALIBRATION = REPO / "calibration" / "virtual_so101.json"

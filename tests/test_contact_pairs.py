@@ -9,7 +9,7 @@ from conftest import run_default_plan
 
 import pick_place_sim
 from pick_place_sim import CubeStart, run_pick_place
-from so101_contact_pairs import (
+from so101_kinematics.sim.contact_pairs import (
     collidable_geom_pairs,
     mixed_contact_parameters,
     use_explicit_contact_pairs,

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 from hw_fakes import HOME, FakeBus, FakeClock, make_session  # noqa: F401
 
-import so101_hw_run as hw
-from so101_control import (
+import so101_kinematics.hw.run as hw
+from so101_forward_kinematics import JOINTS
+from so101_kinematics.hw.control import (
     MAX_JOINT_SPEED_DEG_S,
     SPEED_CAP_LIMIT_DEG_S,
     TRACKING_TIMEOUT_S,
@@ -27,17 +28,21 @@ from so101_control import (
     session_for,
     speed_caps,
 )
-from so101_forward_kinematics import JOINTS
-from so101_motion import JointLimitError, default_plan
+from so101_kinematics.motion import JointLimitError, default_plan
 
 REPO = Path(__file__).resolve().parent.parent
 VIRTUAL_CALIBRATION = REPO / "calibration" / "virtual_so101.json"
 
 
 # --- speed cap ---------------------------------------------------------------------------
-def test_peak_speed_factors():
-    assert peak_speed_factor("linear") == pytest.approx(1.0)
-    assert peak_speed_factor("minimum_jerk") == pytest.approx(1.875, rel=1e-4)
+@pytest.mark.parametrize("profile", ["linear", "minimum_jerk"])
+def test_peak_speed_factors_are_the_profiles_steepest_slope(profile):
+    from so101_kinematics.motion import PROFILES
+
+    s = np.linspace(0.0, 1.0, 200_001)
+    slope = np.diff([PROFILES[profile](x) for x in s]) / np.diff(s)
+    assert peak_speed_factor(profile) == pytest.approx(slope.max(), rel=1e-8)
+    assert peak_speed_factor(profile) >= slope.max()  # never under the true peak
 
 
 def test_capped_duration_stretches_only_when_needed():

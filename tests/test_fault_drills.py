@@ -15,8 +15,8 @@ import pytest
 pytest.importorskip("lerobot")
 pytestmark = [pytest.mark.hw, pytest.mark.slow]
 
-from so101_fault_drill import FAULTS, PHASES, run_drill  # noqa: E402
 from so101_forward_kinematics import JOINTS  # noqa: E402
+from so101_kinematics.fault_drill import FAULTS, PHASES, run_drill  # noqa: E402
 
 RIDDEN_THROUGH = {"3 replies lost", "bus outage 0.5 s", "replies 80 ms late (x3)"}
 """Glitches the run must complete through (the issue: outages up to 0.5 s)."""

@@ -7,7 +7,7 @@ import random
 
 import pytest
 
-import feetech_protocol as fp
+import so101_kinematics.virtual.protocol as fp
 
 PING_1 = fp.instruction_packet(1, fp.INST_PING)
 READ_3 = fp.instruction_packet(3, fp.INST_READ, bytes((56, 2)))

@@ -24,7 +24,7 @@ import so101_forward_kinematics as fk
 import so101_inverse_kinematics as ik
 import test_fk_mujoco
 from so101_forward_kinematics import ARM_JOINTS, JOINTS
-from so101_motion import MAX_DURATION, STARTING_CONFIGURATION, PlanError, load_plan
+from so101_kinematics.motion import MAX_DURATION, STARTING_CONFIGURATION, PlanError, load_plan
 
 FUZZ = settings(derandomize=True, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
@@ -236,7 +236,7 @@ fk_arguments = st.lists(
 
 
 def small_frames_picture(path, *args, **kwargs):
-    from so101_outputs import write_text_atomic
+    from so101_kinematics.outputs import write_text_atomic
 
     return write_text_atomic(path, "a stand-in for the 1200x900 picture")
 

@@ -19,12 +19,12 @@ import pytest
 pytest.importorskip("lerobot")
 pytestmark = [pytest.mark.hw, pytest.mark.slow]
 
-import so101_hw_run as hw  # noqa: E402
-from so101_bus import connect, disconnect  # noqa: E402
-from so101_calibration import load_calibration  # noqa: E402
+import so101_kinematics.hw.run as hw  # noqa: E402
 from so101_forward_kinematics import ARM_JOINTS  # noqa: E402
-from so101_motion import Plan, Step  # noqa: E402
-from virtual_so101 import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
+from so101_kinematics.calibration import load_calibration  # noqa: E402
+from so101_kinematics.hw.bus import connect, disconnect  # noqa: E402
+from so101_kinematics.motion import Plan, Step  # noqa: E402
+from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)

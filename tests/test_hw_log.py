@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from hw_fakes import HOME, FakeBus, FakeClock, make_session  # noqa: F401
 
-import so101_hw_log as hwlog
+import so101_kinematics.hw.log as hwlog
 from so101_forward_kinematics import JOINTS
 
 REPO = Path(__file__).resolve().parent.parent

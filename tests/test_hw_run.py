@@ -7,13 +7,13 @@ from pathlib import Path
 import pytest
 from hw_fakes import HOME, FakeBus, FakeClock, make_session  # noqa: F401
 
-import so101_hw_run as hw
-from so101_calibration import (
+import so101_kinematics.hw.run as hw
+from so101_forward_kinematics import JOINTS
+from so101_kinematics.calibration import (
     ServoCalibration,
 )
-from so101_control import FreezeRequested
-from so101_forward_kinematics import JOINTS
-from so101_motion import JointLimitError, Plan, PlanError, Step, default_plan
+from so101_kinematics.hw.control import FreezeRequested
+from so101_kinematics.motion import JointLimitError, Plan, PlanError, Step, default_plan
 
 REPO = Path(__file__).resolve().parent.parent
 VIRTUAL_CALIBRATION = REPO / "calibration" / "virtual_so101.json"

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from conftest import REPO
 
-import so101_cartesian_plan as cp
 import so101_inverse_kinematics as ik
-import so101_motion
+import so101_kinematics.cartesian_plan as cp
+import so101_kinematics.motion as so101_motion
 from so101_forward_kinematics import ARM_JOINTS, JOINTS, get_forward_kinematics
 
 POSITION_TOL = 1e-6   # [m], the acceptance

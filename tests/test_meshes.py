@@ -10,7 +10,7 @@ import sys
 import pytest
 from conftest import REPO
 
-import so101_meshes as meshes
+import so101_kinematics.sim.meshes as meshes
 
 
 @pytest.fixture
@@ -71,7 +71,7 @@ def test_ensure_meshes_reinstalls_a_missing_file(asset_copy):
 
 
 def test_command_line_check_passes_on_the_installed_meshes(model):
-    result = subprocess.run([sys.executable, "so101_meshes.py", "--check"], cwd=REPO,
-                            capture_output=True, text=True, timeout=60)
+    result = subprocess.run([sys.executable, "-m", "so101_kinematics.sim.meshes", "--check"],
+                            cwd=REPO, capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     assert "13 meshes verified" in result.stdout

@@ -8,7 +8,7 @@ import pytest
 from conftest import REPO
 
 from so101_forward_kinematics import BODY_OF_FRAME, JOINTS, TOOL_SITE
-from so101_meshes import read_manifest
+from so101_kinematics.sim.meshes import read_manifest
 
 SIM_SECONDS = 3.0  # [s] of random commands
 COMMAND_PERIOD = 0.1  # [s] between new random targets

@@ -22,19 +22,19 @@ pytest.importorskip("lerobot")
 pytestmark = pytest.mark.hw
 
 import pick_place_hw as cli  # noqa: E402
-import so101_hw_run as hw  # noqa: E402
+import so101_kinematics.hw.run as hw  # noqa: E402
 import so101_mujoco_utils as mu  # noqa: E402
 from benchmarks.bench_hw import measure_loop_timing  # noqa: E402
-from so101_bus import (  # noqa: E402
+from so101_forward_kinematics import ARM_JOINTS, JOINTS  # noqa: E402
+from so101_kinematics.calibration import CalibrationError, load_calibration  # noqa: E402
+from so101_kinematics.hw.bus import (  # noqa: E402
     ConnectionFailed,
     calibration_mismatch,
     connect,
     disconnect,
 )
-from so101_calibration import CalibrationError, load_calibration  # noqa: E402
-from so101_forward_kinematics import ARM_JOINTS, JOINTS  # noqa: E402
-from so101_motion import JointLimitError, Plan, Step, default_plan  # noqa: E402
-from virtual_so101 import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
+from so101_kinematics.motion import JointLimitError, Plan, Step, default_plan  # noqa: E402
+from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
 
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
 HOME = {"shoulder_pan": 0.0, "shoulder_lift": -90.0, "elbow_flex": 90.0, "wrist_flex": 30.0,

@@ -15,9 +15,9 @@ from conftest import run_default_plan
 import pick_place_sim
 import so101_mujoco_utils as utils
 from pick_place_sim import CubeStart, choose_mode, run_pick_place
-from so101_cartesian_plan import cartesian_plan
 from so101_forward_kinematics import get_forward_kinematics
-from so101_motion import (
+from so101_kinematics.cartesian_plan import cartesian_plan
+from so101_kinematics.motion import (
     FINAL_CONFIGURATION,
     GRIPPER_CLOSED,
     STARTING_CONFIGURATION,

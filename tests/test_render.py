@@ -6,11 +6,11 @@ import mujoco
 import numpy as np
 import pytest
 
-import so101_meshes
+import so101_kinematics.sim.meshes as so101_meshes
 from pick_place_sim import CubeStart, build_model
 from so101_forward_kinematics import get_forward_kinematics
-from so101_motion import FINAL_CONFIGURATION, STARTING_CONFIGURATION
-from so101_render import (
+from so101_kinematics.motion import FINAL_CONFIGURATION, STARTING_CONFIGURATION
+from so101_kinematics.sim.render import (
     FINAL_RGBA,
     QUALITY,
     START_RGBA,

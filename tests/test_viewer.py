@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 import xvfb
 
-import so101_display
+import so101_kinematics.display as so101_display
 import test_fk_mujoco as fk_script
 from so101_forward_kinematics import get_forward_kinematics
 

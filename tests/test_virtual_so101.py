@@ -18,13 +18,15 @@ import tty
 import numpy as np
 import pytest
 
-import feetech_protocol as fp
+import so101_kinematics.virtual.arm as vso
+import so101_kinematics.virtual.calibration as vcal
+import so101_kinematics.virtual.protocol as fp
 import so101_mujoco_utils as smu
-import virtual_so101 as vso
-import virtual_so101_calibration as vcal
+from benchmarks.bench_hw import measure_cycle, virtual_arm_bus
 from so101_forward_kinematics import JOINTS
-from so101_motion import JointLimitError
-from virtual_so101 import DEFAULT_CALIBRATION_PATH, VirtualSO101
+from so101_kinematics.motion import JointLimitError
+from so101_kinematics.paths import REPO
+from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
 
 TICK_DEG = 360.0 / 4095.0  # one encoder tick [deg]
 GRIPPER_TICK = 100.0 / 1251.0  # one gripper tick in [0, 100] units (shipped calibration)
@@ -61,7 +63,7 @@ def lerobot_bus_factory():
     buses = []
 
     def make(virtual_arm, connect=True):
-        bus = vso.make_bus(virtual_arm)
+        bus = virtual_arm_bus(virtual_arm)
         if connect:
             bus.connect()
         buses.append(bus)
@@ -278,7 +280,7 @@ def test_set_pose_rejects_configurations_outside_the_limits(fresh_arm):
 
 def test_command_line_refuses_the_viewer_without_a_display():
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    result = subprocess.run([sys.executable, str(vso._HERE / "virtual_so101.py"), "--viewer"],
+    result = subprocess.run([sys.executable, str(REPO / "virtual_so101.py"), "--viewer"],
                             env=env, capture_output=True, text=True, timeout=60)
     assert result.returncode != 0
     assert "display" in result.stderr
@@ -505,7 +507,7 @@ def test_stalled_joint_misses_its_goal_with_rising_load_and_overload(bus, fresh_
 
 @pytest.mark.hw
 def test_command_line_serves_with_faults_from_power_up(lerobot_bus_factory):
-    process = subprocess.Popen([sys.executable, str(vso._HERE / "virtual_so101.py"),
+    process = subprocess.Popen([sys.executable, str(REPO / "virtual_so101.py"),
                                 "--faults", "remove:wrist_flex"],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
@@ -546,7 +548,7 @@ def test_lock_decides_which_eeprom_writes_survive_a_power_cycle(bus, fresh_arm):
 @pytest.mark.hw
 def test_measure_cycle_reports_wire_time_and_no_late_replies(fresh_arm):
     pytest.importorskip("lerobot")
-    result = vso.measure_cycle(n=100, wire_timing=True, arm=fresh_arm, warmup=10)
+    result = measure_cycle(n=100, wire_timing=True, arm=fresh_arm, warmup=10)
     assert result["wire_ms"] == pytest.approx(0.88)  # 88 bytes at 1 Mbaud, 10 bits a byte
     assert result["cycle_median_ms"] >= result["wire_ms"]  # replies wait for their bytes' time
     assert result["late_replies"] == 0

@@ -7,10 +7,10 @@ import sys
 import time
 from collections.abc import Mapping
 
-from so101_bus import PortLost, port_lost, recover_port
-from so101_control import READ_RETRIES, RECOVERY_TIMEOUT_S, RateLoop, capped_duration
 from so101_forward_kinematics import ARM_JOINTS, JOINTS, get_forward_kinematics
-from so101_motion import Configuration, Plan, pick_and_place_steps
+from so101_kinematics.hw.bus import PortLost, port_lost, recover_port
+from so101_kinematics.hw.control import READ_RETRIES, RECOVERY_TIMEOUT_S, RateLoop, capped_duration
+from so101_kinematics.motion import Configuration, Plan, pick_and_place_steps
 
 TEACH_RATE_HZ = 5.0        # live pose printing [Hz]
 MAX_TEACH_RATE_HZ = 50.0   # a terminal cannot show more [Hz]

@@ -24,6 +24,12 @@ from pathlib import Path
 from typing import Any
 
 from so101_forward_kinematics import JOINTS
+from so101_kinematics.errors import (
+    CalibrationError as CalibrationError,
+)
+from so101_kinematics.errors import (
+    HardwareError as HardwareError,
+)
 
 # --- Settings ---------------------------------------------------------------
 ROBOT_TYPE = "so101_follower"
@@ -39,18 +45,6 @@ CALIBRATE_HINT = (f"lerobot-calibrate --robot.type={ROBOT_TYPE} --robot.port={{p
 
 
 # --- Errors -----------------------------------------------------------------
-class HardwareError(RuntimeError):
-    """The arm cannot be used as asked; the message says what to do."""
-
-
-class CalibrationError(HardwareError, ValueError):
-    """The calibration file is missing, malformed, or does not match the servos.
-
-    Both a :class:`HardwareError` (what the real arm's callers catch) and a
-    ``ValueError`` (a bad calibration is a bad argument of the virtual arm).
-    """
-
-
 # --- Calibration files ---------------------------------------------------------
 @dataclass(frozen=True)
 class ServoCalibration:

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from feetech_protocol import (
+from so101_kinematics.virtual.calibration import radians_to_present
+from so101_kinematics.virtual.protocol import (
     ADDR,
     BAUD_RATES,
     EEPROM_END,
@@ -21,7 +22,6 @@ from feetech_protocol import (
     decode_sign_magnitude,
     encode_sign_magnitude,
 )
-from virtual_so101_calibration import radians_to_present
 
 # Factory values; Return_Delay_Time as lerobot leaves it (see virtual_so101: deviations).
 FACTORY = {

@@ -1,6 +1,6 @@
 """The virtual SO-101's emulator process: six STS3215s on a pty, a MuJoCo arm behind them.
 
-It runs in its own interpreter, started by :class:`virtual_so101.VirtualSO101`
+It runs in its own interpreter, started by :class:`so101_kinematics.virtual.arm.VirtualSO101`
 (entry point :func:`emulator_main`), and serves the bus and steps the physics
 in one single-threaded event loop; the parent's commands arrive on a socket pair.
 
@@ -14,7 +14,7 @@ limp (the position actuator's gains are zeroed; gravity and the joint's
 damping and friction act) and, as on the STS, Goal_Position then follows
 Present_Position so re-enabling torque does not jump. Max_Torque_Limit scales
 the actuator's force range. Lock = 0 saves EEPROM writes (addresses < 40) to
-the image restored by :meth:`virtual_so101.VirtualSO101.power_cycle`; with Lock = 1 they act
+the image restored by :meth:`VirtualSO101.power_cycle`; with Lock = 1 they act
 until the next power cycle. Present_Velocity [ticks/s] and Present_Load
 [0.1 % of the stall torque, sign bit 10] come from the simulation. Acceleration,
 speed limits and the PID coefficients are stored but do not shape the motion:
@@ -37,9 +37,10 @@ import time
 import tty
 from collections import deque
 from multiprocessing.connection import Connection
-from pathlib import Path
 
-from feetech_protocol import (
+from so101_kinematics.paths import REPO
+from so101_kinematics.virtual.calibration import TICKS_PER_RAD
+from so101_kinematics.virtual.protocol import (
     ADDR,
     BAUD_RATES,
     BITS_PER_BYTE,
@@ -58,10 +59,7 @@ from feetech_protocol import (
     status_packet,
     take_packets,
 )
-from virtual_so101_calibration import TICKS_PER_RAD
-from virtual_sts3215 import VirtualServo
-
-_HERE = Path(__file__).resolve().parent
+from so101_kinematics.virtual.servo import VirtualServo
 
 logger = logging.getLogger("virtual_so101")
 
@@ -564,7 +562,7 @@ def emulator_main(fd: int) -> None:
     options = conn.recv()
     logging.basicConfig(level=options.get("log_level", logging.WARNING),
                         format="%(asctime)s virtual_so101: %(message)s")
-    sys.path.insert(0, str(_HERE))
+    sys.path.insert(0, str(REPO))  # the course utils beside the package
     try:
         emulator = _Emulator(conn, options)
     except Exception as exc:  # noqa: BLE001 - reported to the parent

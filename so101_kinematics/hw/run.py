@@ -18,7 +18,16 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Any
 
-from so101_bus import (
+from so101_forward_kinematics import JOINTS
+from so101_kinematics.calibration import (
+    CALIBRATE_HINT,
+    MOTOR_IDS,
+    CalibrationError,
+    HardwareError,
+    calibrated_limits,
+)
+from so101_kinematics.errors import NotConfirmed as NotConfirmed
+from so101_kinematics.hw.bus import (
     SETUP_ATTEMPTS,
     PortLost,
     bus_errors,
@@ -31,14 +40,7 @@ from so101_bus import (
     silent_servos,
     with_retries,
 )
-from so101_calibration import (
-    CALIBRATE_HINT,
-    MOTOR_IDS,
-    CalibrationError,
-    HardwareError,
-    calibrated_limits,
-)
-from so101_control import (
+from so101_kinematics.hw.control import (
     DEFAULT_RATE_HZ,
     MAX_JOINT_SPEED_DEG_S,
     RECOVERY_TIMEOUT_S,
@@ -57,8 +59,7 @@ from so101_control import (
     stop_on_signals,
     tracking_tolerances,
 )
-from so101_forward_kinematics import JOINTS
-from so101_motion import (
+from so101_kinematics.motion import (
     Configuration,
     JointLimitError,
     Limits,
@@ -75,10 +76,6 @@ logger = logging.getLogger("pick_place_hw")
 LIMIT_SLACK_DEG = 2.0  # a start this far outside the calibration is clamped [deg]
 RELEASE_HINT = "python pick_place_hw.py --release --port {port} {arm}"
 """The documented command that releases the torque, with the arm held by hand."""
-
-
-class NotConfirmed(HardwareError):
-    """The user did not confirm (or could not be asked)."""
 
 
 class MotionAborted(HardwareError):

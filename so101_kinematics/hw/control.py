@@ -32,13 +32,33 @@ import weakref
 from collections.abc import Callable, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
-from functools import cache
 from typing import NamedTuple
 
-from so101_bus import PORT_SETTLE_S, PortLost, discard_stale_input, port_lost, recover_port
-from so101_calibration import HardwareError, calibrated_limits
 from so101_forward_kinematics import JOINTS
-from so101_motion import (
+from so101_kinematics.calibration import calibrated_limits
+from so101_kinematics.errors import (
+    BusError as BusError,
+)
+from so101_kinematics.errors import (
+    FreezeRequested as FreezeRequested,
+)
+from so101_kinematics.errors import (
+    ServoFault as ServoFault,
+)
+from so101_kinematics.errors import (
+    StopRequested as StopRequested,
+)
+from so101_kinematics.errors import (
+    TrackingError as TrackingError,
+)
+from so101_kinematics.hw.bus import (
+    PORT_SETTLE_S,
+    PortLost,
+    discard_stale_input,
+    port_lost,
+    recover_port,
+)
+from so101_kinematics.motion import (
     PROFILES,
     Configuration,
     JointLimitError,
@@ -77,33 +97,15 @@ STATUS_BITS = {0x01: "input voltage out of range", 0x04: "overheated", 0x08: "ov
 
 
 # --- Errors -----------------------------------------------------------------
-class TrackingError(HardwareError):
-    """A joint stayed too far from its command for too long: a stall or a collision."""
-
-
-class BusError(HardwareError):
-    """The arm went unobserved for longer than ``OUTAGE_TOLERANCE_S`` during motion."""
-
-
-class ServoFault(HardwareError):
-    """A servo reported an error bit (overload, overheating, voltage) during motion."""
-
-
-class StopRequested(HardwareError):
-    """A stop was requested (Ctrl-C, SIGTERM, SIGHUP) and honoured at the next control cycle."""
-
-
-class FreezeRequested(KeyboardInterrupt):
-    """A second stop signal: freeze at once where the arm is, torque on (no return)."""
-
-
 # --- Speed cap ---------------------------------------------------------------
-@cache
+PEAK_SPEED_FACTOR = {"linear": 1.0, "minimum_jerk": 1.875}
+"""Peak of d(fraction)/ds of each time scaling: 1 for linear; 30 s^2 (1 - s)^2 peaks at
+s = 1/2 for minimum jerk: 15/8."""
+
+
 def peak_speed_factor(profile: str) -> float:
-    """Peak of d(fraction)/ds for a time-scaling profile (1 for linear, 1.875 for minimum jerk)."""
-    scaling = PROFILES[profile]
-    n = 4000
-    return max((scaling((i + 1) / n) - scaling(i / n)) * n for i in range(n))
+    """Peak speed of a move over its mean speed, for a time-scaling profile (exact)."""
+    return PEAK_SPEED_FACTOR[profile]
 
 
 def speed_caps(max_joint_speed: float = MAX_JOINT_SPEED_DEG_S,

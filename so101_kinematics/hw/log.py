@@ -14,10 +14,10 @@ import os
 from collections.abc import Iterable
 from pathlib import Path
 
-from so101_control import ArmSession, Cycle
 from so101_forward_kinematics import JOINTS
-from so101_motion import unit
-from so101_outputs import atomic_output, temporary_beside
+from so101_kinematics.hw.control import ArmSession, Cycle
+from so101_kinematics.motion import unit
+from so101_kinematics.outputs import atomic_output, temporary_beside
 
 FLUSH_EVERY_S = 0.5  # the log reaches the disk at least this often [s of run time]
 HEADER = (["t_s", "wall_s", "step"] + [f"cmd_{j}" for j in JOINTS]

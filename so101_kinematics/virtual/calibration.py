@@ -28,8 +28,7 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 
-from feetech_protocol import RESOLUTION
-from so101_calibration import (
+from so101_kinematics.calibration import (
     MOTOR_IDS,
     CalibrationError,
     ServoCalibration,
@@ -37,10 +36,11 @@ from so101_calibration import (
     ticks_to_user,
     user_to_ticks,
 )
-from so101_calibration import load_calibration as load_lerobot_calibration
+from so101_kinematics.calibration import load_calibration as load_lerobot_calibration
+from so101_kinematics.paths import CALIBRATION_DIR
+from so101_kinematics.virtual.protocol import RESOLUTION
 
-_HERE = Path(__file__).resolve().parent
-DEFAULT_CALIBRATION_PATH = _HERE / "calibration" / "virtual_so101.json"
+DEFAULT_CALIBRATION_PATH = CALIBRATION_DIR / "virtual_so101.json"
 
 TICKS_PER_RAD = (RESOLUTION - 1) / (2.0 * math.pi)  # lerobot's scale (360 deg = 4095 ticks)
 

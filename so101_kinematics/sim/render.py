@@ -44,7 +44,13 @@ import mujoco
 import numpy as np
 
 from so101_forward_kinematics import get_forward_kinematics
-from so101_meshes import ensure_render_meshes
+from so101_kinematics.errors import (
+    RenderError as RenderError,
+)
+from so101_kinematics.errors import (
+    RenderSettingError as RenderSettingError,
+)
+from so101_kinematics.sim.meshes import ensure_render_meshes
 
 DEFAULT_CAMERA = "pick_place"
 DEFAULT_SIZE = (640, 480)  # [px] width, height
@@ -66,14 +72,6 @@ VIDEO_PARAMS = ("-preset", "ultrafast", "-crf", "26")
 log = logging.getLogger(__name__)
 
 
-class RenderError(RuntimeError):
-    """Offscreen rendering or video writing cannot start as asked."""
-
-
-class RenderSettingError(RenderError, ValueError):
-    """A rendering setting (size, fps, camera, path) is not valid; nothing was rendered."""
-
-
 def max_fps(m: mujoco.MjModel) -> float:
     """Highest video frame rate [frames/s] the simulation can sample: one frame per physics step."""
     return 1.0 / m.opt.timestep
@@ -90,7 +88,7 @@ def check_fps(fps, highest: float, name: str = "fps") -> float:
     Raises:
         RenderSettingError: naming the value, the range and why the maximum.
     """
-    from so101_motion import check_number
+    from so101_kinematics.motion import check_number
 
     return check_number(fps, name, MIN_FPS, highest, "frames/s", error=RenderSettingError,
                         fix=f"give at most {highest:g} (the simulation steps every "
@@ -371,7 +369,7 @@ class VideoRecorder:
         import imageio.v2 as imageio
         from tqdm import tqdm
 
-        from so101_outputs import OutputPathError, check_output_path, temporary_beside
+        from so101_kinematics.outputs import OutputPathError, check_output_path, temporary_beside
 
         path = Path(path)
         if path.suffix.lower() != ".mp4":

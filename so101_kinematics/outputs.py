@@ -17,9 +17,7 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-
-class OutputPathError(ValueError):
-    """An output path cannot be written (a folder, not writable, or one of the inputs)."""
+from so101_kinematics.errors import OutputPathError as OutputPathError
 
 
 def _same_file(a: Path, b: Path) -> bool:

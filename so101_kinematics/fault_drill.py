@@ -18,14 +18,14 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from so101_calibration import load_calibration
 from so101_forward_kinematics import JOINTS
-from so101_hw_log import CycleLog
-from so101_hw_run import RELEASE_HINT, MotionAborted, ending, run_on_arm
-from so101_motion import Plan, Step
+from so101_kinematics.calibration import load_calibration
+from so101_kinematics.hw.log import CycleLog
+from so101_kinematics.hw.run import RELEASE_HINT, MotionAborted, ending, run_on_arm
+from so101_kinematics.motion import Plan, Step
+from so101_kinematics.paths import DOCS_DIR
 
-_HERE = Path(__file__).resolve().parent
-DOC_PATH = _HERE / "docs" / "hardware_safety.md"
+DOC_PATH = DOCS_DIR / "hardware_safety.md"
 AT_START_DEG = 2.0  # "at the start": every arm joint within this of its starting angle [deg]
 
 HOME = {"shoulder_pan": 0.0, "shoulder_lift": -90.0, "elbow_flex": 90.0, "wrist_flex": 30.0,
@@ -113,7 +113,7 @@ def run_drill(fault: str, phase: str, folder: str | Path | None = None) -> Drill
         phase: a label of :data:`PHASES`.
         folder: where the CSV log goes (default: a temporary folder).
     """
-    from virtual_so101 import DEFAULT_CALIBRATION_PATH, VirtualSO101
+    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
 
     calibration = load_calibration(DEFAULT_CALIBRATION_PATH)
     folder = Path(folder or tempfile.mkdtemp(prefix="so101-drill-"))
@@ -174,7 +174,7 @@ def main(argv: list[str] | None = None) -> int:
     table = matrix_markdown(drills)
     print(table)
     if args.write:
-        from so101_outputs import write_text_atomic
+        from so101_kinematics.outputs import write_text_atomic
 
         text = DOC_PATH.read_text(encoding="utf-8")
         begin, end = "<!-- fault matrix: begin -->", "<!-- fault matrix: end -->"

@@ -5,7 +5,7 @@ an X11 or Wayland display, MuJoCo's offscreen renderer needs Mesa's EGL
 (``MUJOCO_GL=egl``), and MuJoCo reads that variable once, when it is imported.
 So a script starts with::
 
-    import so101_display  # first: EGL when there is no display
+    import so101_kinematics.display as so101_display  # first: EGL when there is no display
 
     # isort: split
     import mujoco

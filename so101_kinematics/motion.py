@@ -28,17 +28,11 @@ from pathlib import Path
 import numpy as np
 
 from so101_forward_kinematics import JOINTS
+from so101_kinematics.errors import JointLimitError as JointLimitError
+from so101_kinematics.errors import PlanError as PlanError
 
 Configuration = dict[str, float]
 Limits = Mapping[str, tuple[float, float]]
-
-
-class PlanError(ValueError):
-    """A configuration or plan cannot be executed as given."""
-
-
-class JointLimitError(PlanError):
-    """A joint target lies outside the joint's limits."""
 
 
 MAX_DURATION = 600.0
@@ -134,8 +128,8 @@ def check_number(value, name: str, low: float = -math.inf, high: float = math.in
         >>> check_number("2", "duration", 0.0, 600.0, "s")
         Traceback (most recent call last):
         ...
-        so101_motion.PlanError: duration must be a number in [0, 600] s, got '2' (text). \
-Fix: write the number without quotes.
+        so101_kinematics.motion.PlanError: duration must be a number in [0, 600] s, got '2' \
+(text). Fix: write the number without quotes.
     """
     allowed = format_range(low, high, unit, low_open)
     if not is_finite_number(value):

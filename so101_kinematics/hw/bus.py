@@ -24,14 +24,26 @@ from collections.abc import Mapping
 from contextlib import contextmanager
 from typing import Any
 
-from so101_calibration import (
+from so101_forward_kinematics import JOINTS
+from so101_kinematics.calibration import (
     CALIBRATE_HINT,
     MOTOR_IDS,
     CalibrationError,
     HardwareError,
     ServoCalibration,
 )
-from so101_forward_kinematics import JOINTS
+from so101_kinematics.errors import (
+    ConnectionFailed as ConnectionFailed,
+)
+from so101_kinematics.errors import (
+    LerobotMissing as LerobotMissing,
+)
+from so101_kinematics.errors import (
+    PortInUse as PortInUse,
+)
+from so101_kinematics.errors import (
+    PortLost as PortLost,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -43,28 +55,6 @@ FIND_PORT_HINT = "lerobot-find-port"
 
 
 # --- Errors -----------------------------------------------------------------
-class LerobotMissing(HardwareError):
-    """lerobot (the ``hw`` extra) is not installed."""
-
-
-class ConnectionFailed(HardwareError):
-    """The port cannot be opened or a servo does not answer."""
-
-
-class PortInUse(ConnectionFailed):
-    """Another program has the arm's port open."""
-
-
-class PortLost(HardwareError):
-    """The arm's USB connection was lost mid-run (the port vanished)."""
-
-    @classmethod
-    def during(cls, what: str) -> PortLost:
-        """The error for a port that vanished during ``what``."""
-        return cls(f"the arm's USB connection was lost during {what} (the port vanished). The "
-                   "servos keep holding their last goal with torque on")
-
-
 # --- The port, for this program alone ------------------------------------------
 def _proc_links(pid: str) -> set[str]:
     try:

@@ -1,0 +1,1 @@
+"""The real arm through lerobot's Feetech bus: bus, control loop, fault policy, log, teach."""

@@ -1,0 +1,1 @@
+"""The simulated arm: scene, meshes, contact pairs, rendering, the pick-and-place run."""

@@ -1,0 +1,1 @@
+"""A virtual SO-101 on a pseudo-terminal: the Feetech protocol, a servo, the emulator, faults."""
