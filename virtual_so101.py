@@ -17,15 +17,13 @@ import sys
 from pathlib import Path
 
 from so101_kinematics.display import has_display
+from so101_kinematics.errors import CalibrationError, FaultSpecError, VirtualSO101Error
 from so101_kinematics.virtual.arm import (  # noqa: F401 - the virtual arm's API, re-exported
     DEFAULT_CALIBRATION_PATH,
-    CalibrationError,
-    FaultSpecError,
     VirtualSO101,
-    VirtualSO101Error,
-    make_default_calibration,
     parse_faults,
 )
+from so101_kinematics.virtual.calibration import make_default_calibration
 
 logger = logging.getLogger("virtual_so101")
 

@@ -158,7 +158,12 @@ def _time_cycles(bus, n: int, warmup: int, on_warm=None) -> list[float]:
     times = []
     for i in range(n + warmup):
         t0 = time.perf_counter()
-        present = bus.sync_read("Present_Position", normalize=False)
+        try:
+            present = bus.sync_read("Present_Position", normalize=False)
+        except ConnectionError:  # a reply lost on a loaded host: not a cycle to time
+            bus.port_handler.ser.reset_input_buffer()
+            bus.port_handler.is_using = False
+            continue
         bus.sync_write("Goal_Position", present, normalize=False)
         if i == warmup - 1 and on_warm is not None:
             on_warm()

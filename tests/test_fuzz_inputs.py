@@ -164,7 +164,8 @@ class Ran(BaseException):
     """The stub runner was reached with checked values."""
 
 
-def fake_run(plan, *, cube, mode, video, fps, size, camera, quality, progress, timestep=None):
+def fake_run(plan, *, cube, mode, video, fps, size, camera, quality, progress, timestep=None,
+             show_ui=False):
     # Reached only with values inside their documented ranges.
     assert 1.0 <= fps <= 250.0 and all(16 <= v <= 4096 and v % 2 == 0 for v in size)
     for step in plan.steps:

@@ -127,7 +127,7 @@ def test_a_killed_run_leaves_its_log_up_to_the_last_flush(arm, tmp_path):
     run.kill()
     run.communicate(timeout=30)
     assert not (tmp_path / "run.csv").exists()
-    (partial,) = tmp_path.glob(".run.csv.*.part")
+    (partial,) = tmp_path.glob(".run.csv.*.part.csv")
     rows = log_rows(partial)
     assert len(rows) >= 50 and {r[2] for r in rows} >= {"swing_left"}
 

@@ -3,7 +3,7 @@
 :class:`CycleLog` appends one row per control cycle to a temporary file
 beside the target, flushed at least every ``FLUSH_EVERY_S`` of run time, and
 renames it over the target when closed, whatever ended the run (done, abort,
-signal, exception). After a SIGKILL the temporary file (``.NAME.*.part``
+signal, exception). After a SIGKILL the temporary file (``.NAME.*.part.csv``
 beside the target) still holds every cycle up to its last flush.
 """
 
