@@ -4,8 +4,15 @@
 #   ./dev.sh sim [ARGS]   the simulated pick-and-place (headless + video when
 #                         there is no display); ARGS go to pick_place_sim.py
 #   ./dev.sh test [ARGS]  the whole test suite (installs the hw extra: lerobot)
+#   ./dev.sh test-base [ARGS]
+#                         the tests that need no lerobot (-m "not hw"), in an
+#                         environment with the dev extra only: minutes, not
+#                         the hw extra's PyTorch (CI's leg per Python version)
 #   ./dev.sh bench [ARGS] the benchmarks (benchmarks/run.py)
 #   ./dev.sh shell        a shell inside the environment
+#
+# PYTHON=python3.x picks the interpreter (default python3); one outside the
+# project's requires-python (pyproject.toml) is refused here in one line.
 #
 # The virtual environment lives outside the clone, keyed by a hash of the
 # dependencies and the extras, so a new clone reuses it and changed
@@ -19,12 +26,21 @@ job="${1:-sim}"
 case "$job" in
   sim) extras="" ;;
   test|bench|shell) extras="dev,hw" ;;
-  *) echo "usage: ./dev.sh {sim|test|bench|shell} [ARGS]" >&2; exit 2 ;;
+  test-base) extras="dev" ;;
+  *) echo "usage: ./dev.sh {sim|test|test-base|bench|shell} [ARGS]" >&2; exit 2 ;;
 esac
 
 python="${PYTHON:-python3}"
-if ! "$python" -c 'import sys; sys.exit(sys.version_info < (3, 10))' 2>/dev/null; then
-  echo "error: needs Python >= 3.10 as '$python' (set PYTHON=/path/to/python3.x)" >&2
+# The supported Pythons are pyproject.toml's requires-python (">=3.10,<3.14").
+requires="$(sed -n 's/^requires-python = "\(.*\)"/\1/p' pyproject.toml)"
+lowest="$(echo "$requires" | sed -n 's/.*>=\([0-9.]*\).*/\1/p')"
+above="$(echo "$requires" | sed -n 's/.*<\([0-9.]*\).*/\1/p')"
+if ! version="$("$python" -c 'import platform; print(platform.python_version())' 2>/dev/null)"; then
+  echo "error: cannot run the Python interpreter '$python'; this project needs Python $requires. Fix: install one and set PYTHON=python3.x" >&2
+  exit 1
+fi
+if ! "$python" -c "import sys; sys.exit(not (${lowest/./, }) <= sys.version_info[:2] < (${above/./, }))"; then
+  echo "error: Python $version ('$python') is not supported: this project needs Python $requires. Fix: set PYTHON to a supported one, e.g. PYTHON=python3.12" >&2
   exit 1
 fi
 
@@ -37,15 +53,21 @@ key="$( (echo "$deps"; echo "$extras"; "$python" -V) | sha256sum | cut -c1-16)"
 venv="$root/venv-$key-${extras:-base}"
 
 if [ ! -f "$venv/.complete" ]; then
-  echo "Setting up $venv (first run only; the hw extra pulls PyTorch: several minutes) ..." >&2
+  note="about a minute"
+  [[ "$extras" == *hw* ]] && note="the hw extra pulls PyTorch: several minutes"
+  echo "Setting up $venv with Python $version (first run only; $note) ..." >&2
   rm -rf "$venv"
   mkdir -p "$root"
   "$python" -m venv "$venv"
   "$venv/bin/python" -m pip install --quiet --upgrade pip "setuptools>=77" wheel
   "$venv/bin/python" -m pip install --quiet --progress-bar off -e ".${extras:+[$extras]}"
   touch "$venv/.complete"
-  # Keep the two newest environments of this kind; each hw one is ~9 GB.
-  ls -dt "$root"/venv-*-"${extras:-base}" 2>/dev/null | tail -n +3 | xargs -r rm -rf
+  # Keep the two newest environments of this kind (extras and Python
+  # major.minor: a 3.10 one does not push out the 3.11 one); each hw one is ~9 GB.
+  ls -dt "$root"/venv-*-"${extras:-base}" 2>/dev/null \
+    | while read -r env; do
+        grep -q "^version = ${version%.*}\." "$env/pyvenv.cfg" 2>/dev/null && echo "$env"
+      done | tail -n +3 | xargs -r rm -rf
 fi
 # The venv is shared by clones: point its editable install at this clone.
 "$venv/bin/python" -m pip install --quiet --no-deps --no-build-isolation -e . >/dev/null 2>&1 \
@@ -59,6 +81,7 @@ fi
 case "$job" in
   sim) exec "$venv/bin/python" pick_place_sim.py "$@" ;;
   test) exec "$venv/bin/python" -m pytest "$@" ;;
+  test-base) exec "$venv/bin/python" -m pytest -m "not hw" "$@" ;;
   bench) exec "$venv/bin/python" benchmarks/run.py "$@" ;;
   shell) PATH="$venv/bin:$PATH" exec "${SHELL:-bash}" ;;
 esac
