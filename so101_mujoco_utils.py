@@ -1,306 +1,48 @@
-"""MuJoCo helpers for the SO-101: loading the model, unit conversion and motion.
+"""MuJoCo helpers for the SO-101, as the course's scripts call them.
 
-Units at the user's boundary are the course's: arm joints in [deg], the
-gripper in [0, 100]. Inside MuJoCo everything is [rad]. The conversion lives
-here and only here (:func:`to_radians`, :func:`from_radians`):
+Load the scene, set the arm's pose, command it, and move it as the course
+does: ``move_to_pose(m, d, viewer, cfg, duration)`` and
+``hold_position(m, d, viewer, duration)``, with arm joints in [deg] and the
+gripper in [0, 100] (0 closed, 100 open). The machinery lives in the
+package: ``so101_kinematics/sim/scene.py`` (loading, units, poses, commands)
+and ``so101_kinematics/sim/stepping.py`` (the timed moves, the viewer).
 
-- arm joints: radians = degrees * pi / 180 (zero at the middle of the range,
-  as lerobot's SO-101 calibration defines it);
-- gripper: 0..100 maps linearly onto the gripper joint's range, 0 at its
-  lower (closed) end and 100 at its upper (open) end; the same mapping as
-  lerobot's RANGE_0_100 over the calibrated range, so the virtual and the real
-  arm agree with the simulator.
+Example (the course's test pose, headless)::
 
-Motion is timed on simulation time (``d.time``): a headless run
-(``viewer=None``) is deterministic and runs as fast as the CPU allows; with a
-viewer it is paced to real time and stops with :class:`ViewerClosed` when the
-window is closed. The first time :func:`move_to_pose` or :func:`hold_position`
-sees MuJoCo's passive viewer, they arrange for the interpreter to close it and
-wait for its render thread at exit (``so101_display.guard_viewer_exit``), so a
-script that leaves its ``with mujoco.viewer.launch_passive(...)`` block right
-after a move exits cleanly instead of crashing in MuJoCo's GLFW teardown.
-A move or hold lasts at most ``so101_motion.MAX_DURATION``
-(600 s); its memory does not grow with its duration (commands are computed
-``COMMAND_BLOCK_STEPS`` physics steps at a time).
+    >>> import mujoco
+    >>> m = load_model()
+    >>> d = mujoco.MjData(m)
+    >>> set_initial_pose(d, {"shoulder_pan": -45.0, "shoulder_lift": 45.0, "elbow_flex": -45.0,
+    ...                      "wrist_flex": 90.0, "wrist_roll": 0.0, "gripper": 50.0})
+    >>> round(get_configuration(m, d)["elbow_flex"], 6)
+    -45.0
 """
 
 from __future__ import annotations
 
-import math
-import sys
-import time
-from collections.abc import Mapping
-from functools import lru_cache
-from pathlib import Path
-
-import mujoco
-import numpy as np
-
-import so101_kinematics.display as so101_display
-from so101_forward_kinematics import JOINTS, TOOL_SITE
-from so101_kinematics.display import has_display  # noqa: F401  (re-exported: the scripts' display check)
-from so101_kinematics.errors import ViewerClosed as ViewerClosed
-from so101_kinematics.motion import (
-    GRIPPER_RANGE,
-    Configuration,
-    Trajectory,
-    check_configuration,
-    check_duration,
+from so101_kinematics.display import has_display  # noqa: F401 - the scripts' display check
+from so101_kinematics.errors import ViewerClosed  # noqa: F401
+from so101_kinematics.frames import GRIPPER_RANGE, JOINTS, TOOL_SITE  # noqa: F401
+from so101_kinematics.sim.scene import (  # noqa: F401 - the course's names
+    MODEL_DIR,
+    SCENE_PATH,
+    from_radians,
+    get_command,
+    get_configuration,
+    get_object_pose,
+    gripper_from_radians,
+    gripper_to_radians,
+    joint_limits,
+    joint_table,
+    load_model,
+    send_position_command,
+    set_initial_pose,
+    to_radians,
+    validate,
 )
-from so101_kinematics.sim.meshes import ensure_meshes
-
-_HERE = Path(__file__).resolve().parent
-MODEL_DIR = _HERE / "model"
-SCENE_PATH = MODEL_DIR / "scene.xml"
-VIEWER_SYNC_PERIOD = 1.0 / 60.0  # [s] of simulation time between viewer updates
-# Physics steps whose commands are computed at once (one numpy evaluation of
-# the profile): a move's memory is this many rows, whatever its duration.
-COMMAND_BLOCK_STEPS = 4096
-
-
-def load_model(path: str | Path = SCENE_PATH) -> mujoco.MjModel:
-    """Load an SO-101 scene, installing and verifying the meshes first.
-
-    Args:
-        path: MJCF file (default ``model/scene.xml``).
-
-    Returns:
-        The compiled model.
-    """
-    ensure_meshes()
-    return mujoco.MjModel.from_xml_path(str(path))
-
-
-@lru_cache(maxsize=8)
-def _joint_table(m: mujoco.MjModel) -> tuple[tuple[str, int, int, float, float], ...]:
-    """(name, qpos address, actuator id, lower, upper [rad]) for each joint."""
-    return tuple(
-        (name, int(m.joint(name).qposadr[0]), int(m.actuator(name).id),
-         *map(float, m.joint(name).range))
-        for name in JOINTS
-    )
-
-
-def joint_limits(m: mujoco.MjModel) -> dict[str, tuple[float, float]]:
-    """Joint limits in user units: [deg] for the arm, (0, 100) for the gripper."""
-    limits = {}
-    for name, _, _, lower, upper in _joint_table(m):
-        if name == "gripper":
-            limits[name] = GRIPPER_RANGE
-        else:
-            limits[name] = (math.degrees(lower), math.degrees(upper))
-    return limits
-
-
-def gripper_to_radians(m: mujoco.MjModel, percent: float) -> float:
-    """Gripper opening in [0, 100] -> gripper joint angle [rad]."""
-    lower, upper = m.joint("gripper").range
-    return float(lower + (upper - lower) * percent / 100.0)
-
-
-def gripper_from_radians(m: mujoco.MjModel, angle: float) -> float:
-    """Gripper joint angle [rad] -> opening in [0, 100] (not clamped)."""
-    lower, upper = m.joint("gripper").range
-    return float((angle - lower) / (upper - lower) * 100.0)
-
-
-def to_radians(m: mujoco.MjModel, cfg: Mapping[str, float]) -> dict[str, float]:
-    """User configuration ([deg], gripper [0, 100]) -> joint angles [rad]."""
-    return {
-        name: gripper_to_radians(m, value) if name == "gripper" else math.radians(value)
-        for name, value in cfg.items()
-    }
-
-
-def from_radians(m: mujoco.MjModel, angles: Mapping[str, float]) -> Configuration:
-    """Joint angles [rad] -> user configuration ([deg], gripper [0, 100])."""
-    return {
-        name: gripper_from_radians(m, value) if name == "gripper" else math.degrees(value)
-        for name, value in angles.items()
-    }
-
-
-def validate(m: mujoco.MjModel, cfg: Mapping[str, float], where: str = "") -> Configuration:
-    """Check a full configuration against the model's joint limits.
-
-    Raises:
-        so101_motion.JointLimitError: naming joint, value and limit.
-        so101_motion.PlanError: missing, unknown or non-numeric joints.
-    """
-    return check_configuration(cfg, joint_limits(m), where)
-
-
-def get_configuration(m: mujoco.MjModel, d: mujoco.MjData) -> Configuration:
-    """Measured configuration (from ``d.qpos``) in user units."""
-    return from_radians(m, {name: float(d.qpos[adr]) for name, adr, *_ in _joint_table(m)})
-
-
-def get_command(m: mujoco.MjModel, d: mujoco.MjData) -> Configuration:
-    """Currently commanded configuration (from ``d.ctrl``) in user units."""
-    return from_radians(m, {name: float(d.ctrl[act]) for name, _, act, *_ in _joint_table(m)})
-
-
-def set_initial_pose(d: mujoco.MjData, cfg: Mapping[str, float]) -> None:
-    """Place the arm at ``cfg`` at rest (qpos, zero velocity) and command it there.
-
-    Args:
-        d: the simulation data (its model is ``d.model``).
-        cfg: configuration ([deg], gripper [0, 100]); validated against the limits.
-    """
-    m = d.model
-    angles = to_radians(m, validate(m, cfg, "initial pose"))
-    for name, adr, act, *_ in _joint_table(m):
-        d.qpos[adr] = angles[name]
-        d.qvel[m.joint(name).dofadr[0]] = 0.0
-        d.ctrl[act] = angles[name]
-    mujoco.mj_forward(m, d)
-
-
-def send_position_command(d: mujoco.MjData, cfg: Mapping[str, float]) -> None:
-    """Set the position servos' targets; joints missing from ``cfg`` keep theirs.
-
-    Args:
-        d: the simulation data.
-        cfg: joint name -> target ([deg], gripper [0, 100]).
-    """
-    m = d.model
-    limits = joint_limits(m)
-    partial = {name: limits[name] for name in cfg if name in limits}
-    angles = to_radians(m, check_configuration(cfg, partial, "position command"))
-    for name, _, act, *_ in _joint_table(m):
-        if name in angles:
-            d.ctrl[act] = angles[name]
-
-
-def _guard_passive_viewer(viewer) -> None:
-    """On first sight of MuJoCo's passive viewer, make the interpreter's exit wait for it."""
-    passive = sys.modules.get("mujoco.viewer")
-    if passive is not None and isinstance(viewer, passive.Handle):
-        so101_display.guard_viewer_exit(viewer)
-
-
-def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> None:
-    """Step the simulation to time ``until`` [s], following ``path`` if given.
-
-    A move's commands are computed ``COMMAND_BLOCK_STEPS`` steps at a time
-    (one numpy evaluation of the profile per block, so memory does not grow
-    with the duration) and set before each physics step; a hold keeps the
-    command, so the steps between two viewer updates run in one
-    ``mj_step(m, d, n)`` call. Same physics as a per-step Python loop, with
-    about 1 us of Python per step instead of about 10.
-    """
-    if viewer is not None:
-        _guard_passive_viewer(viewer)
-    realtime = viewer is not None and not getattr(viewer, "offscreen", False)
-    every_step = viewer is not None and getattr(viewer, "sync_every_step", False)
-    dt = m.opt.timestep
-    n_steps = round((until - d.time) / dt)
-    if n_steps <= 0:
-        return
-    block_start = block_stop = 0  # steps [block_start, block_stop) have their commands in rows
-    if path is not None:
-        # The unit conversion is affine per joint, so interpolating in radians
-        # is the same path as interpolating in user units.
-        actuators = np.array([act for name, _, act, *_ in _joint_table(m) if name in path.goal])
-        start = np.array(list(to_radians(m, {j: path.start[j] for j in path.goal}).values()))
-        delta = np.array(list(to_radians(m, path.goal).values())) - start
-        elapsed0 = d.time - t0  # [s] at the start of the first step
-        ctrl = d.ctrl
-        if np.array_equal(actuators, np.arange(m.nu)):
-            actuators = slice(None)  # all of them, in order: plain row copies
-    wall0, sim0 = time.perf_counter(), d.time
-    next_sync = d.time
-    done = 0
-    while done < n_steps:
-        if viewer is None:
-            chunk = min(n_steps - done, COMMAND_BLOCK_STEPS)
-        elif every_step:
-            chunk = 1
-        else:
-            chunk = max(1, min(n_steps - done, math.ceil((next_sync - d.time) / dt - 1e-6)))
-        if path is None:
-            mujoco.mj_step(m, d, chunk)
-        else:
-            if done >= block_stop:
-                block_start, block_stop = done, min(done + COMMAND_BLOCK_STEPS, n_steps)
-                elapsed = elapsed0 + dt * np.arange(block_start, block_stop)  # [s] per step
-                rows = start + path.fractions(elapsed)[:, None] * delta  # [rad], one per step
-            chunk = min(chunk, block_stop - done)
-            for row in rows[done - block_start:done - block_start + chunk]:
-                ctrl[actuators] = row
-                mujoco.mj_step(m, d)
-        done += chunk
-        if viewer is None:
-            continue
-        if every_step or d.time >= next_sync - 1e-9:
-            if not viewer.is_running():
-                raise ViewerClosed("The viewer was closed.")
-            viewer.sync()
-            next_sync = d.time + VIEWER_SYNC_PERIOD
-            if realtime:
-                lag = (d.time - sim0) - (time.perf_counter() - wall0)
-                if lag > 0:
-                    time.sleep(lag)
-    if path is not None:
-        # The last step's command is the profile one step before the end; a move
-        # ends commanding its goal exactly (a linear move would stay short of it).
-        ctrl[actuators] = start + delta
-
-
-def move_to_pose(
-    m: mujoco.MjModel,
-    d: mujoco.MjData,
-    viewer,
-    cfg: Mapping[str, float],
-    duration: float,
-    profile: str = "minimum_jerk",
-) -> None:
-    """Move from the current command to ``cfg`` in ``duration`` [s] of simulation time.
-
-    The target is validated before the first step. The path starts at the
-    last command (not the measured pose), so a gripper squeezing an object
-    keeps squeezing while the arm moves.
-
-    Args:
-        m: the model.
-        d: the simulation data.
-        viewer: ``None`` (headless, as fast as possible), a passive viewer
-            (paced to real time) or any object with ``sync()`` and
-            ``is_running()`` (e.g. an offscreen recorder).
-        cfg: target configuration ([deg], gripper [0, 100]).
-        duration: time for the move [s], in [0, ``MAX_DURATION``].
-        profile: "minimum_jerk" (smooth, default) or "linear" (the course's).
-
-    Raises:
-        so101_motion.JointLimitError: the target is outside the limits.
-        so101_motion.PlanError: a duration that is not a number in [0, MAX_DURATION] s.
-        ViewerClosed: the viewer window was closed.
-    """
-    goal = validate(m, cfg, "move_to_pose target")
-    duration = check_duration(duration, "move_to_pose duration")
-    path = Trajectory(get_command(m, d), goal, duration, profile)
-    t0 = d.time
-    _advance(m, d, viewer, t0 + path.duration, path, t0)
-
-
-def hold_position(m: mujoco.MjModel, d: mujoco.MjData, viewer, duration: float) -> None:
-    """Keep the current command for ``duration`` [s] of simulation time.
-
-    Args:
-        m: the model.
-        d: the simulation data.
-        viewer: as for :func:`move_to_pose`.
-        duration: [s], in [0, ``MAX_DURATION``].
-
-    Raises:
-        so101_motion.PlanError: a duration that is not a number in [0, MAX_DURATION] s.
-        ViewerClosed: the viewer window was closed.
-    """
-    duration = check_duration(duration, "hold_position duration")
-    _advance(m, d, viewer, d.time + duration, None, d.time)
-
-
-def get_object_pose(m: mujoco.MjModel, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-    """Simulated object-frame pose (position (3,) [m], rotation (3, 3)) from the last kinematics."""
-    site = d.site(TOOL_SITE)
-    return site.xpos.copy(), site.xmat.reshape(3, 3).copy()
+from so101_kinematics.sim.stepping import (  # noqa: F401
+    COMMAND_BLOCK_STEPS,
+    VIEWER_SYNC_PERIOD,
+    hold_position,
+    move_to_pose,
+)

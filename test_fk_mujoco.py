@@ -14,8 +14,8 @@ import mujoco
 import numpy as np
 
 from so101_forward_kinematics import (
-    _FIXED,
     ARM_JOINTS,
+    FIXED_TRANSFORMS,
     FRAMES,
     GRIPPER_MOUNT_TILT_DEG,
     TOOL_SITE,
@@ -289,7 +289,7 @@ def fk_table_markdown() -> str:
         "|---|---|---|---|---|---|",
     ]
     for function, key, joint in names:
-        displacement, sequence = _FIXED[key]
+        displacement, sequence = FIXED_TRANSFORMS[key]
         rotation = np.eye(3)
         for axis, angle in sequence:
             rotation = rotation @ {"x": Rx, "y": Ry, "z": Rz}[axis](angle)

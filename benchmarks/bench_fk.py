@@ -25,7 +25,7 @@ def _seed_style_forward_kinematics(cfg: dict) -> tuple[np.ndarray, np.ndarray]:
     import so101_forward_kinematics as fk
 
     def factor(name, theta):
-        displacement, rotations = fk._FIXED[name]
+        displacement, rotations = fk.FIXED_TRANSFORMS[name]
         rotation = np.eye(3)
         for axis, angle in rotations:
             rotation = rotation @ _rot(axis, angle)
@@ -35,7 +35,7 @@ def _seed_style_forward_kinematics(cfg: dict) -> tuple[np.ndarray, np.ndarray]:
     g = (factor("w1", cfg["shoulder_pan"]) @ factor("12", cfg["shoulder_lift"])
          @ factor("23", cfg["elbow_flex"]) @ factor("34", cfg["wrist_flex"])
          @ factor("45", cfg["wrist_roll"]))
-    displacement, rotations = fk._FIXED["5t"]
+    displacement, rotations = fk.FIXED_TRANSFORMS["5t"]
     rotation = np.eye(3)
     for axis, angle in rotations:
         rotation = rotation @ _rot(axis, angle)

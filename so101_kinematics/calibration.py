@@ -23,13 +23,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from so101_forward_kinematics import JOINTS
 from so101_kinematics.errors import (
     CalibrationError as CalibrationError,
 )
 from so101_kinematics.errors import (
     HardwareError as HardwareError,
 )
+from so101_kinematics.frames import JOINTS
 
 # --- Settings ---------------------------------------------------------------
 ROBOT_TYPE = "so101_follower"

@@ -15,15 +15,11 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from so101_forward_kinematics import get_forward_kinematics
-from so101_inverse_kinematics import (
-    GRIPPER_OPEN,
-    POSITION_LIMIT,
-    UnreachableError,
-    as_position,
-    get_inverse_kinematics,
-)
 from so101_kinematics.cli import number, range_help
+from so101_kinematics.errors import UnreachableError
+from so101_kinematics.fast_fk import forward_kinematics
+from so101_kinematics.ik.geometry import GRIPPER_OPEN, POSITION_LIMIT
+from so101_kinematics.ik.solver import as_position, get_inverse_kinematics
 from so101_kinematics.motion import (
     FINAL_CONFIGURATION,
     STARTING_CONFIGURATION,
@@ -56,7 +52,7 @@ PRE_GRASP_SLIDE = 0.012
 
 def _jaw_axis_and_yaw(cfg: Mapping[str, float]) -> tuple[np.ndarray, float]:
     """Jaw-closing axis (tool x, toward the fixed jaw's side) and the cube yaw [deg] of a grasp."""
-    _, rotation = get_forward_kinematics(cfg)
+    _, rotation = forward_kinematics(cfg)
     return rotation[:, 0], math.degrees(math.atan2(rotation[1, 0], rotation[0, 0]))
 
 

@@ -37,8 +37,22 @@ class JointLimitError(PlanError):
     """A configuration is outside the joint limits (the model's or the arm's calibration)."""
 
 
-class UnreachableError(InputError):
-    """No joint configuration puts the object frame at the requested pose."""
+class UnreachableError(PlanError):
+    """No configuration within the joint limits puts the object frame at the target.
+
+    Attributes:
+        reason: "below_table", "too_far", "too_close", "joint_limit" or
+            "no_convergence".
+        distance: how far off the target is: [m] for the reach reasons, [deg]
+            beyond the limit for "joint_limit".
+        joint: the joint at its limit for "joint_limit", else None.
+    """
+
+    def __init__(self, message: str, reason: str, distance: float, joint: str | None = None):
+        super().__init__(message)
+        self.reason = reason
+        self.distance = distance
+        self.joint = joint
 
 
 class OutputPathError(InputError):

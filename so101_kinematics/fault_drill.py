@@ -18,8 +18,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from so101_forward_kinematics import JOINTS
 from so101_kinematics.calibration import load_calibration
+from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.log import CycleLog
 from so101_kinematics.hw.run import RELEASE_HINT, MotionAborted, ending, run_on_arm
 from so101_kinematics.motion import Plan, Step

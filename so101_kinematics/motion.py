@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from so101_forward_kinematics import JOINTS
 from so101_kinematics.errors import JointLimitError as JointLimitError
 from so101_kinematics.errors import PlanError as PlanError
+from so101_kinematics.frames import JOINTS
 
 Configuration = dict[str, float]
 Limits = Mapping[str, tuple[float, float]]
@@ -42,7 +42,6 @@ A simulated second is 250 physics steps; a longer duration is almost surely a
 typo (milliseconds for seconds) and would keep the simulator busy for hours.
 """
 
-GRIPPER_RANGE = (0.0, 100.0)
 """Gripper opening at the user boundary [0, 100]: 0 closed end, 100 open end of its range."""
 
 
@@ -128,7 +127,7 @@ def check_number(value, name: str, low: float = -math.inf, high: float = math.in
         >>> check_number("2", "duration", 0.0, 600.0, "s")
         Traceback (most recent call last):
         ...
-        so101_kinematics.motion.PlanError: duration must be a number in [0, 600] s, got '2' \
+        so101_kinematics.errors.PlanError: duration must be a number in [0, 600] s, got '2' \
 (text). Fix: write the number without quotes.
     """
     allowed = format_range(low, high, unit, low_open)

@@ -306,7 +306,9 @@ def test_module_docstring_example_runs():
 
 
 def test_closed_form_guard_notices_a_changed_fixed_rotation(monkeypatch):
-    changed = dict(fk._FIXED_ROTATION, **{"34": fk.Rz(-90.0) @ fk.Rx(1.0)})
-    monkeypatch.setattr(fk, "_FIXED_ROTATION", changed)
+    from so101_kinematics import fast_fk
+
+    changed = dict(fast_fk.FIXED_ROTATION, **{"34": fk.Rz(-90.0) @ fk.Rx(1.0)})
+    monkeypatch.setattr(fast_fk, "FIXED_ROTATION", changed)
     with pytest.raises(RuntimeError, match="g_34"):
-        fk._closed_form_assumptions()
+        fast_fk._closed_form_assumptions()

@@ -61,7 +61,7 @@ def test_joint_limits_are_the_models(model):
     model_limits = joint_limits(model)
     for joint in ARM_JOINTS:
         assert ik.JOINT_LIMITS[joint] == pytest.approx(model_limits[joint], abs=1e-12)
-        assert ik.JOINT_LIMITS_RAD[joint] == pytest.approx(tuple(model.joint(joint).range), abs=0)
+        assert ik.JOINT_RANGES_RAD[joint] == pytest.approx(tuple(model.joint(joint).range), abs=0)
 
 
 def test_solving_does_not_import_mujoco():
@@ -89,7 +89,10 @@ def test_closed_form_is_exact_without_refinement(monkeypatch):
     def no_refinement(*args, **kwargs):
         raise AssertionError("the closed form needed a numerical refinement")
 
-    monkeypatch.setattr(ik, "_refine", no_refinement)
+    from so101_kinematics.ik import refine, solver
+
+    monkeypatch.setattr(refine, "_refine", no_refinement)  # both places that call it
+    monkeypatch.setattr(solver, "_refine", no_refinement)
     _, positions, yaws = ik.sample_top_down_targets(3000, seed=11)
     assert len(positions) > 100
     for position, yaw in zip(positions[:200], yaws[:200], strict=True):

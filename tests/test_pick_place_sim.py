@@ -388,7 +388,9 @@ def test_viewer_mode_shows_the_target_cubes_and_stops_when_closed(monkeypatch, s
         return opened[-1]
 
     monkeypatch.setattr(viewer, "launch_passive", launch_passive)
-    monkeypatch.setattr(utils.time, "sleep", lambda seconds: None)  # no real-time pacing here
+    from so101_kinematics.sim import stepping
+
+    monkeypatch.setattr(stepping.time, "sleep", lambda seconds: None)  # no real-time pacing here
     report = run_pick_place(mode="viewer")
     (shown,) = opened
     assert shown.user_scn.ngeom == 2 and shown.closed

@@ -69,8 +69,8 @@ def test_target_cubes_are_the_fk_poses_in_red_and_green():
     for cube, cfg, rgba in ((red, STARTING_CONFIGURATION, START_RGBA),
                             (green, FINAL_CONFIGURATION, FINAL_RGBA)):
         position, rotation = get_forward_kinematics(cfg)
-        np.testing.assert_array_equal(cube.position, position)
-        np.testing.assert_array_equal(cube.rotation, rotation)
+        np.testing.assert_allclose(cube.position, position, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(cube.rotation, rotation, rtol=0, atol=1e-12)
         assert cube.rgba == rgba and cube.halfwidth == 0.013
 
 

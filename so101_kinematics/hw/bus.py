@@ -24,7 +24,6 @@ from collections.abc import Mapping
 from contextlib import contextmanager
 from typing import Any
 
-from so101_forward_kinematics import JOINTS
 from so101_kinematics.calibration import (
     CALIBRATE_HINT,
     MOTOR_IDS,
@@ -44,6 +43,7 @@ from so101_kinematics.errors import (
 from so101_kinematics.errors import (
     PortLost as PortLost,
 )
+from so101_kinematics.frames import JOINTS
 
 logger = logging.getLogger(__name__)
 

@@ -34,7 +34,6 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from so101_forward_kinematics import JOINTS
 from so101_kinematics.calibration import calibrated_limits
 from so101_kinematics.errors import (
     BusError as BusError,
@@ -51,6 +50,7 @@ from so101_kinematics.errors import (
 from so101_kinematics.errors import (
     TrackingError as TrackingError,
 )
+from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.bus import (
     PORT_SETTLE_S,
     PortLost,

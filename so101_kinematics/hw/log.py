@@ -14,7 +14,7 @@ import os
 from collections.abc import Iterable
 from pathlib import Path
 
-from so101_forward_kinematics import JOINTS
+from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.control import ArmSession, Cycle
 from so101_kinematics.motion import unit
 from so101_kinematics.outputs import atomic_output, temporary_beside

@@ -15,10 +15,8 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from functools import lru_cache
 from typing import Any
 
-from so101_forward_kinematics import JOINTS
 from so101_kinematics.calibration import (
     CALIBRATE_HINT,
     MOTOR_IDS,
@@ -27,6 +25,7 @@ from so101_kinematics.calibration import (
     calibrated_limits,
 )
 from so101_kinematics.errors import NotConfirmed as NotConfirmed
+from so101_kinematics.frames import JOINT_LIMITS, JOINTS
 from so101_kinematics.hw.bus import (
     SETUP_ATTEMPTS,
     PortLost,
@@ -86,14 +85,6 @@ class MotionAborted(HardwareError):
         self.result = result
 
 
-@lru_cache(maxsize=1)
-def model_limits() -> dict[str, tuple[float, float]]:
-    """The MuJoCo model's joint limits in user units (the simulator's, so sim and hw agree)."""
-    import so101_mujoco_utils
-
-    return so101_mujoco_utils.joint_limits(so101_mujoco_utils.load_model())
-
-
 def validate_plan_for_arm(plan: Plan, calibration: Mapping[str, Any] | None,
                           source: str = "the calibration") -> Plan:
     """Check every waypoint against the model's limits and the arm's calibrated limits.
@@ -103,7 +94,7 @@ def validate_plan_for_arm(plan: Plan, calibration: Mapping[str, Any] | None,
             which limits (model or calibration) and the fix.
     """
     try:
-        validate_plan(plan, model_limits())
+        validate_plan(plan, JOINT_LIMITS)
     except JointLimitError as error:
         raise JointLimitError(f"{error} (joint limits of the SO-101 model, as in the simulator)") \
             from None
@@ -300,7 +291,7 @@ def starting_pose(bus, calibration, port: str, robot_id: str | None) -> Configur
                 f"calibrated range [{limits[joint][0]:.1f}, {limits[joint][1]:.1f}]: the "
                 "calibration does not fit this arm. Fix: `"
                 + CALIBRATE_HINT.format(port=port, robot_id=robot_id or "ID") + "`.")
-    bounds = model_limits()
+    bounds = JOINT_LIMITS
     outside = [j for j in JOINTS if not bounds[j][0] <= start[j] <= bounds[j][1]]
     if outside:
         logger.warning("The starting pose is outside the model's limits on %s; the arm will "

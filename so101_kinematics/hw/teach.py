@@ -7,7 +7,8 @@ import sys
 import time
 from collections.abc import Mapping
 
-from so101_forward_kinematics import ARM_JOINTS, JOINTS, get_forward_kinematics
+from so101_kinematics.fast_fk import forward_kinematics
+from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.bus import PortLost, port_lost, recover_port
 from so101_kinematics.hw.control import READ_RETRIES, RECOVERY_TIMEOUT_S, RateLoop, capped_duration
 from so101_kinematics.motion import Configuration, Plan, pick_and_place_steps
@@ -23,7 +24,7 @@ def format_configuration(cfg: Mapping[str, float], digits: int = 1) -> str:
 
 def object_position_cm(cfg: Mapping[str, float]) -> tuple[float, float, float]:
     """FK object-frame position in the base frame [cm]."""
-    position, _ = get_forward_kinematics({j: cfg[j] for j in ARM_JOINTS})
+    position, _ = forward_kinematics({j: cfg[j] for j in ARM_JOINTS})
     return tuple(float(v) * 100.0 for v in position)
 
 

@@ -43,13 +43,13 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from so101_forward_kinematics import get_forward_kinematics
 from so101_kinematics.errors import (
     RenderError as RenderError,
 )
 from so101_kinematics.errors import (
     RenderSettingError as RenderSettingError,
 )
+from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.sim.meshes import ensure_render_meshes
 
 DEFAULT_CAMERA = "pick_place"
@@ -162,7 +162,7 @@ def target_cubes(start: Mapping[str, float], final: Mapping[str, float],
     """
     cubes = []
     for cfg, rgba in ((start, START_RGBA), (final, FINAL_RGBA)):
-        position, rotation = get_forward_kinematics(cfg)
+        position, rotation = forward_kinematics(cfg)
         cubes.append(Overlay(position, rotation, halfwidth, rgba))
     return cubes[0], cubes[1]
 

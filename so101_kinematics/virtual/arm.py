@@ -230,8 +230,8 @@ class VirtualSO101:
         parent_sock, child_sock = socket.socketpair()
         self._lock = threading.Lock()
         code = (f"import sys; sys.path.insert(0, {str(REPO)!r}); "
-                "from so101_kinematics.virtual import emulator as virtual_so101_emulator; "
-                f"so101_kinematics.virtual.emulator.emulator_main({child_sock.fileno()})")
+                "from so101_kinematics.virtual import emulator; "
+                f"emulator.emulator_main({child_sock.fileno()})")
         self._process = subprocess.Popen([sys.executable, "-c", code],
                                          pass_fds=(child_sock.fileno(),), stdin=subprocess.DEVNULL)
         child_sock.close()

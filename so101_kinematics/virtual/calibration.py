@@ -116,7 +116,9 @@ def present_to_radians(m, cal: Mapping[str, int], joint: str, present: float) ->
         present: position in the calibration's frame [ticks] (the gripper's is
             clamped to its calibrated range, as lerobot reads it).
     """
-    from so101_mujoco_utils import to_radians  # imports mujoco: only where a model is at hand
+    from so101_kinematics.sim.scene import (
+        to_radians,  # imports mujoco: only where a model is at hand
+    )
 
     user = ticks_to_user(joint, present, ServoCalibration(**cal))
     return to_radians(m, {joint: user})[joint]
@@ -124,7 +126,7 @@ def present_to_radians(m, cal: Mapping[str, int], joint: str, present: float) ->
 
 def radians_to_present(m, cal: Mapping[str, int], joint: str, angle: float) -> float:
     """Joint angle [rad] -> Present_Position [ticks, not rounded]; inverse of present_to_radians."""
-    from so101_mujoco_utils import from_radians
+    from so101_kinematics.sim.scene import from_radians
 
     user = from_radians(m, {joint: angle})[joint]
     return user_to_ticks(joint, user, ServoCalibration(**cal))

@@ -31,14 +31,12 @@ import os
 import select
 import signal
 import statistics
-import sys
 import termios
 import time
 import tty
 from collections import deque
 from multiprocessing.connection import Connection
 
-from so101_kinematics.paths import REPO
 from so101_kinematics.virtual.calibration import TICKS_PER_RAD
 from so101_kinematics.virtual.protocol import (
     ADDR,
@@ -74,7 +72,7 @@ class _Emulator:
     def __init__(self, conn, options: dict):
         import mujoco
 
-        import so101_mujoco_utils as smu
+        import so101_kinematics.sim.scene as smu
 
         self.mujoco, self.smu = mujoco, smu
         self.conn = conn
@@ -562,7 +560,6 @@ def emulator_main(fd: int) -> None:
     options = conn.recv()
     logging.basicConfig(level=options.get("log_level", logging.WARNING),
                         format="%(asctime)s virtual_so101: %(message)s")
-    sys.path.insert(0, str(REPO))  # the course utils beside the package
     try:
         emulator = _Emulator(conn, options)
     except Exception as exc:  # noqa: BLE001 - reported to the parent

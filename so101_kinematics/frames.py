@@ -1,0 +1,246 @@
+"""The SO-101's kinematic facts and the building blocks of its forward kinematics.
+
+Frame convention, used in every name of the project:
+    ``g_ab`` is the pose of frame ``b`` expressed in frame ``a``: a 4x4
+    homogeneous matrix ``[[R_ab, p_ab], [0, 0, 0, 1]]`` that maps coordinates
+    in ``b`` to coordinates in ``a``. Poses chain by multiplication:
+    ``g_ac = g_ab @ g_bc``.
+
+Frames: ``w`` is the world (the base, origin on the table, z up), ``1`` to
+``5`` are the bodies moved by shoulder_pan, shoulder_lift, elbow_flex,
+wrist_flex and wrist_roll (each joint turns about its frame's local z axis),
+and ``t`` is the object (tool) frame (site ``object_frame`` in ``model/so101.xml``).
+
+Each joint's transform is a fixed displacement and rotation taken from the
+upstream SO-101 model (``so101_new_calib``, :data:`FIXED_TRANSFORMS`),
+followed by the joint rotation ``Rz(theta)``: :func:`joint_transform`. The
+course's factors ``get_gw1`` ... ``get_g5t`` (``so101_forward_kinematics.py``)
+are these; :mod:`so101_kinematics.fast_fk` evaluates their product in closed form.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+
+from so101_kinematics.errors import KinematicsInputError, KinematicsTypeError
+
+ARM_JOINTS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
+"""Joints that move the object frame, base to tip."""
+
+JOINTS = ARM_JOINTS + ("gripper",)
+"""All six joints (and actuators) of the SO-101, as named by lerobot and the model."""
+
+FRAMES = ("w", "1", "2", "3", "4", "5", "t")
+"""FK frame names, base to tool."""
+
+BODY_OF_FRAME = {
+    "1": "shoulder",
+    "2": "upper_arm",
+    "3": "lower_arm",
+    "4": "wrist",
+    "5": "gripper",
+}
+"""The MuJoCo body carrying each joint frame (the tool frame is a site)."""
+
+TOOL_SITE = "object_frame"
+
+ANGLE_RANGE_DEG = (-360.0, 360.0)
+"""Joint angles the FK accepts [deg]: one turn either way.
+
+Every pose is reached within it; a larger angle is almost surely a mistake
+(radians summed as degrees, an angle never wrapped) and loses precision
+(at 1e12 deg a float resolves only 1e-4 deg). The arm's own joint limits are
+narrower (:data:`JOINT_LIMITS`).
+"""
+
+JOINT_RANGES_RAD = {
+    "shoulder_pan": (-1.9198621771937616, 1.9198621771937634),
+    "shoulder_lift": (-1.7453292519943224, 1.7453292519943366),
+    "elbow_flex": (-1.69, 1.69),
+    "wrist_flex": (-1.6580628494556928, 1.6580627293335335),
+    "wrist_roll": (-2.7438472969992493, 2.841206309382605),
+    "gripper": (-0.17453297762778586, 1.7453291995659765),
+}
+"""Joint ranges [rad]: the ``range`` attributes of ``model/so101.xml`` (upstream
+``so101_new_calib``), so that the IK and the real-arm path need no MuJoCo to know them;
+``tests/test_model.py`` checks they are the model's."""
+
+GRIPPER_RANGE = (0.0, 100.0)
+"""The gripper's user range [%]: 0 at its lower joint limit (closed), 100 at the upper (open)."""
+
+JOINT_LIMITS = {joint: (math.degrees(lower), math.degrees(upper))
+                for joint, (lower, upper) in JOINT_RANGES_RAD.items() if joint != "gripper"}
+JOINT_LIMITS["gripper"] = GRIPPER_RANGE
+"""Joint limits in user units: [deg] for the arm joints, [0, 100] for the gripper."""
+
+# The gripper mount's small tilt about the wrist_roll axis, exactly as the
+# upstream quaternion (0.0172091, -0.0172091, 0.706897, 0.706897) encodes it:
+# that quaternion is Rz(180) Rx(90) Rz(phi) with phi = 2 atan2(-0.0172091, 0.706897).
+GRIPPER_MOUNT_TILT_DEG = math.degrees(2.0 * math.atan2(-0.0172091, 0.706897))  # about -2.789
+
+# Fixed part of each transform: displacement [m] and rotation as a sequence of
+# (axis, angle [deg]) applied left to right. Numbers from so101_new_calib.
+FIXED_TRANSFORMS = {
+    "w1": ((0.0388353, -8.97657e-09, 0.0624), (("z", 180.0), ("x", 180.0))),
+    "12": ((-0.0303992, -0.0182778, -0.0542), (("x", -90.0), ("z", -90.0))),
+    "23": ((-0.11257, -0.028, 0.0), (("z", 90.0),)),
+    "34": ((-0.1349, 0.0052, 0.0), (("z", -90.0),)),
+    "45": ((0.0, -0.0611, 0.0181), (("z", 180.0), ("x", 90.0), ("z", GRIPPER_MOUNT_TILT_DEG))),
+    # Tool: centre of the held cube (derivation in model/so101.xml), 180 deg about y.
+    "5t": ((0.0051, -0.000218, -0.1075), (("y", 180.0),)),
+}
+
+
+def Rx(thetadeg: float) -> np.ndarray:
+    """Rotation matrix about x by ``thetadeg`` [deg] (in ``ANGLE_RANGE_DEG``)."""
+    c, s = _cos_sin(check_angle(thetadeg, "thetadeg"))
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def Ry(thetadeg: float) -> np.ndarray:
+    """Rotation matrix about y by ``thetadeg`` [deg] (in ``ANGLE_RANGE_DEG``)."""
+    c, s = _cos_sin(check_angle(thetadeg, "thetadeg"))
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def Rz(thetadeg: float) -> np.ndarray:
+    """Rotation matrix about z by ``thetadeg`` [deg] (in ``ANGLE_RANGE_DEG``)."""
+    c, s = _cos_sin(check_angle(thetadeg, "thetadeg"))
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def check_angle(value, name: str) -> float:
+    """``value`` as a float if it is a number of degrees in ``ANGLE_RANGE_DEG``.
+
+    Args:
+        value: the angle [deg].
+        name: what to call it in the message, e.g. ``"wrist_roll"``.
+
+    Raises:
+        KinematicsTypeError: text, None, a boolean or another non-number.
+        KinematicsInputError: NaN, an infinity, or outside the range.
+    """
+    if type(value) is not float:  # ints, numpy scalars; rejects text and booleans
+        value = _as_degrees(name, value)
+    if not ANGLE_RANGE_DEG[0] <= value <= ANGLE_RANGE_DEG[1]:  # also false for NaN
+        low, high = ANGLE_RANGE_DEG
+        if not math.isfinite(value):
+            raise KinematicsInputError(
+                f"{name} must be a finite number of degrees in [{low:g}, {high:g}], got "
+                f"{value!r}. Fix: give a finite angle.")
+        raise KinematicsInputError(
+            f"{name} = {value:g} deg is outside [{low:g}, {high:g}] deg (the FK takes each angle "
+            "within one turn). Fix: wrap it into [-180, 180] deg (and check it is not in "
+            "radians or a sum of angles).")
+    return value
+
+
+def _cos_sin(thetadeg: float) -> tuple[float, float]:
+    """Cosine and sine of an angle in degrees, exact at multiples of 90."""
+    quarter_turns, rest = divmod(thetadeg, 90.0)
+    if rest == 0.0:
+        return ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0))[int(quarter_turns) % 4]
+    rad = math.radians(thetadeg)
+    return math.cos(rad), math.sin(rad)
+
+
+_AXIS_ROTATION = {"x": Rx, "y": Ry, "z": Rz}
+
+
+def pose(rotation: np.ndarray, displacement) -> np.ndarray:
+    """Assemble a 4x4 homogeneous transform.
+
+    Args:
+        rotation: (3, 3) rotation matrix.
+        displacement: (3,) translation [m].
+
+    Returns:
+        The (4, 4) transform ``[[rotation, displacement], [0, 0, 0, 1]]``.
+    """
+    g = np.eye(4)
+    g[:3, :3] = rotation
+    g[:3, 3] = displacement
+    return g
+
+
+def _fixed_rotation(name: str) -> np.ndarray:
+    """The fixed rotation of transform ``name``, composed left to right."""
+    rotation = np.eye(3)
+    for axis, angle in FIXED_TRANSFORMS[name][1]:
+        rotation = rotation @ _AXIS_ROTATION[axis](angle)
+    return rotation
+
+
+FIXED_ROTATION = {name: _fixed_rotation(name) for name in FIXED_TRANSFORMS}
+
+
+def joint_transform(name: str, theta_deg: float) -> np.ndarray:
+    """``g`` of one joint: its fixed transform ``name`` ("w1", ..., "45") then ``Rz(theta_deg)``."""
+    return pose(FIXED_ROTATION[name] @ Rz(theta_deg), FIXED_TRANSFORMS[name][0])
+
+
+def read_angles(position_dict: Mapping[str, float]) -> list[float]:
+    """The five arm joint angles [deg] of a configuration, validated (see :func:`joint_angles`)."""
+    angles = []
+    low, high = ANGLE_RANGE_DEG
+    for joint in ARM_JOINTS:
+        try:
+            value = position_dict[joint]
+        except (KeyError, TypeError, IndexError):
+            error = KinematicsInputError if isinstance(position_dict, Mapping) else \
+                KinematicsTypeError
+            raise error(
+                f"Configuration has no '{joint}' angle; expected a dict with keys "
+                f"{', '.join(ARM_JOINTS)} (degrees), got {_describe_keys(position_dict)}. "
+                "Fix: give all five arm joints."
+            ) from None
+        if type(value) is not float or not low <= value <= high:
+            value = check_angle(value, f"Joint '{joint}'")
+        angles.append(value)
+    return angles
+
+
+def _as_degrees(name: str, value) -> float:
+    """``float(value)`` for a number; KinematicsTypeError for text, None, booleans and the rest."""
+    if isinstance(value, (str, bytes, bool, np.bool_)) or value is None:
+        raise KinematicsTypeError(f"{name} must be a number of degrees, got {value!r} "
+                                  f"({type(value).__name__}). Fix: pass a number"
+                                  + (" without quotes." if isinstance(value, str) else "."))
+    try:
+        return float(value)
+    except OverflowError:
+        raise KinematicsInputError(f"{name} must be a finite number of degrees, got an "
+                                   "integer too large for a float. Fix: give a finite "
+                                   "angle.") from None
+    except (TypeError, ValueError):
+        raise KinematicsTypeError(f"{name} must be a number of degrees, got "
+                                  f"{type(value).__name__}. Fix: pass a number.") from None
+
+
+def _describe_keys(position_dict) -> str:
+    try:
+        return repr(sorted(map(str, position_dict.keys())))
+    except Exception:  # not a mapping: say what it is instead
+        return f"a {type(position_dict).__name__}"
+
+
+def joint_angles(position_dict: Mapping[str, float]) -> np.ndarray:
+    """Read the five arm joint angles from a configuration dict.
+
+    Args:
+        position_dict: joint name -> angle [deg]; extra keys (``gripper``) are ignored.
+
+    Returns:
+        (5,) angles [deg] in ``ARM_JOINTS`` order.
+
+    Raises:
+        KinematicsInputError: a joint is missing, or its value is not a finite
+            number in ``ANGLE_RANGE_DEG`` (a ValueError; text, None and
+            booleans raise its subclass :class:`KinematicsTypeError`, also a TypeError).
+    """
+    return np.array(read_angles(position_dict))
+
+
