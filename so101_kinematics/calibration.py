@@ -23,12 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from so101_kinematics.errors import (
-    CalibrationError as CalibrationError,
-)
-from so101_kinematics.errors import (
-    HardwareError as HardwareError,
-)
+from so101_kinematics.errors import CalibrationError, HardwareError  # noqa: F401
 from so101_kinematics.frames import JOINTS
 
 # --- Settings ---------------------------------------------------------------

@@ -31,17 +31,11 @@ from so101_kinematics.calibration import (
     HardwareError,
     ServoCalibration,
 )
-from so101_kinematics.errors import (
-    ConnectionFailed as ConnectionFailed,
-)
-from so101_kinematics.errors import (
-    LerobotMissing as LerobotMissing,
-)
-from so101_kinematics.errors import (
-    PortInUse as PortInUse,
-)
-from so101_kinematics.errors import (
-    PortLost as PortLost,
+from so101_kinematics.errors import (  # noqa: F401 - the family, re-exported
+    ConnectionFailed,
+    LerobotMissing,
+    PortInUse,
+    PortLost,
 )
 from so101_kinematics.frames import JOINTS
 

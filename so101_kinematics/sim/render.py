@@ -43,12 +43,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from so101_kinematics.errors import (
-    RenderError as RenderError,
-)
-from so101_kinematics.errors import (
-    RenderSettingError as RenderSettingError,
-)
+from so101_kinematics.errors import RenderError, RenderSettingError  # noqa: F401
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.sim.meshes import ensure_render_meshes
 

@@ -95,12 +95,7 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 
 from so101_kinematics.display import has_display
-from so101_kinematics.errors import (
-    FaultSpecError as FaultSpecError,
-)
-from so101_kinematics.errors import (
-    VirtualSO101Error as VirtualSO101Error,
-)
+from so101_kinematics.errors import FaultSpecError, VirtualSO101Error  # noqa: F401
 from so101_kinematics.paths import REPO
 from so101_kinematics.virtual.calibration import (
     DEFAULT_CALIBRATION_PATH,
