@@ -42,8 +42,9 @@ from so101_kinematics.hw.run import (
     validate_plan_for_arm,
 )
 from so101_kinematics.hw.teach import format_configuration, format_plan, teach
-from so101_kinematics.motion import PROFILES, PlanError, check_number, default_plan, load_plan
+from so101_kinematics.motion import PROFILES, PlanError, check_number
 from so101_kinematics.outputs import check_output_path
+from so101_kinematics.plans import default_plan, load_plan
 
 logger = logging.getLogger("pick_place_hw")
 

@@ -40,19 +40,9 @@ from so101_kinematics.cli import (
     range_help,
     report_unexpected,
 )
-from so101_kinematics.motion import (
-    MAX_DURATION,
-    Plan,
-    PlanError,
-    Step,
-    check_number,
-    default_plan,
-    load_plan,
-    pick_and_place_steps,
-    run_plan,
-    validate_plan,
-)
+from so101_kinematics.motion import MAX_DURATION, Plan, PlanError, Step, check_number, run_plan
 from so101_kinematics.outputs import OutputPathError, check_output_path, write_text_atomic
+from so101_kinematics.plans import default_plan, load_plan, pick_and_place_steps, validate_plan
 from so101_kinematics.sim.contact_pairs import use_explicit_contact_pairs
 from so101_kinematics.sim.meshes import ensure_meshes
 from so101_kinematics.sim.render import (

@@ -16,7 +16,7 @@ sys.path.insert(0, str(REPO))
 
 import so101_inverse_kinematics as ik  # noqa: E402
 from so101_forward_kinematics import get_forward_kinematics  # noqa: E402
-from so101_kinematics.motion import FINAL_CONFIGURATION, STARTING_CONFIGURATION  # noqa: E402
+from so101_kinematics.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION  # noqa: E402
 
 OUTPUT = REPO / "docs" / "workspace.png"
 HEIGHT = ik.CUBE_HALF_SIZE   # cube centre above the table [m]

@@ -1,7 +1,7 @@
 """The course's pick-and-place from Cartesian cube positions, planned by inverse kinematics.
 
 :func:`cartesian_plan` turns a pick and a place position (and the cube's yaw)
-into the same waypoints as ``so101_motion.default_plan()``, each solved by
+into the same waypoints as ``plans.default_plan()``, each solved by
 ``so101_inverse_kinematics`` with a top-down grasp; :func:`add_cartesian_arguments`
 and :func:`plan_from_arguments` give ``pick_place_sim.py`` and
 ``pick_place_hw.py`` the same ``--pick/--place`` options.
@@ -20,14 +20,8 @@ from so101_kinematics.errors import UnreachableError
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.ik.geometry import GRIPPER_OPEN, POSITION_LIMIT
 from so101_kinematics.ik.solver import as_position, get_inverse_kinematics
-from so101_kinematics.motion import (
-    FINAL_CONFIGURATION,
-    STARTING_CONFIGURATION,
-    Plan,
-    PlanError,
-    check_number,
-    pick_and_place_plan,
-)
+from so101_kinematics.motion import Plan, PlanError, check_number
+from so101_kinematics.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION, pick_and_place_plan
 
 DEFAULT_LIFT_HEIGHT = 0.10
 """Height of the lift and carry waypoints above the pick and place positions [m]."""
@@ -70,7 +64,7 @@ def cartesian_plan(
 ) -> Plan:
     """The course's pick-and-place plan from the Cartesian pick and place positions.
 
-    The waypoints and timing of ``so101_motion.default_plan()``, each solved
+    The waypoints and timing of ``plans.default_plan()``, each solved
     by IK from the one before it (so the arm stays on one branch):
 
     - start_open / final_open: top-down grasps at the pick and place positions;
@@ -104,7 +98,7 @@ def cartesian_plan(
 
     Raises:
         UnreachableError: a waypoint cannot be reached (the message names it).
-        so101_motion.PlanError: a height, slide, yaw or duration outside its
+        PlanError: a height, slide, yaw or duration outside its
             range (``LIFT_HEIGHT_RANGE``, ``APPROACH_HEIGHT_RANGE``,
             ``SLIDE_RANGE``, ``CUBE_YAW_RANGE``, ``so101_motion.MAX_DURATION``).
         so101_forward_kinematics.KinematicsInputError: a malformed position.

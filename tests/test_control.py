@@ -28,7 +28,8 @@ from so101_kinematics.hw.control import (
     session_for,
     speed_caps,
 )
-from so101_kinematics.motion import JointLimitError, default_plan
+from so101_kinematics.motion import JointLimitError
+from so101_kinematics.plans import default_plan
 
 REPO = Path(__file__).resolve().parent.parent
 VIRTUAL_CALIBRATION = REPO / "calibration" / "virtual_so101.json"

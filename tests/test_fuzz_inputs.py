@@ -24,7 +24,8 @@ import so101_forward_kinematics as fk
 import so101_inverse_kinematics as ik
 import test_fk_mujoco
 from so101_forward_kinematics import ARM_JOINTS, JOINTS
-from so101_kinematics.motion import MAX_DURATION, STARTING_CONFIGURATION, PlanError, load_plan
+from so101_kinematics.motion import MAX_DURATION, PlanError
+from so101_kinematics.plans import STARTING_CONFIGURATION, load_plan
 
 FUZZ = settings(derandomize=True, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])

@@ -20,21 +20,14 @@ import so101_inverse_kinematics as ik
 import so101_mujoco_utils as utils
 import test_fk_mujoco
 from so101_kinematics.cartesian_plan import cartesian_plan
-from so101_kinematics.motion import (
-    STARTING_CONFIGURATION,
-    Plan,
-    PlanError,
-    Step,
-    Trajectory,
-    check_number,
-    load_plan,
-)
+from so101_kinematics.motion import Plan, PlanError, Step, Trajectory, check_number
 from so101_kinematics.outputs import (
     OutputPathError,
     atomic_output,
     check_output_path,
     temporary_beside,
 )
+from so101_kinematics.plans import STARTING_CONFIGURATION, load_plan
 
 REPO = Path(__file__).resolve().parent.parent
 ARM = {"shoulder_pan": 0.0, "shoulder_lift": 0.0, "elbow_flex": 0.0, "wrist_flex": 0.0,

@@ -12,8 +12,9 @@ from conftest import REPO
 
 import so101_inverse_kinematics as ik
 import so101_kinematics.cartesian_plan as cp
-import so101_kinematics.motion as so101_motion
+import so101_kinematics.plans as so101_motion
 from so101_forward_kinematics import ARM_JOINTS, JOINTS, get_forward_kinematics
+from so101_kinematics.errors import PlanError
 
 POSITION_TOL = 1e-6   # [m], the acceptance
 ANGLE_TOL = 1e-6      # [rad]
@@ -284,7 +285,7 @@ def test_joint_limit_names_joint_value_and_limit():
 
 
 def test_unreachable_error_is_a_plan_error():
-    assert issubclass(ik.UnreachableError, so101_motion.PlanError)
+    assert issubclass(ik.UnreachableError, PlanError)
     assert issubclass(ik.UnreachableError, ValueError)
 
 
@@ -443,5 +444,5 @@ def test_command_line_builds_the_cartesian_plan():
      "give one of them"),
 ])
 def test_command_line_mistakes(argv, match):
-    with pytest.raises(so101_motion.PlanError, match=match):
+    with pytest.raises(PlanError, match=match):
         cp.plan_from_arguments(parse(argv))

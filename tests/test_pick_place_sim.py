@@ -17,14 +17,11 @@ import so101_mujoco_utils as utils
 from pick_place_sim import CubeStart, choose_mode, run_pick_place
 from so101_forward_kinematics import get_forward_kinematics
 from so101_kinematics.cartesian_plan import cartesian_plan
-from so101_kinematics.motion import (
+from so101_kinematics.motion import JointLimitError, Plan, PlanError, Step
+from so101_kinematics.plans import (
     FINAL_CONFIGURATION,
     GRIPPER_CLOSED,
     STARTING_CONFIGURATION,
-    JointLimitError,
-    Plan,
-    PlanError,
-    Step,
     default_plan,
     load_plan,
     pick_and_place_steps,

@@ -67,8 +67,8 @@ from so101_kinematics.motion import (
     check_number,
     run_plan,
     unit,
-    validate_plan,
 )
+from so101_kinematics.plans import validate_plan
 
 logger = logging.getLogger("pick_place_hw")
 

@@ -11,7 +11,8 @@ from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.bus import PortLost, port_lost, recover_port
 from so101_kinematics.hw.control import READ_RETRIES, RECOVERY_TIMEOUT_S, RateLoop, capped_duration
-from so101_kinematics.motion import Configuration, Plan, pick_and_place_steps
+from so101_kinematics.motion import Configuration, Plan
+from so101_kinematics.plans import pick_and_place_steps
 
 TEACH_RATE_HZ = 5.0        # live pose printing [Hz]
 MAX_TEACH_RATE_HZ = 50.0   # a terminal cannot show more [Hz]

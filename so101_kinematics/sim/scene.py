@@ -94,8 +94,8 @@ def validate(m: mujoco.MjModel, cfg: Mapping[str, float], where: str = "") -> Co
     """Check a full configuration against the model's joint limits.
 
     Raises:
-        so101_motion.JointLimitError: naming joint, value and limit.
-        so101_motion.PlanError: missing, unknown or non-numeric joints.
+        JointLimitError: naming joint, value and limit.
+        PlanError: missing, unknown or non-numeric joints.
     """
     return check_configuration(cfg, joint_limits(m), where)
 

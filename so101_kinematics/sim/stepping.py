@@ -134,8 +134,8 @@ def move_to_pose(
         profile: "minimum_jerk" (smooth, default) or "linear" (the course's).
 
     Raises:
-        so101_motion.JointLimitError: the target is outside the limits.
-        so101_motion.PlanError: a duration that is not a number in [0, MAX_DURATION] s.
+        JointLimitError: the target is outside the limits.
+        PlanError: a duration that is not a number in [0, MAX_DURATION] s.
         ViewerClosed: the viewer window was closed.
     """
     goal = validate(m, cfg, "move_to_pose target")
@@ -155,7 +155,7 @@ def hold_position(m: mujoco.MjModel, d: mujoco.MjData, viewer, duration: float) 
         duration: [s], in [0, ``MAX_DURATION``].
 
     Raises:
-        so101_motion.PlanError: a duration that is not a number in [0, MAX_DURATION] s.
+        PlanError: a duration that is not a number in [0, MAX_DURATION] s.
         ViewerClosed: the viewer window was closed.
     """
     duration = check_duration(duration, "hold_position duration")

@@ -203,7 +203,7 @@ class VirtualSO101:
         CalibrationError: the calibration is unusable.
         FaultSpecError: ``faults`` does not parse.
         VirtualSO101Error: no display for the viewer, or the emulator failed to start.
-        so101_motion.JointLimitError: ``initial`` is outside the joint limits.
+        JointLimitError: ``initial`` is outside the joint limits.
     """
 
     def __init__(self, calibration: str | Path | Mapping = DEFAULT_CALIBRATION_PATH,
@@ -332,7 +332,7 @@ class VirtualSO101:
         """Teleport the arm to ``cfg`` ([deg], gripper [0, 100]) at rest; goals follow.
 
         Raises:
-            so101_motion.JointLimitError: a value is outside the joint limits.
+            JointLimitError: a value is outside the joint limits.
         """
         self._call("set_pose", dict(cfg))
 

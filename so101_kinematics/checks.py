@@ -1,0 +1,190 @@
+"""Checked inputs, one way for the whole project: numbers, durations, configurations.
+
+Configurations are dicts joint name -> value, arm joints in [deg], the gripper
+in [0, 100] (0 = closed end of its range, 100 = open end). Every check names
+the parameter, the value, the allowed range and the fix.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import numbers
+from collections.abc import Mapping
+
+import numpy as np
+
+from so101_kinematics.errors import JointLimitError as JointLimitError
+from so101_kinematics.errors import PlanError as PlanError
+from so101_kinematics.frames import JOINTS
+
+Configuration = dict[str, float]
+Limits = Mapping[str, tuple[float, float]]
+
+
+MAX_DURATION = 600.0
+"""Longest move, hold or return [s] of a plan or a simulated motion (ten minutes).
+
+A simulated second is 250 physics steps; a longer duration is almost surely a
+typo (milliseconds for seconds) and would keep the simulator busy for hours.
+"""
+
+"""Gripper opening at the user boundary [0, 100]: 0 closed end, 100 open end of its range."""
+
+
+def unit(joint: str) -> str:
+    """Unit of a joint's value at the user boundary: "deg" or "%" (gripper)."""
+    return "%" if joint == "gripper" else "deg"
+
+
+def is_finite_number(value) -> bool:
+    """True for a finite int or float (numpy scalars included), False for bools and the rest.
+
+    Integers too large for a float (``10**400``) are not finite numbers here.
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:  # an int beyond the float range
+        return False
+
+
+def describe_value(value) -> str:
+    """A short, one-line description of a value for an error message.
+
+    Example:
+        >>> describe_value(10**400), describe_value("2.0"), describe_value(float("nan"))
+        ('an integer of about 401 digits', "'2.0' (text)", 'nan')
+    """
+    if isinstance(value, (bool, np.bool_)):
+        return f"{bool(value)} (a boolean)"
+    if isinstance(value, str):
+        text = value if len(value) <= 40 else value[:37] + "..."
+        return f"{text!r} (text)"
+    if isinstance(value, numbers.Integral):
+        number = int(value)
+        if abs(number) < 10**24:
+            return str(number)
+        digits = int(abs(number).bit_length() * math.log10(2.0)) + 1  # no str(): 4300-digit cap
+        return f"{'-' if number < 0 else ''}an integer of about {digits} digits"
+    if isinstance(value, numbers.Real):
+        return f"{float(value):g}"
+    if value is None:
+        return "None (null)"
+    text = repr(value).replace("\n", " ")
+    return (text if len(text) <= 40 else text[:37] + "...") + f" (a {type(value).__name__})"
+
+
+def format_range(low: float, high: float, unit: str = "", low_open: bool = False) -> str:
+    """An interval for messages: ``in [0, 600] s``, ``in (0, 0.01] s``, ``>= 1 frames/s``."""
+    text = "in " + ("(" if low_open else "[") + f"{low:g}, {high:g}]"
+    if math.isinf(high):
+        text = (">" if low_open else ">=") + f" {low:g}"
+    return f"{text} {unit}".rstrip()
+
+
+def check_number(value, name: str, low: float = -math.inf, high: float = math.inf,
+                 unit: str = "", *, low_open: bool = False, fix: str = "",
+                 error: type[Exception] = PlanError) -> float:
+    """A finite real number within ``[low, high]`` (``(low, high]`` if ``low_open``) as a float.
+
+    Booleans, text and ``None`` are not numbers here; NaN, infinities and
+    integers beyond the float range are not finite.
+
+    Args:
+        value: the value to check.
+        name: what the user calls it (for the message), e.g. ``"waypoint 2 'lift': duration"``.
+        low: smallest allowed value.
+        high: largest allowed value.
+        unit: unit for the message, e.g. ``"s"``.
+        low_open: exclude ``low`` itself.
+        fix: what to do instead (default: give a number in the range).
+        error: the exception class to raise (a ValueError subclass of the caller's family).
+
+    Returns:
+        The value as a float.
+
+    Raises:
+        error: one line naming ``name``, the value, the allowed range and the fix.
+
+    Example:
+        >>> check_number(2, "duration", 0.0, 600.0, "s")
+        2.0
+        >>> check_number("2", "duration", 0.0, 600.0, "s")
+        Traceback (most recent call last):
+        ...
+        so101_kinematics.errors.PlanError: duration must be a number in [0, 600] s, got '2' \
+(text). Fix: write the number without quotes.
+    """
+    allowed = format_range(low, high, unit, low_open)
+    if not is_finite_number(value):
+        default = f"give a number {allowed}."
+        if isinstance(value, str):
+            default = "write the number without quotes."
+            fix = f"write the number without quotes; {fix}" if fix else ""
+        kind = "a finite number" if isinstance(value, numbers.Real) and not isinstance(
+            value, (bool, np.bool_)) else "a number"
+        raise error(f"{name} must be {kind} {allowed}, got {describe_value(value)}. "
+                    f"Fix: {fix or default}")
+    number = float(value)
+    if number < low or number > high or (low_open and number == low):
+        raise error(f"{name} = {describe_value(value)} {unit}".rstrip()
+                    + f" is not {allowed}. Fix: {fix or f'give a number {allowed}.'}")
+    return number
+
+
+def check_duration(value, name: str, error: type[Exception] = PlanError) -> float:
+    """A duration [s] in ``[0, MAX_DURATION]`` as a float (see :func:`check_number`)."""
+    return check_number(value, name, 0.0, MAX_DURATION, "s", error=error,
+                        fix=f"give a number of seconds (not milliseconds) in [0, "
+                            f"{MAX_DURATION:g}].")
+
+
+def check_configuration(cfg: Mapping[str, float], limits: Limits, where: str = "") -> Configuration:
+    """Validate a configuration and return it as a plain dict of floats.
+
+    Args:
+        cfg: joint name -> value ([deg]; gripper [0, 100]). All six joints are
+            required unless ``limits`` lists fewer.
+        limits: joint name -> (lower, upper) in the same units.
+        where: context for messages, e.g. "waypoint 'lift'".
+
+    Returns:
+        The configuration, keys in ``JOINTS`` order, values as floats.
+
+    Raises:
+        PlanError: a joint is missing, unknown, or not a finite number.
+        JointLimitError: a value is outside its limits (names joint, value,
+            limit and the fix).
+    """
+    prefix = f"{where}: " if where else ""
+    unknown = [name for name in cfg if name not in JOINTS]
+    if unknown:
+        name = unknown[0]
+        close = difflib.get_close_matches(name, JOINTS, n=1)
+        hint = f" Did you mean '{close[0]}'?" if close else ""
+        raise PlanError(f"{prefix}unknown joint '{name}'.{hint} Joints are: {', '.join(JOINTS)}.")
+    out = {}
+    for joint in (j for j in JOINTS if j in limits):
+        if joint not in cfg:
+            raise PlanError(f"{prefix}joint '{joint}' is missing; give all of {', '.join(limits)}.")
+        value = cfg[joint]
+        if not is_finite_number(value):
+            lower, upper = limits[joint]
+            within = (f" within its limits [{lower:g}, {upper:g}] {unit(joint)}"
+                      if math.isfinite(lower) and math.isfinite(upper) else f" [{unit(joint)}]")
+            raise PlanError(f"{prefix}joint '{joint}' must be a finite number{within}, got "
+                            f"{describe_value(value)}. Fix: give {joint} a number"
+                            + (" without quotes." if isinstance(value, str) else "."))
+        lower, upper = limits[joint]
+        if not lower <= value <= upper:
+            bound = lower if value < lower else upper
+            raise JointLimitError(
+                f"{prefix}{joint} = {value:g} {unit(joint)} is outside its limits "
+                f"[{lower:g}, {upper:g}] {unit(joint)} (beyond {bound:g} by "
+                f"{abs(value - bound):.3g}). Fix: choose a {joint} within the limits."
+            )
+        out[joint] = float(value)
+    return out
+
