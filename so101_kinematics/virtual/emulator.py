@@ -3,71 +3,43 @@
 It runs in its own interpreter, started by :class:`so101_kinematics.virtual.arm.VirtualSO101`
 (entry point :func:`emulator_main`), and serves the bus and steps the physics
 in one single-threaded event loop; the parent's commands arrive on a socket pair.
-
-Registers (STS3215 control table, sizes and sign-magnitude as lerobot's
-tables): Present_Position = encoder - Homing_Offset (mod 4096); Goal_Position
-is in the same frame (so a new Homing_Offset written with torque on moves the
-joint; lerobot writes it with torque off) and is clamped to [Min_Position_Limit,
-Max_Position_Limit] (silently: the STS status byte has no angle-limit bit;
-its bit 1 is the encoder-sensor error). Torque_Enable = 0 makes the joint
-limp (the position actuator's gains are zeroed; gravity and the joint's
-damping and friction act) and, as on the STS, Goal_Position then follows
-Present_Position so re-enabling torque does not jump. Max_Torque_Limit scales
-the actuator's force range. Lock = 0 saves EEPROM writes (addresses < 40) to
-the image restored by :meth:`VirtualSO101.power_cycle`; with Lock = 1 they act
-until the next power cycle. Present_Velocity [ticks/s] and Present_Load
-[0.1 % of the stall torque, sign bit 10] come from the simulation. Acceleration,
-speed limits and the PID coefficients are stored but do not shape the motion:
-the MuJoCo position actuator (upstream's sts3215 gains) does. Only
-Operating_Mode 0 (position) is emulated; in other modes goals are stored but
-the joint keeps its last target.
+What the registers do to the arm is ``virtual/registers.py``'s.
 """
-
 from __future__ import annotations
 
 import logging
-import math
 import os
 import select
 import signal
-import statistics
 import termios
 import time
 import tty
 from collections import deque
 from multiprocessing.connection import Connection
 
-from so101_kinematics.virtual.calibration import TICKS_PER_RAD
+from so101_kinematics.virtual.commands import ParentCommands
 from so101_kinematics.virtual.protocol import (
-    ADDR,
     BAUD_RATES,
     BITS_PER_BYTE,
     BROADCAST_ID,
-    EEPROM_END,
-    ERR_OVERLOAD,
-    ERROR_BITS,
-    FIRMWARE,
     INST_PING,
     INST_READ,
     INST_SYNC_READ,
     INST_SYNC_WRITE,
     INST_WRITE,
-    READ_ONLY,
-    RESOLUTION,
     status_packet,
     take_packets,
 )
+from so101_kinematics.virtual.registers import GOAL_LOG_LENGTH, ServoRegisters  # noqa: F401
 from so101_kinematics.virtual.servo import VirtualServo
 
 logger = logging.getLogger("virtual_so101")
 
-STALL_LOAD_RATE = 2000.0  # [0.1 % per s] Present_Load rise of a stalled servo
 LATE_REPLY = 0.045  # [s] after this, lerobot (50 ms timeout) may have given up
-GOAL_LOG_LENGTH = 1_000_000  # Goal_Position writes kept (about 30 min of a 100 Hz loop)
 
 
-class _Emulator:
-    """The event loop of the emulator process: pty + registers + physics."""
+class _Emulator(ServoRegisters, ParentCommands):
+    """The event loop of the emulator process: the pty and the protocol."""
 
     def __init__(self, conn, options: dict):
         import mujoco
@@ -126,129 +98,6 @@ class _Emulator:
                        if hasattr(termios, f"B{b}")}
         self.t0 = time.perf_counter()
         self.steps = 0
-
-    # --- physics --------------------------------------------------------------------------
-    def _apply_torque(self, servo: VirtualServo) -> None:
-        on = servo.torque
-        m, act = self.m, servo.act
-        m.actuator_gainprm[act, 0] = servo.kp if on else 0.0
-        m.actuator_biasprm[act, 1] = -servo.kp if on else 0.0
-        m.actuator_biasprm[act, 2] = -servo.kv if on else 0.0
-        force = servo.max_force * min(1000, servo.get("Max_Torque_Limit")) / 1000.0
-        m.actuator_forcerange[act] = (-force, force)
-
-    def _hold(self, servo: VirtualServo) -> None:
-        """Goal_Position := Present_Position, actuator target := measured angle."""
-        angle = float(self.d.qpos[servo.qadr])
-        servo.set("Goal_Position", servo.angle_to_present(angle))
-        self.d.ctrl[servo.act] = angle
-
-    def step_physics(self) -> None:
-        due = int((time.perf_counter() - self.t0) / self.dt) - self.steps
-        if due <= 0:
-            return
-        if due > 25:  # fell behind (busy machine): let simulated time slip
-            self.steps += due - 25
-            due = 25
-        m, d, step = self.m, self.d, self.mujoco.mj_step
-        stalled = [s for s in self.servos.values() if s.stalled_at is not None]
-        for _ in range(due):
-            step(m, d)
-            for s in stalled:
-                d.qpos[s.qadr] = s.stalled_at
-                d.qvel[s.dofadr] = 0.0
-        self.steps += due
-        for s in stalled:
-            err = s.get("Goal_Position") - s.angle_to_present(s.stalled_at)
-            rate = STALL_LOAD_RATE * due * self.dt
-            if abs(err) > 3 and s.torque:
-                s.load = math.copysign(min(1000.0, abs(s.load) + rate), err)
-            else:
-                s.load = math.copysign(max(0.0, abs(s.load) - rate), s.load)
-        if self.viewer is not None and time.perf_counter() >= self.next_view:
-            if not self.viewer.is_running():
-                raise KeyboardInterrupt("viewer closed")
-            self.viewer.sync()
-            self.next_view = time.perf_counter() + 1 / 60
-
-    def refresh(self, servo: VirtualServo, lo: int = 56, hi: int = 71) -> None:
-        """Update the servo's Present_* registers overlapping [lo, hi) from the simulation."""
-        d, regs = self.d, servo.regs
-        angle = servo.stalled_at if servo.stalled_at is not None else float(d.qpos[servo.qadr])
-        present = round(servo.base + servo.scale * angle + servo.delta) % RESOLUTION
-        regs[56] = present & 0xFF
-        regs[57] = present >> 8
-        if not servo.torque:  # the STS keeps Goal_Position on Present_Position while limp
-            regs[42], regs[43] = regs[56], regs[57]
-        if hi <= 58:
-            return
-        velocity = float(d.qvel[servo.dofadr]) * TICKS_PER_RAD
-        if servo.stalled_at is not None:
-            load = servo.load
-        else:
-            load = float(d.actuator_force[servo.act]) / servo.max_force * 1000.0
-        load = max(-1000, min(1000, round(load)))
-        servo.set("Present_Velocity", max(-32767, min(32767, round(velocity))))
-        servo.set("Present_Load", load)
-        servo.set("Present_Current", abs(load) * 2)
-        regs[66] = int(abs(velocity) > 20)
-        regs[65] = self.error_byte(servo)
-
-    def error_byte(self, servo: VirtualServo) -> int:
-        bits = servo.error_bits
-        if servo.stalled_at is not None and abs(servo.load) >= 10 * servo.regs[36]:
-            bits |= ERR_OVERLOAD
-        return bits
-
-    # --- registers ------------------------------------------------------------------------
-    def write_goal(self, servo: VirtualServo, low: int, high: int) -> None:
-        """Fast path: a Goal_Position write (the hot path of a control loop)."""
-        regs = servo.regs
-        regs[42] = low
-        regs[43] = high
-        goal = low | high << 8
-        if goal & 0x8000:
-            goal = -(goal & 0x7FFF)
-        if servo.torque and servo.position_mode:
-            self.d.ctrl[servo.act] = servo.goal_to_angle(goal)
-        self.goal_log.append((time.time(), servo.id, goal))
-
-    def write(self, servo: VirtualServo, addr: int, data: bytes) -> None:
-        if addr == 42 and len(data) == 2:
-            self.write_goal(servo, data[0], data[1])
-            return
-        regs = servo.regs
-        old_id, was_on = servo.id, servo.torque
-        for i, byte in enumerate(data):
-            if addr + i not in READ_ONLY and addr + i < 256:
-                regs[addr + i] = byte
-        if addr < EEPROM_END and regs[55] == 0:
-            servo.saved = bytes(regs[:EEPROM_END])
-        servo.sync_cache()
-        touched = set(range(addr, addr + len(data)))
-        if servo.id != old_id or touched & {6}:
-            self.servos = {s.id: s for s in self.by_joint.values()}
-            self.update_listening()
-        if touched & {40, 16, 17}:
-            self._apply_torque(servo)
-            if servo.torque and not was_on:
-                self._hold(servo)
-        if touched & {42, 43, 31, 32, 9, 10, 11, 12, 33}:
-            if servo.torque and servo.position_mode:
-                self.d.ctrl[servo.act] = servo.goal_to_angle(servo.get("Goal_Position"))
-            if touched & {42, 43}:
-                self.goal_log.append((time.time(), servo.id, servo.get("Goal_Position")))
-
-    def read(self, servo: VirtualServo, addr: int, size: int) -> bytes:
-        end = addr + size
-        if (end > 56 and addr < 71) or (not servo.torque and addr <= 43 and end > 42):
-            self.refresh(servo, addr, end)
-        return bytes(servo.regs[addr:end]).ljust(size, b"\0")
-
-    def update_listening(self) -> None:
-        """The servos that hear the host: present, and at the host's baud rate."""
-        self.listening = {i: s for i, s in self.servos.items()
-                          if not s.removed and s.baud == self.host_baud}
 
     # --- protocol -------------------------------------------------------------------------
     def on_serial(self) -> None:
@@ -363,125 +212,6 @@ class _Emulator:
         self.lateness.append(time.perf_counter() - deadline)
         if now - t_end > LATE_REPLY:
             self.late += 1
-
-    # --- faults and commands --------------------------------------------------------------
-    def inject(self, faults: list[tuple]) -> None:
-        for kind, servo_id, arg in faults:
-            if kind == "outage":
-                self.outage_until = time.perf_counter() + arg / 1000.0
-                logger.info("fault injected: bus outage of %g ms", arg)
-                continue
-            if kind == "latency":
-                self.latency, self.latency_left = arg[0] / 1000.0, arg[1]
-                logger.info("fault injected: the next %d replies %g ms late", arg[1], arg[0])
-                continue
-            if kind == "unplug":
-                self.unplug()
-                continue
-            servo = next(s for s in self.by_joint.values() if s.cal["id"] == servo_id)
-            if kind in ERROR_BITS:
-                servo.error_bits |= ERROR_BITS[kind]
-            elif kind == "drop":
-                servo.drop += arg
-            elif kind == "corrupt":
-                servo.corrupt += arg
-            elif kind == "remove":
-                servo.removed = True
-            elif kind == "stall":
-                servo.stalled_at = float(self.d.qpos[servo.qadr])
-                servo.load = 0.0
-            elif kind == "firmware":
-                servo.regs[0], servo.regs[1] = arg
-            self.update_listening()
-            logger.info("fault injected: %s on servo %d (%s)", kind, servo_id, servo.joint)
-
-    def unplug(self) -> None:
-        """The USB cable pulled out: the port vanishes; the servos keep their last goals."""
-        if self.unplugged:
-            return
-        self.unplugged = True
-        os.close(self.master)
-        os.close(self.slave)
-        logger.info("fault injected: unplugged (%s is gone)", self.port)
-
-    def clear_faults(self) -> None:
-        self.outage_until = 0.0
-        self.latency_left = 0
-        for servo in self.servos.values():
-            servo.error_bits = 0
-            servo.drop = servo.corrupt = 0
-            servo.removed = False
-            servo.stalled_at = None
-            servo.load = 0.0
-            servo.regs[0], servo.regs[1] = FIRMWARE
-        self.update_listening()
-
-    def command(self, name: str, args: tuple):
-        smu = self.smu
-        if name == "joint_positions":
-            return smu.get_configuration(self.m, self.d)
-        if name == "commanded_positions":
-            return smu.get_command(self.m, self.d)
-        if name == "goal_log":
-            return list(self.goal_log)
-        if name == "clear_goal_log":
-            self.goal_log.clear()
-            return None
-        if name == "torque_enabled":
-            return {s.joint: s.torque for s in self.by_joint.values()}
-        if name == "inject":
-            return self.inject(args[0])
-        if name == "clear_faults":
-            return self.clear_faults()
-        if name == "set_pose":
-            smu.set_initial_pose(self.d, args[0])
-            for servo in self.servos.values():
-                if servo.stalled_at is not None:
-                    servo.stalled_at = float(self.d.qpos[servo.qadr])
-                self._hold(servo)
-            return None
-        if name == "set_torque":
-            for servo in self.by_joint.values():
-                if args[1] is None or servo.joint in args[1]:
-                    self.write(servo, 40, bytes((int(args[0]),)))
-            return None
-        if name == "set_wire_timing":
-            self.wire_timing = bool(args[0])
-            return None
-        if name == "registers":
-            servo = self.by_joint[args[0]]
-            self.refresh(servo)
-            return {reg: servo.get(reg) for reg in ADDR}
-        if name == "power_cycle":
-            for servo in self.servos.values():
-                eeprom = servo.saved
-                gains = servo.kp, servo.kv, servo.max_force  # the model's, before any torque change
-                servo.__init__(servo.joint, servo.cal, self.m)
-                servo.kp, servo.kv, servo.max_force = gains
-                servo.regs[:EEPROM_END] = eeprom
-                servo.saved = eeprom
-                servo.sync_cache()
-                self._apply_torque(servo)
-            self.servos = {s.id: s for s in self.by_joint.values()}
-            self.update_listening()
-            return None
-        if name == "reply_stats":
-            lateness = sorted(self.lateness)
-            p99 = lateness[int(0.99 * (len(lateness) - 1))] if lateness else 0.0
-            return {
-                "replies": self.replies, "late_replies": self.late,
-                "lateness_median_ms": 1e3 * statistics.median(lateness) if lateness else 0.0,
-                "lateness_p99_ms": 1e3 * p99,
-                "lateness_max_ms": 1e3 * lateness[-1] if lateness else 0.0,
-                "max_loop_delay_ms": 1e3 * self.max_gap,
-                "sim_time_s": self.d.time, "wall_time_s": time.perf_counter() - self.t0,
-            }
-        if name == "clear_stats":
-            self.lateness.clear()
-            self.replies = self.late = 0
-            self.max_gap = 0.0
-            return None
-        raise ValueError(f"unknown command {name!r}")
 
     def run(self) -> None:
         self.conn.send(("ready", self.port))

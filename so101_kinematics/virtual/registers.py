@@ -1,0 +1,169 @@
+"""What the virtual servos' registers do to the simulated arm, and the physics that answers.
+
+Registers (STS3215 control table, sizes and sign-magnitude as lerobot's
+tables): Present_Position = encoder - Homing_Offset (mod 4096); Goal_Position
+is in the same frame (so a new Homing_Offset written with torque on moves the
+joint; lerobot writes it with torque off) and is clamped to [Min_Position_Limit,
+Max_Position_Limit] (silently: the STS status byte has no angle-limit bit;
+its bit 1 is the encoder-sensor error). Torque_Enable = 0 makes the joint
+limp (the position actuator's gains are zeroed; gravity and the joint's
+damping and friction act) and, as on the STS, Goal_Position then follows
+Present_Position so re-enabling torque does not jump. Max_Torque_Limit scales
+the actuator's force range. Lock = 0 saves EEPROM writes (addresses < 40) to
+the image restored by :meth:`VirtualSO101.power_cycle`; with Lock = 1 they act
+until the next power cycle. Present_Velocity [ticks/s] and Present_Load
+[0.1 % of the stall torque, sign bit 10] come from the simulation. Acceleration,
+speed limits and the PID coefficients are stored but do not shape the motion:
+the MuJoCo position actuator (upstream's sts3215 gains) does. Only
+Operating_Mode 0 (position) is emulated; in other modes goals are stored but
+the joint keeps its last target.
+"""
+
+
+from __future__ import annotations
+
+import math
+import time
+
+from so101_kinematics.virtual.calibration import TICKS_PER_RAD
+from so101_kinematics.virtual.protocol import EEPROM_END, ERR_OVERLOAD, READ_ONLY, RESOLUTION
+from so101_kinematics.virtual.servo import VirtualServo
+
+STALL_LOAD_RATE = 2000.0  # [0.1 % per s] Present_Load rise of a stalled servo
+GOAL_LOG_LENGTH = 1_000_000  # Goal_Position writes kept (about 30 min of a 100 Hz loop)
+
+
+class ServoRegisters:
+    """The servos' registers applied to the MuJoCo arm (a mixin of the emulator's event loop).
+
+    Expects ``m``, ``d``, ``mujoco``, ``dt``, ``t0``, ``steps``, ``servos``,
+    ``by_joint``, ``goal_log``, ``viewer`` and ``next_view`` on the instance.
+    """
+
+    # --- physics --------------------------------------------------------------------------
+    def _apply_torque(self, servo: VirtualServo) -> None:
+        on = servo.torque
+        m, act = self.m, servo.act
+        m.actuator_gainprm[act, 0] = servo.kp if on else 0.0
+        m.actuator_biasprm[act, 1] = -servo.kp if on else 0.0
+        m.actuator_biasprm[act, 2] = -servo.kv if on else 0.0
+        force = servo.max_force * min(1000, servo.get("Max_Torque_Limit")) / 1000.0
+        m.actuator_forcerange[act] = (-force, force)
+
+    def _hold(self, servo: VirtualServo) -> None:
+        """Goal_Position := Present_Position, actuator target := measured angle."""
+        angle = float(self.d.qpos[servo.qadr])
+        servo.set("Goal_Position", servo.angle_to_present(angle))
+        self.d.ctrl[servo.act] = angle
+
+    def step_physics(self) -> None:
+        """Step the simulation up to the wall clock (at most 25 steps behind: then time slips)."""
+        due = int((time.perf_counter() - self.t0) / self.dt) - self.steps
+        if due <= 0:
+            return
+        if due > 25:  # fell behind (busy machine): let simulated time slip
+            self.steps += due - 25
+            due = 25
+        m, d, step = self.m, self.d, self.mujoco.mj_step
+        stalled = [s for s in self.servos.values() if s.stalled_at is not None]
+        for _ in range(due):
+            step(m, d)
+            for s in stalled:
+                d.qpos[s.qadr] = s.stalled_at
+                d.qvel[s.dofadr] = 0.0
+        self.steps += due
+        for s in stalled:
+            err = s.get("Goal_Position") - s.angle_to_present(s.stalled_at)
+            rate = STALL_LOAD_RATE * due * self.dt
+            if abs(err) > 3 and s.torque:
+                s.load = math.copysign(min(1000.0, abs(s.load) + rate), err)
+            else:
+                s.load = math.copysign(max(0.0, abs(s.load) - rate), s.load)
+        if self.viewer is not None and time.perf_counter() >= self.next_view:
+            if not self.viewer.is_running():
+                raise KeyboardInterrupt("viewer closed")
+            self.viewer.sync()
+            self.next_view = time.perf_counter() + 1 / 60
+
+    def refresh(self, servo: VirtualServo, lo: int = 56, hi: int = 71) -> None:
+        """Update the servo's Present_* registers overlapping [lo, hi) from the simulation."""
+        d, regs = self.d, servo.regs
+        angle = servo.stalled_at if servo.stalled_at is not None else float(d.qpos[servo.qadr])
+        present = round(servo.base + servo.scale * angle + servo.delta) % RESOLUTION
+        regs[56] = present & 0xFF
+        regs[57] = present >> 8
+        if not servo.torque:  # the STS keeps Goal_Position on Present_Position while limp
+            regs[42], regs[43] = regs[56], regs[57]
+        if hi <= 58:
+            return
+        velocity = float(d.qvel[servo.dofadr]) * TICKS_PER_RAD
+        if servo.stalled_at is not None:
+            load = servo.load
+        else:
+            load = float(d.actuator_force[servo.act]) / servo.max_force * 1000.0
+        load = max(-1000, min(1000, round(load)))
+        servo.set("Present_Velocity", max(-32767, min(32767, round(velocity))))
+        servo.set("Present_Load", load)
+        servo.set("Present_Current", abs(load) * 2)
+        regs[66] = int(abs(velocity) > 20)
+        regs[65] = self.error_byte(servo)
+
+    def error_byte(self, servo: VirtualServo) -> int:
+        """The servo's status error bits: injected ones, and overload once a stall loads it."""
+        bits = servo.error_bits
+        if servo.stalled_at is not None and abs(servo.load) >= 10 * servo.regs[36]:
+            bits |= ERR_OVERLOAD
+        return bits
+
+    # --- registers ------------------------------------------------------------------------
+    def write_goal(self, servo: VirtualServo, low: int, high: int) -> None:
+        """Fast path: a Goal_Position write (the hot path of a control loop)."""
+        regs = servo.regs
+        regs[42] = low
+        regs[43] = high
+        goal = low | high << 8
+        if goal & 0x8000:
+            goal = -(goal & 0x7FFF)
+        if servo.torque and servo.position_mode:
+            self.d.ctrl[servo.act] = servo.goal_to_angle(goal)
+        self.goal_log.append((time.time(), servo.id, goal))
+
+    def write(self, servo: VirtualServo, addr: int, data: bytes) -> None:
+        """Write ``data`` at ``addr`` (read-only bytes ignored) and apply what it changes."""
+        if addr == 42 and len(data) == 2:
+            self.write_goal(servo, data[0], data[1])
+            return
+        regs = servo.regs
+        old_id, was_on = servo.id, servo.torque
+        for i, byte in enumerate(data):
+            if addr + i not in READ_ONLY and addr + i < 256:
+                regs[addr + i] = byte
+        if addr < EEPROM_END and regs[55] == 0:
+            servo.saved = bytes(regs[:EEPROM_END])
+        servo.sync_cache()
+        touched = set(range(addr, addr + len(data)))
+        if servo.id != old_id or touched & {6}:
+            self.servos = {s.id: s for s in self.by_joint.values()}
+            self.update_listening()
+        if touched & {40, 16, 17}:
+            self._apply_torque(servo)
+            if servo.torque and not was_on:
+                self._hold(servo)
+        if touched & {42, 43, 31, 32, 9, 10, 11, 12, 33}:
+            if servo.torque and servo.position_mode:
+                self.d.ctrl[servo.act] = servo.goal_to_angle(servo.get("Goal_Position"))
+            if touched & {42, 43}:
+                self.goal_log.append((time.time(), servo.id, servo.get("Goal_Position")))
+
+    def read(self, servo: VirtualServo, addr: int, size: int) -> bytes:
+        """``size`` bytes from ``addr``, the Present_* registers refreshed from the simulation."""
+        end = addr + size
+        if (end > 56 and addr < 71) or (not servo.torque and addr <= 43 and end > 42):
+            self.refresh(servo, addr, end)
+        return bytes(servo.regs[addr:end]).ljust(size, b"\0")
+
+    def update_listening(self) -> None:
+        """The servos that hear the host: present, and at the host's baud rate."""
+        self.listening = {i: s for i, s in self.servos.items()
+                          if not s.removed and s.baud == self.host_baud}
+
