@@ -28,6 +28,8 @@ from so101_kinematics.outputs import (
     temporary_beside,
 )
 from so101_kinematics.plans import STARTING_CONFIGURATION, load_plan
+from so101_kinematics.sim import cube as cube_world
+from so101_kinematics.sim import stepping
 
 REPO = Path(__file__).resolve().parent.parent
 ARM = {"shoulder_pan": 0.0, "shoulder_lift": 0.0, "elbow_flex": 0.0, "wrist_flex": 0.0,
@@ -104,7 +106,7 @@ def test_a_long_move_keeps_its_memory_bounded(model):
 
 def test_commands_in_blocks_are_the_same_physics(model, monkeypatch):
     def final_state(block):
-        monkeypatch.setattr(utils, "COMMAND_BLOCK_STEPS", block)
+        monkeypatch.setattr(stepping, "COMMAND_BLOCK_STEPS", block)
         d = mujoco.MjData(model)
         utils.set_initial_pose(d, STARTING_CONFIGURATION)
         utils.move_to_pose(model, d, None, UP, 0.5)  # 125 steps
@@ -186,7 +188,7 @@ def test_ctrl_c_during_record_keeps_the_old_video(tmp_path, capsys, monkeypatch)
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(utils, "move_to_pose", interrupted)
+    monkeypatch.setattr(stepping, "move_to_pose", interrupted)
     code, err = run_sim(capsys, ["--record", str(video), "--plan", str(plan), "--size", "32x32",
                                  "--no-cube", "--no-progress"])
     assert code == 130
@@ -297,7 +299,7 @@ def test_bad_numbers_are_one_line_naming_the_option(capsys, argv, option):
 
 def test_a_cube_off_the_table_is_refused_before_the_run(capsys, monkeypatch):
     # Waypoint start_open puts the cube at x = 0.230 m; the table ends at x = 0.5 m.
-    monkeypatch.setattr(pick_place_sim, "CUBE_OFFSET_RANGE_MM", (-1000.0, 1000.0))
+    monkeypatch.setattr(cube_world, "CUBE_OFFSET_RANGE_MM", (-1000.0, 1000.0))
     with pytest.raises(PlanError, match=r"off the table, which spans x in \[-0.5, 0.5\] m"):
         pick_place_sim.run_pick_place(cube=pick_place_sim.CubeStart((0.28, 0.0)))
 
@@ -305,7 +307,7 @@ def test_a_cube_off_the_table_is_refused_before_the_run(capsys, monkeypatch):
 def test_a_cube_out_of_reach_is_refused_before_the_run(monkeypatch):
     # (0.23 + 0.2, 0.19 + 0.2) m is on the table but 0.58 m from the base: the two
     # links and the wrist span about 0.45 m.
-    monkeypatch.setattr(pick_place_sim, "CUBE_OFFSET_RANGE_MM", (-1000.0, 1000.0))
+    monkeypatch.setattr(cube_world, "CUBE_OFFSET_RANGE_MM", (-1000.0, 1000.0))
     with pytest.raises(PlanError, match=r"\(0.430, 0.390\) m .*out of the arm's reach.*beyond"
                                         r".*--cube-offset"):
         pick_place_sim.run_pick_place(cube=pick_place_sim.CubeStart((0.2, 0.2)))

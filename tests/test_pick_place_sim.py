@@ -27,6 +27,7 @@ from so101_kinematics.plans import (
     pick_and_place_steps,
     validate_plan,
 )
+from so101_kinematics.sim import stepping
 
 REPO = Path(__file__).resolve().parent.parent
 WAYPOINTS = REPO / "waypoints"
@@ -71,7 +72,7 @@ def test_default_plan_validates_and_contains_the_course_configurations(model):
 
 def test_out_of_limit_waypoint_is_refused_before_anything_moves(monkeypatch):
     moves = []
-    monkeypatch.setattr(utils, "move_to_pose", lambda *args, **kw: moves.append(args))
+    monkeypatch.setattr(stepping, "move_to_pose", lambda *args, **kw: moves.append(args))
     plan = default_plan()
     plan.steps[4].configuration = dict(plan.steps[4].configuration, wrist_flex=120.0)
     with pytest.raises(JointLimitError, match=r"wrist_flex = 120 deg .*limits"):
