@@ -54,6 +54,7 @@ from so101_kinematics.frames import (  # noqa: F401 - the course's names, from o
     Ry,
     Rz,
     check_angle,
+    get_frame_chain,
     joint_angles,
     joint_transform,
     pose,
@@ -126,26 +127,6 @@ def get_forward_kinematics(position_dict: Mapping[str, float]) -> tuple[np.ndarr
     position = gwt[0:3, 3]
     rotation = gwt[0:3, 0:3]
     return position, rotation
-
-
-def get_frame_chain(position_dict: Mapping[str, float]) -> dict[str, np.ndarray]:
-    """Pose in the world of every FK frame, built from the ``get_gxx`` factors.
-
-    Args:
-        position_dict: joint name -> angle [deg].
-
-    Returns:
-        Frame name (``FRAMES``: "w", "1".."5", "t") -> ``g_w<frame>`` (4, 4).
-    """
-    theta = read_angles(position_dict)
-    factors = (get_gw1(theta[0]), get_g12(theta[1]), get_g23(theta[2]),
-               get_g34(theta[3]), get_g45(theta[4]), get_g5t())
-    chain = {"w": np.eye(4)}
-    g_w = chain["w"]
-    for frame, factor in zip(FRAMES[1:], factors, strict=True):
-        g_w = g_w @ factor
-        chain[frame] = g_w
-    return chain
 
 
 def get_forward_kinematics_batch(angles_deg, chunk: int = 8192) -> tuple[np.ndarray, np.ndarray]:

@@ -244,3 +244,26 @@ def joint_angles(position_dict: Mapping[str, float]) -> np.ndarray:
     return np.array(read_angles(position_dict))
 
 
+
+
+def get_frame_chain(position_dict: Mapping[str, float]) -> dict[str, np.ndarray]:
+    """Pose in the world of every FK frame: the course's factors multiplied one by one.
+
+    Args:
+        position_dict: joint name -> angle [deg].
+
+    Returns:
+        Frame name (``FRAMES``: "w", "1".."5", "t") -> ``g_w<frame>`` (4, 4).
+
+    Raises:
+        KinematicsInputError: a joint is missing or not a finite number in
+            ``ANGLE_RANGE_DEG`` (see :func:`joint_angles`).
+    """
+    theta = read_angles(position_dict) + [0.0]  # g_5t has no joint
+    chain = {"w": np.eye(4)}
+    g_w = chain["w"]
+    for frame, name, angle in zip(FRAMES[1:], ("w1", "12", "23", "34", "45", "5t"), theta,
+                                  strict=True):
+        g_w = g_w @ joint_transform(name, angle)
+        chain[frame] = g_w
+    return chain

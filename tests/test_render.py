@@ -16,10 +16,10 @@ from so101_kinematics.sim.render import (
     START_RGBA,
     FrameRenderer,
     RenderError,
-    VideoRecorder,
     add_overlays,
     target_cubes,
 )
+from so101_kinematics.sim.video import VideoRecorder
 
 
 def test_decimated_mesh_stays_within_one_cell_of_the_original(tmp_path):

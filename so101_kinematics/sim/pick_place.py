@@ -42,12 +42,12 @@ from so101_kinematics.sim.render import (
     DEFAULT_SIZE,
     QUALITY,
     RenderSettingError,
-    VideoRecorder,
     add_overlays,
     check_fps,
     check_frame_size,
     target_cubes,
 )
+from so101_kinematics.sim.video import VideoRecorder
 
 DEFAULT_VIDEO = REPO / "out" / "pick_place.mp4"
 INITIAL_KEYFRAME = "home"  # the arm's initial pose, returned to at the end
