@@ -8,6 +8,7 @@
 #                         the tests that need no lerobot (-m "not hw"), in an
 #                         environment with the dev extra only: minutes, not
 #                         the hw extra's PyTorch (CI's leg per Python version)
+#   ./dev.sh lint         ruff check (the dev extra only)
 #   ./dev.sh bench [ARGS] the benchmarks (benchmarks/run.py)
 #   ./dev.sh shell        a shell inside the environment
 #
@@ -26,8 +27,8 @@ job="${1:-sim}"
 case "$job" in
   sim) extras="" ;;
   test|bench|shell) extras="dev,hw" ;;
-  test-base) extras="dev" ;;
-  *) echo "usage: ./dev.sh {sim|test|test-base|bench|shell} [ARGS]" >&2; exit 2 ;;
+  test-base|lint) extras="dev" ;;
+  *) echo "usage: ./dev.sh {sim|test|test-base|lint|bench|shell} [ARGS]" >&2; exit 2 ;;
 esac
 
 python="${PYTHON:-python3}"
@@ -82,6 +83,7 @@ case "$job" in
   sim) exec "$venv/bin/python" pick_place_sim.py "$@" ;;
   test) exec "$venv/bin/python" -m pytest "$@" ;;
   test-base) exec "$venv/bin/python" -m pytest -m "not hw" "$@" ;;
+  lint) exec "$venv/bin/python" -m ruff check "$@" . ;;
   bench) exec "$venv/bin/python" benchmarks/run.py "$@" ;;
   shell) PATH="$venv/bin:$PATH" exec "${SHELL:-bash}" ;;
 esac

@@ -15,7 +15,7 @@ from so101_kinematics.calibration import (
     load_calibration,
 )
 from so101_kinematics.cartesian_plan import add_cartesian_arguments, plan_from_arguments
-from so101_kinematics.hw.bus import FIND_PORT_HINT, LerobotMissing, connect, disconnect
+from so101_kinematics.hw.bus import FIND_PORT_HINT, LerobotMissing, connect, disconnect, read_pose
 from so101_kinematics.hw.control import (
     DEFAULT_RATE_HZ,
     MAX_JOINT_SPEED_DEG_S,
@@ -144,7 +144,7 @@ def _dry_run(args, plan, calibration) -> int:
             logger.warning("%s Showing the plan without reading the arm.", error)
         else:
             try:
-                measured = {j: float(v) for j, v in bus.sync_read("Present_Position").items()}
+                measured = read_pose(bus, retries=2)
                 start = clamp_to_limits(measured, calibrated_limits(calibration))
                 print("Measured starting pose: " + format_configuration(measured))
             finally:

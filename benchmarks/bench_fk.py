@@ -44,11 +44,12 @@ def _seed_style_forward_kinematics(cfg: dict) -> tuple[np.ndarray, np.ndarray]:
 
 
 def bench_fk(quick: bool) -> dict:
-    """FK per call (seed style, ours, MuJoCo) and the batch FK per configuration."""
+    """FK per call (seed style, the course's product, the closed form, MuJoCo) and in batch."""
     import mujoco
 
     import so101_forward_kinematics as fk
     import so101_mujoco_utils as utils
+    from so101_kinematics.fast_fk import forward_kinematics
 
     calls, repeats = (2000, 5) if quick else (20000, 9)
     m = utils.load_model()
@@ -64,7 +65,9 @@ def bench_fk(quick: bool) -> dict:
 
     seed = per_call_us(lambda: _seed_style_forward_kinematics(TEST_CONFIGURATION), calls // 4,
                        repeats)
-    single = per_call_us(lambda: fk.get_forward_kinematics(TEST_CONFIGURATION), calls, repeats)
+    product = per_call_us(lambda: fk.get_forward_kinematics(TEST_CONFIGURATION), calls // 4,
+                          repeats)
+    single = per_call_us(lambda: forward_kinematics(TEST_CONFIGURATION), calls, repeats)
     reference = per_call_us(mujoco_fk, calls, repeats)
 
     n = 100_000 if quick else 1_000_000
@@ -79,6 +82,7 @@ def bench_fk(quick: bool) -> dict:
         batch.append((time.perf_counter() - start) / n * 1e9)
     out = {
         "fk_seed_style_us": summarize(seed),
+        "fk_product_us": summarize(product),
         "fk_single_us": summarize(single),
         "mujoco_kinematics_us": summarize(reference),
         "fk_batch_ns_per_config": summarize(batch),

@@ -2,7 +2,7 @@
 
 Figures (need the hw extra, lerobot):
   - hw_loop_hz_<rate>, hw_period_p50_ms_<rate>, hw_period_p99_error_ms_<rate>:
-    so101_control's deadline-scheduled loop at 100 Hz and 200 Hz, talking to
+    so101_kinematics.hw.control's deadline-scheduled loop at 100 Hz and 200 Hz, talking to
     the virtual arm with wire timing at 1 Mbaud (goal: p99 period error < 1 ms);
   - wire_cycle_ms: one 6-motor sync_read + sync_write through lerobot's bus,
     wire_time_ms: the bytes' time on a 1 Mbaud wire (88 bytes, 10 bits each),

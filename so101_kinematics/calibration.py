@@ -7,11 +7,11 @@ is found by robot id, loaded and validated from a file or a mapping
 normalises: [deg] for the arm joints, [0, 100] for the gripper
 (:func:`ticks_to_user`, its inverse :func:`user_to_ticks`,
 :func:`calibrated_limits`). The one implementation for both backends: the
-real arm (``so101_bus``) and the virtual arm (``virtual_so101_calibration``
+real arm (``so101_kinematics.hw.bus``) and the virtual arm (``so101_kinematics.virtual.calibration``
 adds only what is specific to it).
 
 Also home of :class:`HardwareError`, the base of the hardware error family
-(``so101_bus`` and ``pick_place_hw`` add the others).
+(``so101_kinematics.hw.bus`` and ``pick_place_hw`` add the others).
 """
 
 from __future__ import annotations

@@ -100,7 +100,7 @@ def cartesian_plan(
         UnreachableError: a waypoint cannot be reached (the message names it).
         PlanError: a height, slide, yaw or duration outside its
             range (``LIFT_HEIGHT_RANGE``, ``APPROACH_HEIGHT_RANGE``,
-            ``SLIDE_RANGE``, ``CUBE_YAW_RANGE``, ``so101_motion.MAX_DURATION``).
+            ``SLIDE_RANGE``, ``CUBE_YAW_RANGE``, ``so101_kinematics.checks.MAX_DURATION``).
         so101_forward_kinematics.KinematicsInputError: a malformed position.
 
     Example (the FK positions of the course's configurations give its grasps back)::

@@ -105,7 +105,7 @@ def pick_and_place_plan(
 
     The one place that fixes the waypoints' names, order, gripper states and
     timing, for the joint-space plan (:func:`default_plan`) and the Cartesian
-    one (``so101_cartesian_plan``) alike.
+    one (``so101_kinematics.cartesian_plan``) alike.
 
     Args:
         approach: the open gripper above the cube.

@@ -6,11 +6,10 @@ import types
 
 from so101_forward_kinematics import JOINTS
 from so101_kinematics.calibration import MOTOR_IDS
+from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.hw.control import ArmSession
 
-HOME = {"shoulder_pan": 0.0, "shoulder_lift": -90.0, "elbow_flex": 90.0, "wrist_flex": 30.0,
-        "wrist_roll": 0.0, "gripper": 9.0}
-"""The virtual arm's power-up pose (the model's home keyframe), rounded."""
+HOME = HOME_POSE  # the virtual arm powers up there
 
 
 class FakeClock:

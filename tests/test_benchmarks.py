@@ -8,7 +8,8 @@ import pytest
 from conftest import REPO
 
 EXPECTED_KEYS = [
-    "fk_seed_style_us", "fk_single_us", "mujoco_kinematics_us", "fk_batch_ns_per_config",
+    "fk_seed_style_us", "fk_product_us", "fk_single_us", "mujoco_kinematics_us",
+    "fk_batch_ns_per_config",
     "fk_single_vs_mujoco", "fk_batch_speedup_vs_mujoco_loop",
     "ik_solve_us", "ik_success_rate",
     "sim_realtime_factor", "record_fps", "record_wall_over_video_duration",

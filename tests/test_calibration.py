@@ -1,7 +1,7 @@
-"""One lerobot calibration for both arms: so101_calibration, and the virtual arm's additions.
+"""One lerobot calibration for both arms: calibration.py, and the virtual arm's additions.
 
 The virtual arm's ticks <-> radians is the composition of lerobot's
-normalisation (``so101_calibration.ticks_to_user``) with the project's one unit
+normalisation (``so101_kinematics.calibration.ticks_to_user``) with the project's one unit
 conversion (``so101_mujoco_utils.to_radians``); these tests hold it to the
 closed-form formulas it replaced, over every joint's whole tick range.
 """

@@ -1,6 +1,6 @@
 """The fault matrix of docs/hardware_safety.md, asserted: every fault at every phase of a run.
 
-Each drill (so101_fault_drill) runs the hardware path through lerobot's bus
+Each drill (so101_kinematics.lab.fault_drill) runs the hardware path through lerobot's bus
 against a fresh virtual SO-101 and injects one fault at the first cycle of
 one phase. Whatever the fault, the policy holds: torque is never released
 away from the starting pose, no goal leaves the calibrated range, the log
@@ -16,7 +16,7 @@ pytest.importorskip("lerobot")
 pytestmark = [pytest.mark.hw, pytest.mark.slow]
 
 from so101_forward_kinematics import JOINTS  # noqa: E402
-from so101_kinematics.fault_drill import FAULTS, PHASES, run_drill  # noqa: E402
+from so101_kinematics.lab.fault_drill import FAULTS, PHASES, run_drill  # noqa: E402
 
 RIDDEN_THROUGH = {"3 replies lost", "bus outage 0.5 s", "replies 80 ms late (x3)"}
 """Glitches the run must complete through (the issue: outages up to 0.5 s)."""

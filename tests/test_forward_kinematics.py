@@ -129,6 +129,38 @@ def test_batch_handles_empty_and_single_rows():
     np.testing.assert_allclose(rotations[0], r, atol=1e-14)
 
 
+def test_closed_form_equals_the_course_product_over_1000_random_configurations():
+    """The package's fast path is the course's product, to 1e-12 (the layout issue's bar)."""
+    from so101_kinematics.fast_fk import forward_kinematics, forward_kinematics_batch
+
+    rng = np.random.default_rng(1000)
+    angles = rng.uniform(-360.0, 360.0, (1000, 5))
+    positions, rotations = forward_kinematics_batch(angles)
+    for a, batch_p, batch_r in zip(angles, positions, rotations, strict=True):
+        product_p, product_r = fk.get_forward_kinematics(as_dict(a))
+        fast_p, fast_r = forward_kinematics(as_dict(a))
+        for p, r in ((fast_p, fast_r), (batch_p, batch_r)):
+            np.testing.assert_allclose(p, product_p, rtol=0, atol=1e-12)
+            np.testing.assert_allclose(r, product_r, rtol=0, atol=1e-12)
+
+
+def test_get_forward_kinematics_is_the_literal_product_of_the_six_factors():
+    """The graded function multiplies get_gw1 ... get_g5t: a wrong factor changes its result."""
+    import inspect
+
+    source = inspect.getsource(fk.get_forward_kinematics)
+    assert "gwt = gw1 @ g12 @ g23 @ g34 @ g45 @ g5t" in source
+    cfg = as_dict([10.0, 20.0, 30.0, 40.0, 50.0])
+    before, _ = fk.get_forward_kinematics(cfg)
+    original = fk.get_g34
+    try:
+        fk.get_g34 = lambda theta: original(theta + 1.0)  # a student's wrong factor
+        after, _ = fk.get_forward_kinematics(cfg)
+    finally:
+        fk.get_g34 = original
+    assert np.linalg.norm(after - before) > 1e-3
+
+
 def test_seed_style_composition_equals_get_forward_kinematics():
     rng = np.random.default_rng(11)
     angles = np.vstack([rng.uniform(-180.0, 180.0, (200, 5)),

@@ -22,14 +22,14 @@ pytestmark = [pytest.mark.hw, pytest.mark.slow]
 import so101_kinematics.hw.run as hw  # noqa: E402
 from so101_forward_kinematics import ARM_JOINTS  # noqa: E402
 from so101_kinematics.calibration import load_calibration  # noqa: E402
+from so101_kinematics.constants import HOME_POSE  # noqa: E402
 from so101_kinematics.hw.bus import connect, disconnect  # noqa: E402
 from so101_kinematics.motion import Plan, Step  # noqa: E402
 from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
-HOME = {"shoulder_pan": 0.0, "shoulder_lift": -90.0, "elbow_flex": 90.0, "wrist_flex": 30.0,
-        "wrist_roll": 0.0, "gripper": 9.0}
+HOME = HOME_POSE  # the virtual arm powers up there
 PLAN = {"steps": [
     {"name": "swing_left", "configuration": dict(HOME, shoulder_pan=40.0, elbow_flex=70.0),
      "duration": 1.0, "hold": 0.2},

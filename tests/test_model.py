@@ -75,3 +75,26 @@ def test_arm_settles_at_the_commanded_pose(model):
     mujoco.mj_step(model, data, nstep=round(2.0 / model.opt.timestep))
     reached = np.array([data.qpos[model.joint(name).qposadr[0]] for name in JOINTS])
     np.testing.assert_allclose(reached, target, atol=np.radians(1.0))
+
+
+def test_joint_limits_in_the_package_are_the_models(model):
+    """The real-arm path knows the limits without MuJoCo: they must be the model's exactly."""
+    from so101_kinematics.frames import JOINT_LIMITS, JOINT_RANGES_RAD
+
+    for joint, (lower, upper) in JOINT_RANGES_RAD.items():
+        assert (lower, upper) == tuple(map(float, model.joint(joint).range)), joint
+    for joint in JOINTS[:-1]:
+        lower, upper = model.joint(joint).range
+        assert JOINT_LIMITS[joint] == pytest.approx(np.degrees([lower, upper]), abs=1e-12)
+    assert JOINT_LIMITS["gripper"] == (0.0, 100.0)
+
+
+def test_home_pose_is_the_models_home_keyframe_rounded(model):
+    from so101_kinematics.constants import HOME_POSE
+    from so101_kinematics.sim.scene import get_configuration
+
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("home").id)
+    home = get_configuration(model, data)
+    for joint in JOINTS:
+        assert home[joint] == pytest.approx(HOME_POSE[joint], abs=0.1), joint

@@ -1,4 +1,4 @@
-"""pick_place_hw, so101_bus, so101_control against the virtual SO-101: lerobot's real bus, a pty.
+"""pick_place_hw and the hw package against the virtual SO-101: lerobot's real bus, a pty.
 
 Each test starts its own virtual arm (a MuJoCo arm stepped in real time in a
 subprocess; about 1.5 s to start), so faults and torque states never leak
@@ -27,6 +27,7 @@ import so101_mujoco_utils as mu  # noqa: E402
 from benchmarks.bench_hw import measure_loop_timing  # noqa: E402
 from so101_forward_kinematics import ARM_JOINTS, JOINTS  # noqa: E402
 from so101_kinematics.calibration import CalibrationError, load_calibration  # noqa: E402
+from so101_kinematics.constants import HOME_POSE  # noqa: E402
 from so101_kinematics.hw.bus import (  # noqa: E402
     ConnectionFailed,
     calibration_mismatch,
@@ -38,9 +39,7 @@ from so101_kinematics.plans import default_plan  # noqa: E402
 from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
 
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
-HOME = {"shoulder_pan": 0.0, "shoulder_lift": -90.0, "elbow_flex": 90.0, "wrist_flex": 30.0,
-        "wrist_roll": 0.0, "gripper": 9.0}
-"""The virtual arm's power-up pose (the model's home keyframe), rounded."""
+HOME = HOME_POSE  # the virtual arm powers up there
 
 
 def short_plan() -> Plan:

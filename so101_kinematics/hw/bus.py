@@ -1,7 +1,7 @@
 """The SO-101 follower through lerobot's FeetechMotorsBus: connect, configure, torque, recovery.
 
 The bus side of the hardware backend (the control loop that drives it is
-``so101_control``):
+``hw/control.py``):
   - lerobot, imported lazily (it imports PyTorch): :func:`import_lerobot`;
   - the bus: :func:`make_bus`, :func:`connect` (takes the port for this
     program alone, checks servos and calibration, nothing moves),
@@ -16,7 +16,6 @@ The bus side of the hardware backend (the control loop that drives it is
 
 from __future__ import annotations
 
-import fcntl
 import logging
 import os
 import time
@@ -38,6 +37,7 @@ from so101_kinematics.errors import (  # noqa: F401 - the family, re-exported
     PortLost,
 )
 from so101_kinematics.frames import JOINTS
+from so101_kinematics.hw.port import FIND_PORT_HINT, claim_port, port_users  # noqa: F401
 
 logger = logging.getLogger(__name__)
 
@@ -45,72 +45,6 @@ logger = logging.getLogger(__name__)
 PORT_SETTLE_S = 0.06               # a late reply dies out within the SDK's 50 ms timeout [s]
 MOTOR_MODEL = "sts3215"
 INSTALL_HINT = "pip install -e '.[hw]'  (from the so101-kinematics folder)"
-FIND_PORT_HINT = "lerobot-find-port"
-
-
-# --- Errors -----------------------------------------------------------------
-# --- The port, for this program alone ------------------------------------------
-def _proc_links(pid: str) -> set[str]:
-    try:
-        folder = f"/proc/{pid}/fd"
-        return {os.readlink(os.path.join(folder, fd)) for fd in os.listdir(folder)}
-    except OSError:
-        return set()
-
-
-def _command_line(pid: str) -> str:
-    try:
-        with open(f"/proc/{pid}/cmdline", "rb") as handle:
-            return handle.read().replace(b"\0", b" ").decode(errors="replace").strip()[:80]
-    except OSError:
-        return "?"
-
-
-def port_users(port: str) -> list[str]:
-    """Other processes with ``port`` open, as "pid N (command)" (Linux; [] elsewhere).
-
-    A process that also holds a pseudo-terminal master (/dev/ptmx: the virtual
-    arm's emulator, a terminal) is the port's other end, not a user.
-    """
-    if not os.path.isdir("/proc"):
-        return []
-    target = os.path.realpath(port)
-    users = []
-    for pid in os.listdir("/proc"):
-        if not pid.isdigit() or int(pid) == os.getpid():
-            continue
-        links = _proc_links(pid)
-        if target in links and "/dev/ptmx" not in links:
-            users.append(f"pid {pid} ({_command_line(pid)})")
-    return users
-
-
-def claim_port(port: str) -> int:
-    """Open ``port`` with an exclusive lock (flock) for this program; returns the fd to close.
-
-    Raises:
-        PortInUse: another program holds the lock or has the port open.
-        ConnectionFailed: the port cannot be opened.
-    """
-    try:
-        fd = os.open(port, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
-    except OSError as error:
-        raise ConnectionFailed(f"Cannot open port '{port}': {error.strerror}. Find the port with "
-                               f"`{FIND_PORT_HINT}`.") from None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        os.close(fd)
-        users = port_users(port)
-        raise PortInUse(f"The port '{port}' is in use by another program"
-                        f"{': ' + ', '.join(users) if users else ''}. Fix: stop that program "
-                        "first (only one program may drive the arm).") from None
-    users = port_users(port)
-    if users:
-        os.close(fd)
-        raise PortInUse(f"The port '{port}' is in use by another program: {', '.join(users)}. "
-                        "Fix: stop that program first (only one program may drive the arm).")
-    return fd
 
 
 # --- lerobot, imported lazily ------------------------------------------------
@@ -231,6 +165,20 @@ def calibration_mismatch(bus, calibration: Mapping[str, ServoCalibration]) -> li
             if theirs != mine:
                 differences.append(f"{joint} {key}: servo {theirs}, file {mine}")
     return differences
+
+
+def read_pose(bus, retries: int = 0) -> dict[str, float]:
+    """Present_Position of every joint ([deg]; gripper [0, 100]), in joint order.
+
+    Args:
+        bus: a connected bus.
+        retries: failed reads retried within the call (lerobot's ``num_retry``).
+
+    Raises:
+        ConnectionError: no answer after the retries (lerobot's exception, as it comes).
+    """
+    raw = bus.sync_read("Present_Position", num_retry=retries)
+    return {joint: float(raw[joint]) for joint in JOINTS}
 
 
 def configure(bus) -> None:

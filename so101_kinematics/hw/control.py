@@ -41,6 +41,7 @@ from so101_kinematics.hw.bus import (
     PortLost,
     discard_stale_input,
     port_lost,
+    read_pose,
     recover_port,
 )
 from so101_kinematics.hw.checks import check_status, check_tracking
@@ -156,8 +157,7 @@ class ArmSession:
     # measurement and command
     def _read(self) -> Configuration:
         """Present_Position of every joint, retried within the call; raises what the bus raises."""
-        raw = self.bus.sync_read("Present_Position", num_retry=READ_RETRIES)
-        return {j: float(raw[j]) for j in JOINTS}
+        return read_pose(self.bus, READ_RETRIES)
 
     def read_pose(self) -> Configuration:
         """Present_Position of every joint ([deg]; gripper [0, 100]); raises BusError, PortLost."""

@@ -36,7 +36,7 @@ class CycleLog:
     """A CSV log written while the arm moves; use as the session's ``on_cycle`` hook.
 
     Args:
-        path: the CSV to produce (checked beforehand with ``so101_outputs.check_output_path``).
+        path: the CSV to produce (checked beforehand: ``outputs.check_output_path``).
     """
 
     def __init__(self, path: str | Path):

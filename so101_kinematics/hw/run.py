@@ -34,6 +34,7 @@ from so101_kinematics.hw.bus import (
     connect,
     disconnect,
     enable_torque_in_place,
+    read_pose,
     recover_port,
     release_torque,
     silent_servos,
@@ -281,8 +282,7 @@ def starting_pose(bus, calibration, port: str, robot_id: str | None) -> Configur
     """The measured pose, clamped into the calibration; refused if far outside it."""
     limits = calibrated_limits(calibration)
     with bus_errors("reading the starting pose"):
-        raw = bus.sync_read("Present_Position", num_retry=SETUP_ATTEMPTS - 1)
-    measured = {j: float(v) for j, v in raw.items()}
+        measured = read_pose(bus, SETUP_ATTEMPTS - 1)
     start = clamp_to_limits(measured, limits)
     for joint in JOINTS:
         if abs(start[joint] - measured[joint]) > LIMIT_SLACK_DEG:

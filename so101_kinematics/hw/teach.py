@@ -9,7 +9,7 @@ from collections.abc import Mapping
 
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
-from so101_kinematics.hw.bus import PortLost, port_lost, recover_port
+from so101_kinematics.hw.bus import PortLost, port_lost, read_pose, recover_port
 from so101_kinematics.hw.control import READ_RETRIES, RECOVERY_TIMEOUT_S, RateLoop, capped_duration
 from so101_kinematics.motion import Configuration, Plan
 from so101_kinematics.plans import pick_and_place_steps
@@ -95,7 +95,7 @@ def teach(bus, *, rate_hz: float = TEACH_RATE_HZ, duration: float | None = None,
     try:
         while duration is None or loop.deadline - started < duration - 1e-9:
             try:
-                raw = bus.sync_read("Present_Position", num_retry=READ_RETRIES)
+                pose = read_pose(bus, READ_RETRIES)
             except Exception:  # noqa: BLE001 - a glitch: skip this line
                 if port_lost(bus):
                     raise PortLost.during("teach mode") from None
@@ -108,7 +108,6 @@ def teach(bus, *, rate_hz: float = TEACH_RATE_HZ, duration: float | None = None,
                 loop.wait()
                 continue
             silent_since = None
-            pose = {j: float(raw[j]) for j in JOINTS}
             x, y, z = object_position_cm(pose)
             line = f"{format_configuration(pose)}  object x={x:.1f} y={y:.1f} z={z:.1f} cm"
             print(("\r" + line) if live else line, end="" if live else "\n", file=out, flush=True)

@@ -15,17 +15,13 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from so101_forward_kinematics import (
-    ARM_JOINTS,
-    TOOL_SITE,
-    get_forward_kinematics,
-)
-from so101_inverse_kinematics import get_inverse_kinematics
 from so101_kinematics.cartesian_plan import (
     CUBE_YAW_RANGE,
 )
 from so101_kinematics.constants import CUBE_SIZE
-from so101_kinematics.frames import JOINT_LIMITS
+from so101_kinematics.fast_fk import forward_kinematics as get_forward_kinematics
+from so101_kinematics.frames import ARM_JOINTS, JOINT_LIMITS, TOOL_SITE
+from so101_kinematics.ik.solver import get_inverse_kinematics
 from so101_kinematics.motion import Plan, PlanError, check_number
 from so101_kinematics.plans import default_plan, pick_and_place_steps
 from so101_kinematics.sim import scene
@@ -84,12 +80,12 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
         plan: gives the pick configuration (default: the built-in plan).
         cube: the cube's start; ``None`` for no cube.
         render_meshes: use the decimated render-only meshes (for a model that
-            is only drawn; see ``so101_render.use_render_meshes``).
+            is only drawn; see ``so101_kinematics.sim.render.use_render_meshes``).
         physics_only: leave out the visual geoms and their meshes (for a run
             that is never drawn). They have no mass and no contact, so the
             physics is bit for bit the same; each step skips their poses.
         explicit_pairs: list the geom pairs that can touch instead of finding
-            them every step (``so101_contact_pairs``; the same contacts, 6 %
+            them every step (``so101_kinematics.sim.contact_pairs``; the same contacts, 6 %
             less work per step).
 
     Returns:
@@ -156,7 +152,7 @@ def check_cube_start(plan: Plan, cube: CubeStart) -> np.ndarray:
         The cube's start centre [m].
 
     Raises:
-        so101_motion.PlanError: naming the position, the table or the reach, and the fix.
+        so101_kinematics.motion.PlanError: naming the position, the table or the reach, and the fix.
     """
     for axis, value in zip("xy", cube.offset, strict=True):
         check_number(value, f"cube offset {axis}", CUBE_OFFSET_RANGE_MM[0] / 1000.0,

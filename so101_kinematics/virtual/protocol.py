@@ -1,6 +1,6 @@
 """Feetech protocol 0 and the STS3215 control table: packets, encodings, wire time.
 
-Pure facts and arithmetic, no I/O: what :mod:`virtual_so101_emulator` speaks
+Pure facts and arithmetic, no I/O: what :mod:`so101_kinematics.virtual.emulator` speaks
 on its pty, and what tests use to build raw packets.
 
 - Instruction packet ``FF FF ID LEN INST P.. CHK``, status packet

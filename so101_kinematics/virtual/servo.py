@@ -3,7 +3,7 @@
 The registers start from the factory image (:data:`FACTORY`), seeded with
 the joint's lerobot calibration (ID, Homing_Offset, position limits); the
 register semantics that move the arm (goals, torque, Present_*) are applied
-by :mod:`virtual_so101_emulator`, which owns the simulation.
+by :mod:`so101_kinematics.virtual.emulator`, which owns the simulation.
 """
 
 from __future__ import annotations

@@ -1,10 +1,10 @@
 """Fault drills: the hardware run against the virtual SO-101, one fault injected at one phase.
 
 Each drill starts a fresh virtual arm, runs a short pick-and-place through
-the real hardware path (lerobot's bus, :func:`so101_hw_run.run_on_arm`, the
+the real hardware path (lerobot's bus, :func:`so101_kinematics.hw.run.run_on_arm`, the
 streamed CSV log), injects the fault at the first cycle of a phase, and
 records how the run ended and how the arm was left. The fault matrix in
-docs/hardware_safety.md is :func:`main`'s output: ``python so101_fault_drill.py``.
+docs/hardware_safety.md is :func:`main`'s output: ``python -m so101_kinematics.lab.fault_drill``.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from so101_kinematics.calibration import load_calibration
+from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.log import CycleLog
 from so101_kinematics.hw.run import RELEASE_HINT, MotionAborted, ending, run_on_arm
@@ -28,9 +29,7 @@ from so101_kinematics.paths import DOCS_DIR
 DOC_PATH = DOCS_DIR / "hardware_safety.md"
 AT_START_DEG = 2.0  # "at the start": every arm joint within this of its starting angle [deg]
 
-HOME = {"shoulder_pan": 0.0, "shoulder_lift": -90.0, "elbow_flex": 90.0, "wrist_flex": 30.0,
-        "wrist_roll": 0.0, "gripper": 9.0}
-"""The virtual arm's power-up pose (the model's home keyframe), rounded: the drills start there."""
+HOME = HOME_POSE  # the virtual arm powers up there
 
 PHASES = {"approach": "approach", "grasp": "grasp", "carry (cube lifted)": "carry",
           "return": "return_to_start"}

@@ -1,0 +1,1 @@
+"""Lab-day tools that use both arms at once: the fault drills (hardware path, virtual arm)."""
