@@ -212,7 +212,7 @@ class ArmSession:
         except Exception as error:  # noqa: BLE001
             measured = None
             if port_lost(self.bus):
-                raise PortLost.during(f"'{self.step}'") from error
+                raise PortLost.during("a control cycle") from error
             recover_port(self.bus, settle=False)
             if self._unobserved_since is None:
                 self._unobserved_since = deadline
