@@ -110,8 +110,9 @@ def main() -> int:
     }
     print(format_table(results))
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(results, indent=2))
+        from so101_kinematics.outputs import check_output_path, write_text_atomic
+
+        write_text_atomic(check_output_path(args.json, "--json"), json.dumps(results, indent=2))
         print(f"wrote {args.json}", file=sys.stderr)
     return 0
 
