@@ -10,6 +10,7 @@ is a convention (:func:`~so101_kinematics.checker.diagnose.tool_convention`).
 from __future__ import annotations
 
 import difflib
+import functools
 
 import numpy as np
 
@@ -34,7 +35,7 @@ COURSE_CONFIGURATIONS = {
 
 RANDOM_COUNT = 1000
 RANDOM_SEED = 101
-PRODUCT_COUNT = 50
+PRODUCT_COUNT = 10
 """Random configurations at which the FK is also compared with the product of the factors."""
 
 
@@ -45,14 +46,20 @@ def factor_angles(joint: str) -> list[float]:
             for fraction in ANGLE_FRACTIONS]
 
 
+@functools.lru_cache(maxsize=4)
 def configurations(count: int = RANDOM_COUNT, seed: int = RANDOM_SEED) -> np.ndarray:
-    """(3 + count, 6): the course's configurations, then random ones within the limits."""
+    """(3 + count, 6): the course's configurations, then random ones within the limits.
+
+    Cached (a class shares them) and read-only.
+    """
     rng = np.random.default_rng(seed)
     joints = ARM_JOINTS + ("gripper",)
     low = np.array([JOINT_LIMITS[joint][0] for joint in joints])
     high = np.array([JOINT_LIMITS[joint][1] for joint in joints])
     rows = rng.uniform(low, high, size=(count, len(joints)))
-    return np.vstack([np.array(list(COURSE_CONFIGURATIONS.values())), rows])
+    table = np.vstack([np.array(list(COURSE_CONFIGURATIONS.values())), rows])
+    table.flags.writeable = False
+    return table
 
 
 def as_dict(row) -> dict[str, float]:
@@ -61,8 +68,12 @@ def as_dict(row) -> dict[str, float]:
                                                         strict=True)}
 
 
+@functools.lru_cache(maxsize=4)
 def build_request(count: int = RANDOM_COUNT) -> dict:
-    """What the probe evaluates: factor angles, FK configurations, product configurations."""
+    """What the probe evaluates: factor angles, FK configurations, product configurations.
+
+    Cached (a class shares it): callers must not change it.
+    """
     rows = configurations(count)
     dicts = [as_dict(row) for row in rows]
     without = {joint: dicts[0][joint] for joint in ARM_JOINTS}
