@@ -108,9 +108,9 @@ def check_placed(report):
     assert report.success
 
 
-def judge_cube_at(offset_m=(0.0, 0.0), tilt_deg=0.0):
+def judge_cube_at(offset_m=(0.0, 0.0), tilt_deg=0.0, max_lift_m=0.05, dropped=False):
     """The run's report for a cube put by hand at the FK's final position + ``offset_m`` [m],
-    tilted by ``tilt_deg`` about x, after a clean lift (no physics step)."""
+    tilted by ``tilt_deg`` about x, after a lift of ``max_lift_m`` (no physics step)."""
     from types import SimpleNamespace
 
     from so101_kinematics.sim.pick_place import _report
@@ -124,7 +124,7 @@ def judge_cube_at(offset_m=(0.0, 0.0), tilt_deg=0.0):
     d.qpos[adr:adr + 3] = (target[0] + offset_m[0], target[1] + offset_m[1], 0.013)
     d.qpos[adr + 3:adr + 7] = (math.cos(half), math.sin(half), 0.0, 0.0)
     mujoco.mj_forward(m, d)
-    monitor = SimpleNamespace(has_cube=True, dropped=False, max_lift=0.05)
+    monitor = SimpleNamespace(has_cube=True, dropped=dropped, max_lift=max_lift_m)
     return _report(m, d, plan, monitor, 1.0, 0, True, {}, None)
 
 
@@ -141,6 +141,14 @@ def test_success_is_within_10_mm_and_10_deg(offset_m, tilt_deg, placed):
     assert report.success is placed
     if not placed:
         assert "Result: SUCCESS" not in report.summary()
+
+
+def test_a_cube_never_lifted_or_dropped_on_the_way_is_no_success():
+    """Placed exactly, but pushed along the table (lifted 5 mm < 20 mm) or fallen and rolled."""
+    assert judge_cube_at(max_lift_m=0.021).success
+    pushed = judge_cube_at(max_lift_m=0.005)
+    assert not pushed.success and "grasp failed" in pushed.summary()
+    assert not judge_cube_at(dropped=True).success
 
 
 def test_cube_is_carried_and_placed_from_the_nominal_start(nominal):
