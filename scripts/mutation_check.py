@@ -115,7 +115,7 @@ MUTANTS: list[Mutant] = [
       "return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))", "return s", T_CONTROL),
     m("ik_elbow_branch", "the IK tries only one elbow branch",
       "so101_kinematics/ik/search.py", "_Search.try_pitch", "for elbow in (1.0, -1.0):",
-      "for elbow in (1.0,):", f"{T_IK}::test_every_reachable_position_is_solved",
+      "for elbow in (-1.0,):", f"{T_IK}::test_every_reachable_position_is_solved",
       f"{T_IK}::test_every_reachable_top_down_target_is_solved"),
     m("friction_min", "contact-pair friction mixed with min instead of MuJoCo's max",
       "so101_kinematics/sim/contact_pairs.py", "mixed_contact_parameters",
@@ -159,10 +159,16 @@ MUTANTS: list[Mutant] = [
       CONTROL, "ArmSession.stop_here",
       "goal = {j: min(self.limits[j][1], max(self.limits[j][0], pose[j])) for j in JOINTS}",
       "goal = dict(pose)", T_CONTROL),
-    m("return_speed_200", "the abort return at 200 deg/s instead of 20",
+    # The same bug three times: each of the three tests must catch it on its own.
+    m("return_speed_200", "the abort return at 200 deg/s instead of 20 (the commands)",
       CONTROL, None, "RETURN_SPEED_DEG_S = 20.0", "RETURN_SPEED_DEG_S = 200.0",
-      f"{T_CONTROL}::test_the_abort_return_goes_at_20_deg_per_s",
-      f"{T_RUN}::test_stop_request_returns_slowly_to_the_start_and_releases",
+      f"{T_CONTROL}::test_the_abort_return_goes_at_20_deg_per_s"),
+    m("return_speed_200_run", "the abort return at 200 deg/s instead of 20 (a run's ending)",
+      CONTROL, None, "RETURN_SPEED_DEG_S = 20.0", "RETURN_SPEED_DEG_S = 200.0",
+      f"{T_RUN}::test_stop_request_returns_slowly_to_the_start_and_releases"),
+    m("return_speed_200_virtual_arm",
+      "the abort return at 200 deg/s instead of 20 (the virtual arm's clock)",
+      CONTROL, None, "RETURN_SPEED_DEG_S = 20.0", "RETURN_SPEED_DEG_S = 200.0",
       f"{T_HW}::test_ctrl_c_mid_motion_returns_to_the_start_and_releases"),
     m("first_move_from_home", "the first move ramps from the home pose, not the measured one",
       CONTROL, "ArmSession.move", "self.command = self.read_pose()  # the first move",
@@ -252,7 +258,7 @@ def run_tests(root: Path, tests: tuple[str, ...], timeout: float) -> tuple[int |
     except subprocess.TimeoutExpired:
         return None, f"timed out after {timeout:g} s"
     lines = [line for line in done.stdout.splitlines() if line.strip()]
-    failed = [line for line in lines if line.startswith(("FAILED", "ERROR"))]
+    failed = [line for line in lines if line.startswith(("FAILED tests", "ERROR tests"))]
     last = lines[-1] if lines else done.stderr.strip()[-200:]
     return done.returncode, "; ".join([last] + failed[:1])
 
