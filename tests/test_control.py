@@ -12,7 +12,6 @@ from hw_fakes import HOME, FakeBus, FakeClock, make_session  # noqa: F401
 import so101_kinematics.hw.run as hw
 from so101_forward_kinematics import JOINTS
 from so101_kinematics.hw.control import (
-    MAX_JOINT_SPEED_DEG_S,
     SPEED_CAP_LIMIT_DEG_S,
     TRACKING_TIMEOUT_S,
     ArmSession,
@@ -112,7 +111,8 @@ def test_first_move_ramps_from_the_measured_pose_within_the_speed_cap(calibratio
     assert first_step.max() < 0.5  # no jump: the first command is next to the measured pose
     assert commands[-1] == pytest.approx([goal[j] for j in JOINTS])
     speed = np.abs(np.diff(commands, axis=0)).max(axis=0) * 100.0  # [deg/s] at 100 Hz
-    assert speed[:5].max() <= MAX_JOINT_SPEED_DEG_S * 1.01
+    # The default cap, 100 deg/s (pick_place_hw.py --help); stretched, the move peaks at it.
+    assert 100.0 * 0.99 <= speed[:5].max() <= 100.0 * 1.01
     assert session.stretched and "stretched" in session.stretched[0]
     assert session.segments[0].duration > session.segments[0].requested == 0.5
 
