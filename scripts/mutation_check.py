@@ -8,8 +8,8 @@ the list). The repository is copied to a temporary folder once; each mutant is
 applied to the copy, its tests run with a timeout, and the copy restored. Your
 worktree is never modified.
 
-Not part of CI (about 5 minutes on 2 busy cores: 37 mutants, a baseline run first). Run it after changing tests or the
-code they guard (see README, "Development")::
+Not part of CI (about 5 minutes on 2 busy cores: 37 mutants, a baseline run
+first). Run it after changing tests or the code they guard (see README, "Development")::
 
     python scripts/mutation_check.py                 # every mutant
     python scripts/mutation_check.py -k return_speed # mutants whose name contains it
