@@ -19,6 +19,7 @@ from so101_kinematics.calibration import (
     lerobot_calibration_root,
     load_calibration,
     ticks_to_user,
+    user_to_ticks,
 )
 from so101_kinematics.hw.bus import make_bus
 
@@ -105,6 +106,21 @@ def test_calibrated_limits_are_lerobots_normalisation_of_the_range(calibration):
     half = (pan.range_max - pan.range_min) / 2 * 360 / 4095
     assert limits["shoulder_pan"] == pytest.approx((-half, half), abs=1e-12)
     assert limits["gripper"] == (0.0, 100.0)
+
+
+def test_gripper_ticks_by_hand(calibration):
+    """lerobot's RANGE_0_100: 0 % at range_min (closed), 100 % at range_max; drive_mode 1 flips.
+
+    The virtual arm's gripper: ticks 1422..2673 (calibration/virtual_so101.json).
+    """
+    gripper = calibration["gripper"]
+    assert ticks_to_user("gripper", 1422, gripper) == 0.0
+    assert ticks_to_user("gripper", 2673, gripper) == 100.0
+    assert ticks_to_user("gripper", 1422 + 0.25 * 1251, gripper) == pytest.approx(25.0)
+    assert user_to_ticks("gripper", 25.0, gripper) == pytest.approx(1422 + 0.25 * 1251)
+    flipped = ServoCalibration(6, 1, 0, 1422, 2673)
+    assert ticks_to_user("gripper", 1422, flipped) == 100.0
+    assert user_to_ticks("gripper", 100.0, flipped) == pytest.approx(1422)
 
 
 @pytest.mark.hw

@@ -12,7 +12,6 @@ from hw_fakes import HOME, FakeBus, FakeClock, make_session  # noqa: F401
 import so101_kinematics.hw.run as hw
 from so101_forward_kinematics import JOINTS
 from so101_kinematics.hw.control import (
-    MAX_JOINT_SPEED_DEG_S,
     SPEED_CAP_LIMIT_DEG_S,
     TRACKING_TIMEOUT_S,
     ArmSession,
@@ -112,7 +111,8 @@ def test_first_move_ramps_from_the_measured_pose_within_the_speed_cap(calibratio
     assert first_step.max() < 0.5  # no jump: the first command is next to the measured pose
     assert commands[-1] == pytest.approx([goal[j] for j in JOINTS])
     speed = np.abs(np.diff(commands, axis=0)).max(axis=0) * 100.0  # [deg/s] at 100 Hz
-    assert speed[:5].max() <= MAX_JOINT_SPEED_DEG_S * 1.01
+    # The default cap, 100 deg/s (pick_place_hw.py --help); stretched, the move peaks at it.
+    assert 100.0 * 0.99 <= speed[:5].max() <= 100.0 * 1.01
     assert session.stretched and "stretched" in session.stretched[0]
     assert session.segments[0].duration > session.segments[0].requested == 0.5
 
@@ -165,6 +165,53 @@ def test_gripper_squeezing_a_cube_is_not_a_stall(calibration, clock):
     session, bus = make_session(calibration, clock, stalled=["gripper"])
     session.move(dict(HOME, gripper=50.0), 0.5)
     session.hold(1.0)  # no TrackingError: the gripper is not tracked
+    # The whole move and hold ran at 100 Hz: 41 % at the gripper's 100 %/s cap with minimum
+    # jerk (peak 1.875 x mean) takes 0.769 s (77 cycles), then 1.0 s (100), commanding 50 %
+    # while the jaw, blocked by the cube, stayed 41 % away.
+    assert [s.kind for s in session.segments] == ["move", "hold"]
+    assert len(session.cycles) == 77 + 100 and session.stop_reason is None
+    assert bus.goals[-1]["gripper"] == pytest.approx(50.0)
+    assert all(c.measured["gripper"] == HOME["gripper"] for c in session.cycles)
+
+
+# The virtual arm's shoulder_pan calibration (calibration/virtual_so101.json): ticks 795..3299,
+# lerobot's DEGREES: (ticks - middle) * 360 / 4095, so +/- (3299 - 795) / 2 * 360 / 4095 deg.
+PAN_LIMIT_DEG = (3299 - 795) / 2 * 360 / 4095  # = 110.066 deg
+
+
+def test_the_first_move_from_beyond_the_calibrated_range_sends_nothing(calibration, clock):
+    """The first move ramps from the measured pose: outside the calibration, nothing is sent."""
+    beyond = dict(HOME, shoulder_pan=PAN_LIMIT_DEG + 5.0)  # pushed past the range by hand
+    session, bus = make_session(calibration, clock, pose=beyond)
+    with pytest.raises(JointLimitError, match=r"shoulder_pan = 115\.066 deg.*nothing was sent"):
+        session.move(HOME, 2.0)
+    assert bus.goals == []
+
+
+def test_the_abort_return_from_beyond_the_calibrated_range_stays_inside(calibration, clock):
+    """A measured pose outside the calibration on the abort path never reaches the bus."""
+    beyond = dict(HOME, shoulder_pan=-(PAN_LIMIT_DEG + 5.0), elbow_flex=60.0)
+    session, bus = make_session(calibration, clock, pose=beyond)
+    session.return_slowly(HOME)
+    pans = [goal["shoulder_pan"] for goal in bus.goals]
+    assert min(pans) >= -PAN_LIMIT_DEG - 1e-9  # the controlled stop is clamped, then the return
+    assert pans[0] == pytest.approx(-PAN_LIMIT_DEG)
+    assert bus.goals[-1] == pytest.approx(HOME)
+
+
+def test_the_abort_return_goes_at_20_deg_per_s(calibration, clock):
+    """README: "the slow return (20 deg/s) to where the arm started"; checked on the commands."""
+    away = dict(HOME, shoulder_pan=60.0, wrist_flex=-10.0, gripper=40.0)
+    session, bus = make_session(calibration, clock, pose=away)
+    session.return_slowly(HOME)
+    back = [c for c in session.cycles if c.step == "abort_return"]
+    commands = np.array([[c.command[j] for j in JOINTS] for c in back])
+    times = np.array([c.t_s for c in back])
+    speed = np.abs(np.diff(commands, axis=0)) / np.diff(times)[:, None]  # [deg/s], gripper [%/s]
+    assert speed.max() <= 20.0 * 1.001
+    assert speed[:, JOINTS.index("shoulder_pan")].max() >= 20.0 * 0.99  # and not slower
+    assert times[-1] - times[0] >= 60.0 / 20.0  # 60 deg at no more than 20 deg/s
+    assert bus.goals[-1] == pytest.approx(HOME)
 
 
 def fire_once(when, action):
@@ -221,7 +268,9 @@ def test_a_servo_error_bit_stops_the_motion(calibration, clock, joint, bits, sto
     fault = fire_once(lambda c: c.t_s >= 0.2, lambda s: s.bus.status.update({joint: bits}))
     session, bus = make_session(calibration, clock, on_cycle=fault)
     if stops is None:
-        session.move(dict(HOME, wrist_flex=40.0), 1.0)
+        session.move(dict(HOME, wrist_flex=40.0), 1.0)  # it runs to its end
+        assert bus.goals[-1]["wrist_flex"] == pytest.approx(40.0)
+        assert session.cycles[-1].t_s == pytest.approx(1.0)
         return
     with pytest.raises(ServoFault, match=f"{joint} servo reports: {stops}") as info:
         session.move(dict(HOME, wrist_flex=40.0), 1.0)

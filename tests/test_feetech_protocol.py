@@ -102,3 +102,42 @@ def test_present_registers_are_read_only_and_in_ram():
         if name.startswith("Present_"):
             assert set(range(addr, addr + size)) <= fp.READ_ONLY, name
             assert addr >= fp.EEPROM_END, name
+
+
+# The STS3215 memory table (Feetech's STS3215 documentation), written here and not taken from
+# the code: register -> (address, size [bytes], sign bit of its sign-magnitude encoding or None).
+STS3215_TABLE = {
+    "Model_Number": (3, 2, None), "ID": (5, 1, None), "Baud_Rate": (6, 1, None),
+    "Min_Position_Limit": (9, 2, None), "Max_Position_Limit": (11, 2, None),
+    "Homing_Offset": (31, 2, 11),  # "Ofs": -2047..2047, direction at bit 11
+    "Operating_Mode": (33, 1, None), "Torque_Enable": (40, 1, None), "Acceleration": (41, 1, None),
+    "Goal_Position": (42, 2, 15), "Goal_Time": (44, 2, None), "Goal_Velocity": (46, 2, 15),
+    "Torque_Limit": (48, 2, None), "Lock": (55, 1, None), "Present_Position": (56, 2, 15),
+    "Present_Velocity": (58, 2, 15), "Present_Load": (60, 2, 10),
+    "Present_Voltage": (62, 1, None), "Present_Temperature": (63, 1, None),
+    "Status": (65, 1, None), "Moving": (66, 1, None),
+}
+
+
+@pytest.mark.parametrize("register", sorted(STS3215_TABLE))
+def test_control_table_matches_the_sts3215_memory_table(register):
+    address, size, sign_bit = STS3215_TABLE[register]
+    assert fp.ADDR[register] == (address, size)
+    assert fp.SIGN_BITS.get(register) == sign_bit
+
+
+def test_homing_offset_encoding_by_hand():
+    """-300 ticks: magnitude 300 = 0x12C, direction bit 11 (0x800): 0x92C on the wire."""
+    bit = fp.SIGN_BITS["Homing_Offset"]
+    assert fp.encode_sign_magnitude(-300, bit) == 0x092C
+    assert fp.encode_sign_magnitude(300, bit) == 0x012C
+    assert fp.decode_sign_magnitude(0x092C, bit) == -300
+    assert fp.decode_sign_magnitude(0x0FFF, bit) == -2047  # the register's extreme
+    load = fp.SIGN_BITS["Present_Load"]  # Present_Load: direction at bit 10 (0x400)
+    assert fp.decode_sign_magnitude(0x0400 | 500, load) == -500
+
+
+def test_checksum_by_hand():
+    """READ servo 3, 2 bytes at 56: ~(3 + 4 + 2 + 56 + 2) & 0xFF = ~67 & 0xFF = 0xBC."""
+    assert READ_3 == bytes.fromhex("ffff0304023802bc")
+    assert fp.checksum(bytes((3, 4, 2, 56, 2))) == 0xBC

@@ -90,3 +90,10 @@ def test_frames_picture_renders(tmp_path):
     image = iio.imread(path)
     assert image.shape[:2] == (300, 400)
     assert np.ptp(image[..., :3]) > 100  # not a blank image
+    # The frames' axes are drawn: x red, y green, z blue (pixels where that channel dominates
+    # by 60 of 255; the scene itself has none of these colours, measured 50-70 px each).
+    pixels = image[..., :3].astype(int)
+    for channel, colour in enumerate(("red", "green", "blue")):
+        others = [pixels[..., k] for k in range(3) if k != channel]
+        strong = (pixels[..., channel] > others[0] + 60) & (pixels[..., channel] > others[1] + 60)
+        assert strong.sum() > 20, f"no {colour} axis in the frames picture"

@@ -94,12 +94,61 @@ def test_arm_reaches_each_waypoint(nominal):
         assert error <= WAYPOINT_TOLERANCE_DEG, f"{name}: {error:.3f} deg"
 
 
+# docs/pick_place_sim.md: success is the cube placed within 10 mm (horizontal, from the FK's
+# final position) and 10 deg (its up axis from the vertical), lifted and not dropped.
+SPEC_PLACEMENT_M = 0.010
+SPEC_TILT_DEG = 10.0
+
+
 def check_placed(report):
     assert report.completed and not report.dropped
     assert report.max_lift_m > 0.10, "the cube must be carried over the middle configurations"
-    assert report.placement_error_m <= pick_place_sim.PLACEMENT_TOLERANCE
-    assert report.tilt_deg <= pick_place_sim.TILT_TOLERANCE
+    assert report.placement_error_m <= SPEC_PLACEMENT_M
+    assert report.tilt_deg <= SPEC_TILT_DEG
     assert report.success
+
+
+def judge_cube_at(offset_m=(0.0, 0.0), tilt_deg=0.0, max_lift_m=0.05, dropped=False):
+    """The run's report for a cube put by hand at the FK's final position + ``offset_m`` [m],
+    tilted by ``tilt_deg`` about x, after a lift of ``max_lift_m`` (no physics step)."""
+    from types import SimpleNamespace
+
+    from so101_kinematics.sim.pick_place import _report
+
+    plan = default_plan()
+    m = pick_place_sim.build_model(plan, CubeStart(), physics_only=True)
+    d = mujoco.MjData(m)
+    target, _ = get_forward_kinematics(FINAL_CONFIGURATION)  # the course's FK, by hand
+    adr = m.joint("cube").qposadr[0]
+    half = math.radians(tilt_deg) / 2
+    d.qpos[adr:adr + 3] = (target[0] + offset_m[0], target[1] + offset_m[1], 0.013)
+    d.qpos[adr + 3:adr + 7] = (math.cos(half), math.sin(half), 0.0, 0.0)
+    mujoco.mj_forward(m, d)
+    monitor = SimpleNamespace(has_cube=True, dropped=dropped, max_lift=max_lift_m)
+    return _report(m, d, plan, monitor, 1.0, 0, True, {}, None)
+
+
+@pytest.mark.parametrize("offset_m, tilt_deg, placed", [
+    ((0.0, 0.0), 0.0, True), ((0.009, 0.0), 0.0, True), ((0.0, -0.0095), 9.5, True),
+    ((0.011, 0.0), 0.0, False), ((0.0, 0.02), 0.0, False), ((-0.05, 0.0), 0.0, False),
+    ((0.06, 0.08), 0.0, False),  # 1-10 cm off: not placed
+    ((0.0, 0.0), 10.5, False), ((0.0, 0.0), 30.0, False), ((0.0, 0.0), 90.0, False),  # tilted
+])
+def test_success_is_within_10_mm_and_10_deg(offset_m, tilt_deg, placed):
+    report = judge_cube_at(offset_m, tilt_deg)
+    assert report.placement_error_m == pytest.approx(math.hypot(*offset_m), abs=1e-9)
+    assert report.tilt_deg == pytest.approx(tilt_deg, abs=1e-6)
+    assert report.success is placed
+    if not placed:
+        assert "Result: SUCCESS" not in report.summary()
+
+
+def test_a_cube_never_lifted_or_dropped_on_the_way_is_no_success():
+    """Placed exactly, but pushed along the table (lifted 5 mm < 20 mm) or fallen and rolled."""
+    assert judge_cube_at(max_lift_m=0.021).success
+    pushed = judge_cube_at(max_lift_m=0.005)
+    assert not pushed.success and "grasp failed" in pushed.summary()
+    assert not judge_cube_at(dropped=True).success
 
 
 def test_cube_is_carried_and_placed_from_the_nominal_start(nominal):

@@ -1,0 +1,348 @@
+"""Plant realistic bugs one at a time and check that the tests meant to catch each one fail.
+
+Each planted bug (a *mutant*) names a file, the function it lives in (or ``None``
+for a module-level setting) and an exact piece of code in it, with its
+replacement: located by function and text, not by line, so the list survives
+refactors. A mutant whose code is no longer found is reported ``stale`` (update
+the list). The repository is copied to a temporary folder once; each mutant is
+applied to the copy, its tests run with a timeout, and the copy restored. Your
+worktree is never modified.
+
+Not part of CI (about 5 minutes on 2 busy cores: 37 mutants, a baseline run
+first). Run it after changing tests or the code they guard (see README, "Development")::
+
+    python scripts/mutation_check.py                 # every mutant
+    python scripts/mutation_check.py -k return_speed # mutants whose name contains it
+    python scripts/mutation_check.py --json out/mutation.json --list
+
+Exit status 0 when every mutant is caught and the unmutated tests pass.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+TIMEOUT_S = 600.0  # per mutant [s]; a mutant that hangs the tests counts as caught (timeout)
+IGNORE = shutil.ignore_patterns(".git", "__pycache__", "*.pyc", ".pytest_cache", ".ruff_cache",
+                                "out", "*.egg-info", ".venv", ".notes")
+
+
+@dataclass(frozen=True)
+class Edit:
+    """Replace ``old`` (exact text, found exactly once in ``function``) by ``new`` in ``path``."""
+
+    path: str
+    function: str | None  # "Class.method", "function", or None: anywhere in the module
+    old: str
+    new: str
+
+
+@dataclass(frozen=True)
+class Mutant:
+    """A planted bug: its edits and the pytest arguments (test ids) expected to catch it."""
+
+    name: str
+    why: str
+    edits: tuple[Edit, ...]
+    tests: tuple[str, ...]
+
+
+def m(name, why, path, function, old, new, *tests, more=()):
+    """A one-edit mutant (``more``: further edits of the same bug)."""
+    return Mutant(name, why, (Edit(path, function, old, new), *more), tuple(tests))
+
+
+CONTROL, TIMING = "so101_kinematics/hw/control.py", "so101_kinematics/hw/timing.py"
+CHECKS, RUN, LOG = ("so101_kinematics/hw/checks.py", "so101_kinematics/hw/run.py",
+                    "so101_kinematics/hw/log.py")
+FRAMES, SCENE = "so101_kinematics/frames.py", "so101_kinematics/sim/scene.py"
+CAL, PICK = "so101_kinematics/calibration.py", "so101_kinematics/sim/pick_place.py"
+PROTOCOL = "so101_kinematics/virtual/protocol.py"
+T_CONTROL, T_RUN = "tests/test_control.py", "tests/test_hw_run.py"
+T_HW, T_IK = "tests/test_pick_place_hw.py", "tests/test_inverse_kinematics.py"
+T_FK, T_SIM = "tests/test_forward_kinematics.py", "tests/test_pick_place_sim.py"
+
+MUTANTS: list[Mutant] = [
+    # --- the model and the FK ------------------------------------------------------------
+    m("fk_g23_sign", "a wrong sign in a get_gxx factor (elbow_flex turned the other way)",
+      "so101_forward_kinematics.py", "get_g23",
+      'joint_transform("23", check_angle(', 'joint_transform("23", -check_angle(', T_FK),
+    m("gripper_tilt_dropped", "the gripper mount's -2.79 deg tilt left out of g45",
+      FRAMES, None, '("z", GRIPPER_MOUNT_TILT_DEG)))', '("z", 0.0)))', T_FK),
+    m("object_frame_2mm", "the object frame moved 2 mm along x of frame 5",
+      FRAMES, None, '"5t": ((0.0051,', '"5t": ((0.0071,', T_FK),
+    m("degrees_off_5", "one joint's degree conversion off by 5 deg (elbow_flex)",
+      SCENE, "to_radians", "else math.radians(value)",
+      'else math.radians(value + (5.0 if name == "elbow_flex" else 0.0))',
+      "tests/test_mujoco_utils.py"),
+    m("sim_gripper_inverted", "the simulator's gripper 0-100 mapping inverted, both ways",
+      SCENE, "gripper_to_radians", "return float(lower + (upper - lower) * percent / 100.0)",
+      "return float(upper - (upper - lower) * percent / 100.0)", "tests/test_mujoco_utils.py",
+      more=(Edit(SCENE, "gripper_from_radians",
+                 "return float((angle - lower) / (upper - lower) * 100.0)",
+                 "return float((upper - angle) / (upper - lower) * 100.0)"),)),
+    m("lerobot_gripper_inverted", "the gripper's ticks <-> 0-100 mapping inverted, both ways",
+      CAL, "ticks_to_user", "return 100.0 - value if cal.drive_mode else value",
+      "return value if cal.drive_mode else 100.0 - value",
+      "tests/test_calibration_files.py",
+      more=(Edit(CAL, "user_to_ticks", "value = 100.0 - value if cal.drive_mode else value",
+                 "value = value if cal.drive_mode else 100.0 - value"),)),
+    m("calibration_ranges_swapped", "range_min and range_max swapped in the calibrated limits",
+      CAL, "calibrated_limits", "(ticks_to_user(joint, cal.range_min, cal),\n"
+      "                             ticks_to_user(joint, cal.range_max, cal))",
+      "(ticks_to_user(joint, cal.range_max, cal),\n"
+      "                             ticks_to_user(joint, cal.range_min, cal))",
+      "tests/test_calibration_files.py"),
+    m("frame_axes_uncoloured", "the FK frames picture draws its axes without their colours",
+      "so101_kinematics/sim/fk_pictures.py", None,
+      "AXIS_RGBA = ((0.9, 0.1, 0.1, 1.0), (0.1, 0.7, 0.1, 1.0), (0.1, 0.3, 0.95, 1.0))",
+      "AXIS_RGBA = ((0.5, 0.5, 0.5, 1.0),) * 3",
+      "tests/test_fk_screenshot.py::test_frames_picture_renders"),
+    # --- motion and the simulation ---------------------------------------------------------
+    m("minimum_jerk_linear", "minimum jerk replaced by linear time scaling",
+      "so101_kinematics/motion.py", "minimum_jerk",
+      "return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))", "return s", T_CONTROL),
+    m("ik_elbow_branch", "the IK tries only one elbow branch",
+      "so101_kinematics/ik/search.py", "_Search.try_pitch", "for elbow in (1.0, -1.0):",
+      "for elbow in (-1.0,):", f"{T_IK}::test_every_reachable_position_is_solved",
+      f"{T_IK}::test_every_reachable_top_down_target_is_solved"),
+    m("friction_min", "contact-pair friction mixed with min instead of MuJoCo's max",
+      "so101_kinematics/sim/contact_pairs.py", "mixed_contact_parameters",
+      "friction = np.maximum(", "friction = np.minimum(", "tests/test_contact_pairs.py"),
+    m("placement_tolerance_10cm", "the placement tolerance 10 cm instead of 1 cm",
+      PICK, None, "PLACEMENT_TOLERANCE = 0.010", "PLACEMENT_TOLERANCE = 0.100",
+      f"{T_SIM}::test_success_is_within_10_mm_and_10_deg"),
+    m("tilt_not_judged", "tilt dropped from the success criterion",
+      PICK, "_report", "and error <= PLACEMENT_TOLERANCE and tilt <= TILT_TOLERANCE)",
+      "and error <= PLACEMENT_TOLERANCE)", f"{T_SIM}::test_success_is_within_10_mm_and_10_deg"),
+    m("success_without_lift", "a cube pushed along the table (never lifted) counts as placed",
+      PICK, "_report", "and monitor.max_lift >= MIN_LIFT", "",
+      f"{T_SIM}::test_a_cube_never_lifted_or_dropped_on_the_way_is_no_success"),
+    m("drop_never_seen", "the cube monitor never notes a drop",
+      "so101_kinematics/sim/cube.py", "CubeMonitor.check", "self.dropped = True", "pass",
+      f"{T_SIM}::test_opening_the_jaws_in_the_air_is_reported_as_a_drop"),
+    # --- the bus and the protocol ------------------------------------------------------------
+    m("checksum_without_id", "the Feetech checksum leaves out the servo id",
+      PROTOCOL, "checksum", "return ~sum(body) & 0xFF", "return ~sum(body[1:]) & 0xFF",
+      "tests/test_feetech_protocol.py"),
+    m("homing_offset_sign_bit_15", "Homing_Offset's sign bit at 15 instead of 11",
+      PROTOCOL, None, 'SIGN_BITS = {"Homing_Offset": 11,', 'SIGN_BITS = {"Homing_Offset": 15,',
+      "tests/test_feetech_protocol.py"),
+    # --- the control loop and its fault policy --------------------------------------------------
+    m("speed_cap_ignored", "the speed cap ignored: a move never stretched",
+      TIMING, "capped_duration", "return max(float(duration), needed)",
+      "return float(duration)", T_CONTROL),
+    m("speed_cap_1000", "the default speed cap at 1000 deg/s",
+      TIMING, None, "MAX_JOINT_SPEED_DEG_S = 100.0", "MAX_JOINT_SPEED_DEG_S = 1000.0",
+      f"{T_CONTROL}::test_first_move_ramps_from_the_measured_pose_within_the_speed_cap"),
+    m("tracking_tolerance_1000", "the tracking tolerance at 1000 deg: a stall never seen",
+      TIMING, None, "TRACKING_TOLERANCE_DEG = 15.0", "TRACKING_TOLERANCE_DEG = 1000.0",
+      T_CONTROL),
+    m("gripper_tracked", "the gripper's squeeze taken for a stall",
+      TIMING, "tracking_tolerances", '(None if j == "gripper" else arm_tolerance)',
+      "arm_tolerance", T_CONTROL),
+    m("deadline_drift", "the rate loop schedules from now instead of the previous deadline",
+      TIMING, "RateLoop.wait", "self.deadline += self.period\n",
+      "self.deadline = self.clock() + self.period\n", T_CONTROL),
+    m("guard_unchecked", "ArmSession._guard returns the command unchecked",
+      CONTROL, "ArmSession._guard", "        out = {}\n",
+      "        return dict(command)\n        out = {}\n", T_CONTROL),
+    m("stop_not_clamped", "the controlled stop sends the measured pose unclamped",
+      CONTROL, "ArmSession.stop_here",
+      "goal = {j: min(self.limits[j][1], max(self.limits[j][0], pose[j])) for j in JOINTS}",
+      "goal = dict(pose)", T_CONTROL),
+    # The same bug three times: each of the three tests must catch it on its own.
+    m("return_speed_200", "the abort return at 200 deg/s instead of 20 (the commands)",
+      CONTROL, None, "RETURN_SPEED_DEG_S = 20.0", "RETURN_SPEED_DEG_S = 200.0",
+      f"{T_CONTROL}::test_the_abort_return_goes_at_20_deg_per_s"),
+    m("return_speed_200_run", "the abort return at 200 deg/s instead of 20 (a run's ending)",
+      CONTROL, None, "RETURN_SPEED_DEG_S = 20.0", "RETURN_SPEED_DEG_S = 200.0",
+      f"{T_RUN}::test_stop_request_returns_slowly_to_the_start_and_releases"),
+    m("return_speed_200_virtual_arm",
+      "the abort return at 200 deg/s instead of 20 (the virtual arm's clock)",
+      CONTROL, None, "RETURN_SPEED_DEG_S = 20.0", "RETURN_SPEED_DEG_S = 200.0",
+      f"{T_HW}::test_ctrl_c_mid_motion_returns_to_the_start_and_releases"),
+    m("first_move_from_home", "the first move ramps from the home pose, not the measured one",
+      CONTROL, "ArmSession.move", "self.command = self.read_pose()  # the first move",
+      "self.command = {j: 0.0 for j in JOINTS}  # the first move", T_CONTROL),
+    m("outage_tolerance_ignored", "an outage of any length ridden through (never stops)",
+      CONTROL, "ArmSession._cycle", "if unobserved > self.outage_tolerance:", "if False:",
+      T_CONTROL, T_RUN),
+    m("outage_not_tolerated", "the first failed read stops the motion (no ride-through)",
+      CONTROL, "ArmSession._cycle", "if unobserved > self.outage_tolerance:", "if True:",
+      T_CONTROL, T_RUN),
+    m("clock_runs_while_blind", "the trajectory clock not paused during an outage",
+      CONTROL, "ArmSession._run", "if self.observed:", "if True:", T_CONTROL),
+    m("status_bits_ignored", "the servos' error bits ignored",
+      CHECKS, "check_status", "        if faults:\n", "        if False:\n", T_CONTROL, T_RUN),
+    m("gripper_overload_stops", "the gripper's overload (its squeeze) stops the motion",
+      CHECKS, "check_status", "bits &= ~GRIPPER_OVERLOAD", "pass", T_CONTROL),
+    m("release_away_from_start", "torque released wherever the run ended",
+      RUN, "execute", "            if result.returned_to_start:\n                result.unreleased",
+      "            if True:\n                result.unreleased", T_RUN),
+    m("no_return_after_abort", "no slow return after an abort: the arm holds where it stopped",
+      RUN, "_after_abort", "                session.return_slowly(start_pose)\n"
+      "                result.returned_to_start = True", "                pass", T_RUN),
+    m("log_not_flushed", "the run's log not flushed as the run goes",
+      LOG, "CycleLog.__call__", "            self._handle.flush()\n", "            pass\n",
+      "tests/test_hw_log.py"),
+    m("output_written_in_place", "an output file written in place (lost if the run fails)",
+      "so101_kinematics/outputs.py", "atomic_output", "temporary = temporary_beside(target)",
+      "temporary = target",
+      "tests/test_inputs.py::test_atomic_output_keeps_the_old_file_on_an_error"),
+]
+
+
+# --- applying a mutant -------------------------------------------------------------------
+def _function_span(tree: ast.Module, qualname: str) -> tuple[int, int]:
+    """(first, last) line [1-based] of the function or method ``qualname`` in ``tree``."""
+    parts = qualname.split(".")
+    body = tree.body
+    node = None
+    for part in parts:
+        node = next((n for n in body if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef,
+                                                       ast.ClassDef)) and n.name == part), None)
+        if node is None:
+            raise LookupError(f"no {qualname}")
+        body = node.body
+    first = min([node.lineno] + [d.lineno for d in node.decorator_list])
+    return first, node.end_lineno
+
+
+def apply_edit(root: Path, edit: Edit) -> None:
+    """Apply ``edit`` under ``root``; LookupError when its code is not found exactly once."""
+    path = root / edit.path
+    text = path.read_text()
+    start, end = 0, len(text)
+    if edit.function is not None:
+        first, last = _function_span(ast.parse(text), edit.function)
+        lines = text.splitlines(keepends=True)
+        start = sum(len(line) for line in lines[:first - 1])
+        end = start + sum(len(line) for line in lines[first - 1:last])
+    count = text.count(edit.old, start, end)
+    if count != 1:
+        where = edit.function or "the module"
+        raise LookupError(f"{edit.path}: {edit.old!r} found {count} times in {where}")
+    at = text.index(edit.old, start, end)
+    path.write_text(text[:at] + edit.new + text[at + len(edit.old):])
+
+
+@dataclass
+class Outcome:
+    """What happened to one mutant."""
+
+    name: str
+    status: str  # caught, survived, stale, timeout, error
+    seconds: float
+    tests: list[str] = field(default_factory=list)
+    detail: str = ""
+
+
+def run_tests(root: Path, tests: tuple[str, ...], timeout: float) -> tuple[int | None, str]:
+    """Run pytest on ``tests`` in ``root``; (return code or None on timeout, last output line)."""
+    env = dict(os.environ, PYTHONPATH=str(root), PYTHONDONTWRITEBYTECODE="1",
+               MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
+    command = [sys.executable, "-m", "pytest", "-q", "-x", "-rfE", "-p", "no:cacheprovider",
+               "-o", "addopts=", *tests]
+    try:
+        done = subprocess.run(command, cwd=root, env=env, capture_output=True, text=True,
+                              timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return None, f"timed out after {timeout:g} s"
+    lines = [line for line in done.stdout.splitlines() if line.strip()]
+    failed = [line for line in lines if line.startswith(("FAILED tests", "ERROR tests"))]
+    last = lines[-1] if lines else done.stderr.strip()[-200:]
+    return done.returncode, "; ".join([last] + failed[:1])
+
+
+def check_mutant(root: Path, mutant: Mutant, timeout: float) -> Outcome:
+    """Apply ``mutant`` to the copy at ``root``, run its tests, restore the copy."""
+    originals = {edit.path: (root / edit.path).read_text() for edit in mutant.edits}
+    t0 = time.perf_counter()
+    try:
+        try:
+            for edit in mutant.edits:
+                apply_edit(root, edit)
+        except (LookupError, SyntaxError) as error:
+            return Outcome(mutant.name, "stale", 0.0, list(mutant.tests), str(error))
+        code, last = run_tests(root, mutant.tests, timeout)
+    finally:
+        for path, text in originals.items():
+            (root / path).write_text(text)
+    seconds = time.perf_counter() - t0
+    if code is None:
+        status = "timeout"
+    elif code in (1, 2):  # tests failed (or could not be collected: the mutant broke imports)
+        status = "caught"
+    elif code == 0:
+        status = "survived"
+    else:
+        status = "error"  # usage error, no tests collected: fix the test ids
+    return Outcome(mutant.name, status, seconds, list(mutant.tests), last)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Copy the repository, check the baseline, then each selected mutant; print the table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("-k", dest="select", default="",
+                        help="only mutants whose name contains this text")
+    parser.add_argument("--json", type=Path, help="also write the outcomes to this JSON file")
+    parser.add_argument("--list", action="store_true", help="list the mutants and exit")
+    parser.add_argument("--timeout", type=float, default=TIMEOUT_S,
+                        help=f"per mutant [s] (default {TIMEOUT_S:g})")
+    parser.add_argument("--no-baseline", action="store_true",
+                        help="skip running the unmutated tests first")
+    args = parser.parse_args(argv)
+    chosen = [mu for mu in MUTANTS if args.select in mu.name]
+    if args.list or not chosen:
+        for mu in MUTANTS:
+            print(f"{mu.name:28s} {mu.why}")
+        return 0 if args.list else 2
+    if args.json is not None and not args.json.parent.is_dir():
+        parser.error(f"--json {args.json}: folder {args.json.parent} does not exist")
+
+    with tempfile.TemporaryDirectory(prefix="so101-mutation-") as tmp:
+        root = Path(tmp) / "repo"
+        shutil.copytree(REPO, root, ignore=IGNORE, symlinks=True)
+        # model/assets (the meshes) are ignored by git and materialised on demand: share them.
+        if (REPO / "model" / "assets").exists() and not (root / "model" / "assets").exists():
+            (root / "model" / "assets").symlink_to(REPO / "model" / "assets")
+        if not args.no_baseline:
+            tests = tuple(dict.fromkeys(t for mu in chosen for t in mu.tests))
+            code, last = run_tests(root, tests, args.timeout * 2)
+            print(f"baseline (no mutant): {last}", flush=True)
+            if code != 0:
+                print("The unmutated tests do not pass: fix them first.", file=sys.stderr)
+                return 1
+        outcomes = []
+        for mutant in chosen:
+            outcome = check_mutant(root, mutant, args.timeout)
+            outcomes.append(outcome)
+            print(f"{outcome.status:9s} {outcome.seconds:6.1f} s  {mutant.name:28s} "
+                  f"{outcome.detail}", flush=True)
+
+    caught = sum(o.status in ("caught", "timeout") for o in outcomes)
+    print("\n| planted bug | status | tests |\n|---|---|---|")
+    for mutant, outcome in zip(chosen, outcomes, strict=True):
+        print(f"| {mutant.name}: {mutant.why} | {outcome.status} | "
+              f"{', '.join(t.removeprefix('tests/') for t in mutant.tests)} |")
+    print(f"\nscore: {caught}/{len(outcomes)} planted bugs caught")
+    if args.json is not None:
+        args.json.write_text(json.dumps({"caught": caught, "total": len(outcomes),
+                                         "mutants": [asdict(o) for o in outcomes]}, indent=2))
+    return 0 if caught == len(outcomes) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
