@@ -91,6 +91,7 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Mapping
 from multiprocessing.connection import Connection
 from pathlib import Path
@@ -102,80 +103,10 @@ from so101_kinematics.virtual.calibration import (
     DEFAULT_CALIBRATION_PATH,
     load_calibration,
 )
+from so101_kinematics.virtual.electrical import SUPPLY_V, THERMAL_TIME_S
+from so101_kinematics.virtual.faults import FAULT_KINDS, MAX_FAULT_MS, parse_faults  # noqa: F401
 
 logger = logging.getLogger("virtual_so101")
-
-
-# --- faults -----------------------------------------------------------------------------------
-FAULT_KINDS = ("drop", "corrupt", "remove", "stall", "firmware", "outage", "unplug", "latency",
-               "overload", "overheat", "voltage")
-MAX_FAULT_MS = 60_000  # longest outage or latency [ms]
-
-
-def parse_faults(spec: str | None, calibration: Mapping[str, Mapping[str, int]]) -> list[tuple]:
-    """Parse a fault specification (grammar in the module docstring).
-
-    Returns:
-        A list of (kind, servo_id, argument) tuples.
-
-    Raises:
-        FaultSpecError: naming the bad item and the grammar.
-    """
-    grammar = ("drop:SERVO[:N], corrupt:SERVO[:N], remove:SERVO, stall:SERVO, "
-               "firmware:[SERVO:]MAJOR.MINOR, outage:MS, unplug, latency:MS[:N], "
-               "overload:SERVO, overheat:SERVO, voltage:SERVO (SERVO = id or joint name, "
-               f"MS in 1..{MAX_FAULT_MS}), comma-separated")
-    ids = {name: int(entry["id"]) for name, entry in calibration.items()}
-
-    def servo(token: str, item: str) -> int:
-        if token in ids:
-            return ids[token]
-        if token.isdigit() and int(token) in ids.values():
-            return int(token)
-        raise FaultSpecError(f"Fault '{item}': unknown servo '{token}'; use an id in "
-                             f"{sorted(ids.values())} or a joint in {list(ids)}.")
-
-    faults = []
-    for item in (s.strip() for s in (spec or "").split(",")):
-        if not item:
-            continue
-        kind, *args = item.split(":")
-        if kind not in FAULT_KINDS:
-            raise FaultSpecError(f"Unknown fault '{item}'. Grammar: {grammar}.")
-        try:
-            if kind == "firmware":
-                if len(args) == 1:
-                    args = [str(min(ids.values())), args[0]]
-                major, minor = (int(x) for x in args[1].split("."))
-                if not (0 <= major <= 255 and 0 <= minor <= 255) or len(args) != 2:
-                    raise ValueError
-                faults.append((kind, servo(args[0], item), (major, minor)))
-            elif kind == "unplug":
-                if args:
-                    raise ValueError
-                faults.append((kind, None, None))
-            elif kind in ("outage", "latency"):
-                milliseconds = float(args[0])
-                count = int(args[1]) if len(args) == 2 else 1
-                if not (0 < milliseconds <= MAX_FAULT_MS) or count < 1 or len(args) > 2 \
-                        or (kind == "outage" and len(args) != 1):
-                    raise ValueError
-                faults.append((kind, None, milliseconds if kind == "outage"
-                               else (milliseconds, count)))
-            elif kind in ("drop", "corrupt"):
-                count = int(args[1]) if len(args) == 2 else 1
-                if len(args) not in (1, 2) or count < 1:
-                    raise ValueError
-                faults.append((kind, servo(args[0], item), count))
-            else:
-                if len(args) != 1:
-                    raise ValueError
-                faults.append((kind, servo(args[0], item), None))
-        except FaultSpecError:
-            raise
-        except (ValueError, IndexError):
-            raise FaultSpecError(f"Bad fault '{item}'. Grammar: {grammar}.") from None
-    return faults
 
 
 # =============================================================================================
@@ -199,6 +130,12 @@ class VirtualSO101:
             a real STS3215 starts limp).
         log_level: logging level of the emulator process.
         startup_timeout: [s] to wait for the emulator to come up.
+        factory: six factory-fresh servos (ID 1, 1 Mbit/s, no calibration),
+            plugged in one at a time, gripper first (``lerobot-setup-motors``).
+        leader: a leader arm: limp from power-up, a hand resting on it (it
+            does not sag) that ``hand_move`` moves.
+        supply: [V] the servos' supply voltage (``virtual/electrical.py``).
+        thermal_time_s: [s] the servos' thermal time constant.
 
     Raises:
         CalibrationError: the calibration is unusable.
@@ -210,7 +147,9 @@ class VirtualSO101:
     def __init__(self, calibration: str | Path | Mapping = DEFAULT_CALIBRATION_PATH,
                  wire_timing: bool = False, faults: str | None = None, viewer: bool = False,
                  initial: Mapping[str, float] | None = None, torque_on_start: bool = True,
-                 log_level: int = logging.WARNING, startup_timeout: float = 60.0):
+                 log_level: int = logging.WARNING, startup_timeout: float = 60.0,
+                 factory: bool = False, leader: bool = False, supply: float = SUPPLY_V,
+                 thermal_time_s: float = THERMAL_TIME_S):
         self.calibration = load_calibration(calibration)
         self._ids = {name: entry["id"] for name, entry in self.calibration.items()}
         parsed = parse_faults(faults, self.calibration)
@@ -220,7 +159,9 @@ class VirtualSO101:
         options = {"calibration": self.calibration, "wire_timing": wire_timing,
                    "faults": parsed, "viewer": viewer,
                    "initial": dict(initial) if initial is not None else None,
-                   "torque_on_start": torque_on_start, "log_level": log_level}
+                   "torque_on_start": torque_on_start and not (factory or leader),
+                   "log_level": log_level, "factory": factory, "hand_holds": factory or leader,
+                   "supply": float(supply), "thermal_time_s": float(thermal_time_s)}
         # A fresh interpreter (as multiprocessing's "spawn", but without re-running
         # the caller's __main__, so scripts without a __main__ guard work too).
         parent_sock, child_sock = socket.socketpair()
@@ -377,4 +318,33 @@ class VirtualSO101:
         """Reset :meth:`reply_stats`."""
         self._call("clear_stats")
 
+    # --- a hand on the arm, the bus's wiring and supply (virtual/hand.py, virtual/shell.py) --
+    def hand_move(self, waypoints: list[Mapping[str, float]]) -> float:
+        """A hand moves the limp arm through ``waypoints`` ([deg], gripper [0, 100]).
 
+        Returns:
+            The motion's duration [s] (it runs in the background; see :meth:`hand_wait`).
+
+        Raises:
+            ValueError: a joint is torqued or unknown, a target outside its
+                limits, or the path would go into the table.
+        """
+        return self._call("hand_move", [dict(w) for w in waypoints])
+
+    def hand_wait(self, settle: float = 0.3) -> None:
+        """Wait until the hand's motion has ended, then ``settle`` [s] more."""
+        while (remaining := self._call("hand_remaining")) > 0:
+            time.sleep(min(0.05, remaining))
+        time.sleep(settle)
+
+    def hand_release(self) -> None:
+        """The hand lets go of the arm (a limp arm then sags under gravity)."""
+        self._call("hand_release")
+
+    def plug(self) -> str:
+        """Factory mode: plug the next servo into the bus; returns its joint's name."""
+        return self._call("plug")
+
+    def set_supply(self, volts: float) -> None:
+        """Set the servos' supply voltage [V] (Present_Voltage, the voltage error bit)."""
+        self._call("set_supply", float(volts))

@@ -139,7 +139,7 @@ class ParentCommands:
                     self.write(servo, 40, bytes((int(args[0]),)))
             return None
         if name == "hand_move":
-            return self.hand_move(args[0])
+            return self.hand_move([smu.to_radians(self.m, w) for w in args[0]])
         if name == "hand_remaining":
             return self.hand_remaining()
         if name == "hand_release":

@@ -28,7 +28,7 @@ import time
 
 import numpy as np
 
-HAND_SPEED = math.radians(60.0)  # [rad/s] average speed of the joint that moves most
+HAND_SPEED = math.radians(90.0)  # [rad/s] average speed of the joint that moves most
 MIN_SEGMENT_S = 0.3  # [s] shortest hand move
 TABLE_MARGIN = 0.002  # [m] new penetration of the table that refuses a path
 CHECK_STEP = math.radians(1.0)  # [rad] path sampling for the table check
