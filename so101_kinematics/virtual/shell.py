@@ -28,6 +28,7 @@ from so101_kinematics.calibration import ServoCalibration, ticks_to_user
 from so101_kinematics.frames import JOINT_LIMITS, JOINTS
 
 QUIT = "quit"
+REACHED = 1.0  # [deg, gripper %] a hand move that ends further off has failed
 MIDDLE_TICKS = 2047  # lerobot-calibrate's homing puts the range's middle here
 UPRIGHT = {"shoulder_lift": -90.0, "elbow_flex": 0.0, "wrist_flex": 0.0}
 """The arm pointing up: every joint but shoulder_lift sweeps its whole range from here."""
@@ -131,10 +132,21 @@ def parse_pose(args: list[str]) -> dict[str, float]:
 
 
 def move(arm, waypoints: list[Mapping[str, float]]) -> str:
-    """The hand moves the arm through ``waypoints`` and it answers when done: where the arm is."""
+    """The hand moves the arm through ``waypoints``; answers when done: where the arm is.
+
+    Raises:
+        ShellError: the arm did not get there (a servo took over, enabling torque).
+    """
     arm.hand_move(waypoints)
     arm.hand_wait()
-    return format_pose(arm.joint_positions())
+    where = arm.joint_positions()
+    target = {joint: value for w in waypoints for joint, value in w.items()}
+    missed = [f"{joint} at {where[joint]:.1f} (target {value:g})" for joint, value in target.items()
+              if abs(where[joint] - value) > REACHED]
+    if missed:
+        raise ShellError(f"the arm did not get there: {', '.join(missed)}; a torqued servo holds "
+                         "its joint (the host enabled torque?)")
+    return format_pose(where)
 
 
 def middle_pose(arm) -> dict[str, float]:
