@@ -66,7 +66,7 @@ def env(tmp_path):
 
 
 class Tool:
-    """A lerobot tool as a subprocess; its output drained all along (its live tables fill a pipe)."""
+    """A lerobot tool as a subprocess, its output drained all along (live tables fill a pipe)."""
 
     def __init__(self, name: str, *args: str, env: dict):
         self.process = subprocess.Popen([str(BIN / name), *args], stdin=subprocess.PIPE,
