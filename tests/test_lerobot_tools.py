@@ -208,7 +208,7 @@ def test_record_a_short_episode_between_shell_started_arms(env, tmp_path):
                       "--dataset.num_episodes=1", "--dataset.episode_time_s=3",
                       "--dataset.reset_time_s=0", "--dataset.push_to_hub=false",
                       "--dataset.single_task=rehearse", "--display_data=false",
-                      "--dataset.fps=30", env=env)
+                      "--dataset.fps=30", "--play_sounds=false", env=env)
         out, _ = record.communicate(timeout=240)
         assert record.returncode == 0, out[-3000:]
     finally:
