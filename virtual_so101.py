@@ -1,10 +1,16 @@
-"""Serve a virtual SO-101 on a pseudo-terminal until Ctrl-C: six STS3215s, a MuJoCo arm behind them.
+"""Serve a virtual SO-101 on a pseudo-terminal: six STS3215s, a MuJoCo arm behind them, hands.
 
-    python virtual_so101.py [--calibration PATH] [--viewer] [--wire-timing] [--faults SPEC]
+    python virtual_so101.py [--calibration PATH] [--factory | --leader] [--link PATH]
+                            [--viewer] [--wire-timing] [--faults SPEC] [--supply VOLTS]
 
 prints the pty path as the first line of stdout (give it to ``pick_place_hw.py
---port``, ``lerobot-teleoperate``, ...), then logs to stderr. The emulator, its
-faults and its deviations from a real arm are described in
+--port``, ``lerobot-calibrate``, ``lerobot-teleoperate``, ...), then reads
+commands on stdin, one a line, each answered with one line on stdout (``ok
+...`` / ``error ...``): ``pose JOINT=DEG ...``, ``sweep [JOINT ...]``,
+``middle``, ``play FILE``, ``demo``, ``where``, ``limp``, ``plug``,
+``supply VOLTS``, ``help``, ``quit`` (see ``so101_kinematics/virtual/shell.py``).
+At the end of stdin it keeps serving until Ctrl-C. Logs go to stderr. The
+emulator, its faults and its deviations from a real arm are described in
 ``so101_kinematics/virtual/arm.py``; this script only parses the options.
 """
 
@@ -13,7 +19,10 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
+import signal
 import sys
+from pathlib import Path
 
 from so101_kinematics.display import has_display
 from so101_kinematics.errors import (
@@ -25,6 +34,7 @@ from so101_kinematics.errors import (
 )
 from so101_kinematics.outputs import check_output_path, write_text_atomic
 from so101_kinematics.sim.scene import load_model
+from so101_kinematics.virtual import shell
 from so101_kinematics.virtual.arm import (  # noqa: F401 - the virtual arm's API, re-exported
     CUBE_REACH_M,
     DEFAULT_CALIBRATION_PATH,
@@ -36,11 +46,33 @@ from so101_kinematics.virtual.calibration import make_default_calibration
 logger = logging.getLogger("virtual_so101")
 
 
+def make_link(link: str, port: str) -> Path:
+    """Point the symlink ``link`` at ``port`` (a stale link is replaced, anything else refused)."""
+    path = Path(link)
+    if path.is_symlink():
+        path.unlink()
+    elif path.exists():
+        raise VirtualSO101Error(f"--link {link}: exists and is not a symlink. Fix: choose "
+                                "another path, e.g. /tmp/ttySO101.")
+    os.symlink(port, path)
+    return path
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Serve a virtual SO-101 until Ctrl-C."""
+    """Serve a virtual SO-101 until ``quit`` or Ctrl-C."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--calibration", default=str(DEFAULT_CALIBRATION_PATH),
                         help="lerobot calibration JSON (default: %(default)s)")
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--factory", action="store_true",
+                      help="six factory-fresh servos (ID 1, 1 Mbit/s) plugged in one at a time, "
+                           "gripper first, for lerobot-setup-motors")
+    mode.add_argument("--leader", action="store_true",
+                      help="a leader arm: limp, moved by `demo` / `play FILE` / `pose`")
+    parser.add_argument("--link", metavar="PATH",
+                        help="a stable symlink to the pty (e.g. /tmp/ttySO101), removed on exit")
+    parser.add_argument("--supply", type=float, default=12.0,
+                        help="the servos' supply voltage [V] (default %(default)s)")
     parser.add_argument("--viewer", action="store_true", help="show the arm (needs a display)")
     parser.add_argument("--wire-timing", action="store_true",
                         help="delay replies by their byte time at the host's baud rate")
@@ -75,24 +107,39 @@ def main(argv: list[str] | None = None) -> int:
         print("error: --viewer needs a display (DISPLAY or WAYLAND_DISPLAY is not set); "
               "run without --viewer.", file=sys.stderr)
         return 2
+    if not 0.0 <= args.supply <= 25.0:
+        print(f"error: --supply {args.supply:g}: outside 0..25 V; use e.g. --supply 12.",
+              file=sys.stderr)
+        return 2
     try:
         arm = VirtualSO101(calibration=args.calibration, wire_timing=args.wire_timing,
                            faults=args.faults, viewer=args.viewer, log_level=level,
+                           factory=args.factory, leader=args.leader, supply=args.supply,
                            cube=(*args.cube, args.cube_yaw) if args.cube else None)
     except (CalibrationError, CubePositionError, FaultSpecError, VirtualSO101Error) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+    link = None
     with arm:
-        print(arm.port, flush=True)
-        logger.warning("virtual SO-101 serving on %s (wire timing %s); Ctrl-C to stop",
-                       arm.port, "on" if args.wire_timing else "off")
         try:
-            arm._process.wait()
+            link = make_link(args.link, arm.port) if args.link else None
+            print(arm.port, flush=True)
+            logger.warning("virtual SO-101 serving on %s%s (wire timing %s); commands on stdin "
+                           "(`help`), Ctrl-C to stop", arm.port, f" = {link}" if link else "",
+                           "on" if args.wire_timing else "off")
+            if not shell.serve(arm, sys.stdin, sys.stdout):
+                arm._process.wait()  # stdin ended: serve until Ctrl-C
+        except VirtualSO101Error as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
         except KeyboardInterrupt:
             logger.warning("stopping")
+        finally:
+            if link is not None and link.is_symlink():
+                link.unlink()
     return 0
 
 
 if __name__ == "__main__":
     sys.exit(main())
-

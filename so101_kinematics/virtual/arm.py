@@ -91,6 +91,7 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Mapping
 from multiprocessing.connection import Connection
 from pathlib import Path
@@ -107,6 +108,7 @@ from so101_kinematics.virtual.calibration import (
     DEFAULT_CALIBRATION_PATH,
     load_calibration,
 )
+from so101_kinematics.virtual.electrical import SUPPLY_V, THERMAL_TIME_S
 from so101_kinematics.virtual.faults import FAULT_KINDS, MAX_FAULT_MS, parse_faults  # noqa: F401
 
 logger = logging.getLogger("virtual_so101")
@@ -156,6 +158,12 @@ class VirtualSO101:
             table there, in the base frame; its pose is readable through the bus's
             cube sensor (``so101_kinematics.cube_sensor``) and :meth:`cube`.
         startup_timeout: [s] to wait for the emulator to come up.
+        factory: six factory-fresh servos (ID 1, 1 Mbit/s, no calibration),
+            plugged in one at a time, gripper first (``lerobot-setup-motors``).
+        leader: a leader arm: limp from power-up, a hand resting on it (it
+            does not sag) that ``hand_move`` moves.
+        supply: [V] the servos' supply voltage (``virtual/electrical.py``).
+        thermal_time_s: [s] the servos' thermal time constant.
 
     Raises:
         CalibrationError: the calibration is unusable.
@@ -168,6 +176,8 @@ class VirtualSO101:
                  wire_timing: bool = False, faults: str | None = None, viewer: bool = False,
                  initial: Mapping[str, float] | None = None, torque_on_start: bool = True,
                  log_level: int = logging.WARNING, startup_timeout: float = 60.0,
+                 factory: bool = False, leader: bool = False, supply: float = SUPPLY_V,
+                 thermal_time_s: float = THERMAL_TIME_S,
                  cube: tuple[float, float] | tuple[float, float, float] | None = None):
         self.calibration = load_calibration(calibration)
         if cube is not None:
@@ -180,7 +190,10 @@ class VirtualSO101:
         options = {"calibration": self.calibration, "wire_timing": wire_timing,
                    "faults": parsed, "viewer": viewer,
                    "initial": dict(initial) if initial is not None else None,
-                   "torque_on_start": torque_on_start, "log_level": log_level, "cube": cube}
+                   "torque_on_start": torque_on_start and not (factory or leader),
+                   "log_level": log_level, "factory": factory, "hand_holds": factory or leader,
+                   "supply": float(supply), "thermal_time_s": float(thermal_time_s),
+                   "cube": cube}
         # A fresh interpreter (as multiprocessing's "spawn", but without re-running
         # the caller's __main__, so scripts without a __main__ guard work too).
         parent_sock, child_sock = socket.socketpair()
@@ -354,4 +367,33 @@ class VirtualSO101:
         """Reset :meth:`reply_stats`."""
         self._call("clear_stats")
 
+    # --- a hand on the arm, the bus's wiring and supply (virtual/hand.py, virtual/shell.py) --
+    def hand_move(self, waypoints: list[Mapping[str, float]]) -> float:
+        """A hand moves the limp arm through ``waypoints`` ([deg], gripper [0, 100]).
 
+        Returns:
+            The motion's duration [s] (it runs in the background; see :meth:`hand_wait`).
+
+        Raises:
+            ValueError: a joint is torqued or unknown, a target outside its
+                limits, or the path would go into the table.
+        """
+        return self._call("hand_move", [dict(w) for w in waypoints])
+
+    def hand_wait(self, settle: float = 0.3) -> None:
+        """Wait until the hand's motion has ended, then ``settle`` [s] more."""
+        while (remaining := self._call("hand_remaining")) > 0:
+            time.sleep(min(0.05, remaining))
+        time.sleep(settle)
+
+    def hand_release(self) -> None:
+        """The hand lets go of the arm (a limp arm then sags under gravity)."""
+        self._call("hand_release")
+
+    def plug(self) -> str:
+        """Factory mode: plug the next servo into the bus; returns its joint's name."""
+        return self._call("plug")
+
+    def set_supply(self, volts: float) -> None:
+        """Set the servos' supply voltage [V] (Present_Voltage, the voltage error bit)."""
+        self._call("set_supply", float(volts))

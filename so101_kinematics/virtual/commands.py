@@ -10,6 +10,9 @@ import time
 from so101_kinematics import cube_sensor
 from so101_kinematics.virtual.protocol import ADDR, EEPROM_END, ERROR_BITS, FIRMWARE
 
+FACTORY_ID = 1  # every STS3215 leaves the factory as ID 1 ...
+FACTORY_BAUD_RATE = 0  # ... at 1 Mbit/s (Baud_Rate register value 0)
+
 logger = logging.getLogger("virtual_so101")
 
 
@@ -51,6 +54,39 @@ class ParentCommands:
             self.update_listening()
             logger.info("fault injected: %s on servo %d (%s)", kind, servo_id, servo.joint)
 
+    def factory_reset(self) -> None:
+        """Factory-fresh servos (ID 1, 1 Mbit/s, no offset, full range), none plugged in yet.
+
+        They are plugged in one at a time in the order lerobot-setup-motors asks
+        for them (gripper first, shoulder_pan last): the next one when the last
+        one has been given a new ID and its baud rate, or on :meth:`plug_next`.
+        """
+        for servo in self.by_joint.values():
+            for name, value in (("ID", FACTORY_ID), ("Baud_Rate", FACTORY_BAUD_RATE),
+                                ("Homing_Offset", 0), ("Min_Position_Limit", 0),
+                                ("Max_Position_Limit", 4095), ("Return_Delay_Time", 250)):
+                servo.set(name, value)
+            servo.saved = bytes(servo.regs[:EEPROM_END])
+            servo.plugged = False
+            servo.sync_cache()
+        self.factory_queue = list(reversed(self.by_joint.values()))
+        self.plug_next()
+
+    def plug_next(self) -> str:
+        """Plug the next factory servo into the bus; returns its joint's name."""
+        if not self.factory_queue:
+            raise ValueError("every servo is plugged in already")
+        servo = self.factory_queue.pop(0)
+        servo.plugged = True
+        self.update_listening()
+        logger.info("servo of %s plugged in (ID %d)", servo.joint, servo.id)
+        return servo.joint
+
+    def on_setup_write(self, servo) -> None:
+        """After a Baud_Rate write: a renumbered servo is set up, the next one is plugged in."""
+        if self.factory_queue and servo.id != FACTORY_ID:
+            self.plug_next()
+
     def unplug(self) -> None:
         """The USB cable pulled out: the port vanishes; the servos keep their last goals."""
         if self.unplugged:
@@ -64,7 +100,7 @@ class ParentCommands:
         """Remove every fault that can be undone (not an unplugged cable)."""
         self.outage_until = 0.0
         self.latency_left = 0
-        for servo in self.servos.values():
+        for servo in self.by_joint.values():
             servo.error_bits = 0
             servo.drop = servo.corrupt = 0
             servo.removed = False
@@ -140,7 +176,7 @@ class ParentCommands:
             return self.clear_faults()
         if name == "set_pose":
             smu.set_initial_pose(self.d, args[0])
-            for servo in self.servos.values():
+            for servo in self.by_joint.values():
                 if servo.stalled_at is not None:
                     servo.stalled_at = float(self.d.qpos[servo.qadr])
                 self._hold(servo)
@@ -150,6 +186,17 @@ class ParentCommands:
                 if args[1] is None or servo.joint in args[1]:
                     self.write(servo, 40, bytes((int(args[0]),)))
             return None
+        if name == "hand_move":
+            return self.hand_move([smu.to_radians(self.m, w) for w in args[0]])
+        if name == "hand_remaining":
+            return self.hand_remaining()
+        if name == "hand_release":
+            return self.hand_release()
+        if name == "plug":
+            return self.plug_next()
+        if name == "set_supply":
+            self.supply = float(args[0])
+            return None
         if name == "set_wire_timing":
             self.wire_timing = bool(args[0])
             return None
@@ -158,11 +205,13 @@ class ParentCommands:
             self.refresh(servo)
             return {reg: servo.get(reg) for reg in ADDR}
         if name == "power_cycle":
-            for servo in self.servos.values():
+            for servo in self.by_joint.values():
                 eeprom = servo.saved
                 gains = servo.kp, servo.kv, servo.max_force  # the model's, before any torque change
+                kept = servo.plugged, servo.temperature  # the bus's wiring; the servo's heat
                 servo.__init__(servo.joint, servo.cal, self.m)
                 servo.kp, servo.kv, servo.max_force = gains
+                servo.plugged, servo.temperature = kept
                 servo.regs[:EEPROM_END] = eeprom
                 servo.saved = eeprom
                 servo.sync_cache()

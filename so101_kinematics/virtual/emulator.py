@@ -7,21 +7,23 @@ What the registers do to the arm is ``virtual/registers.py``'s.
 """
 from __future__ import annotations
 
+import fcntl
 import logging
 import os
 import select
 import signal
+import struct
 import termios
 import time
 import tty
-import types
 from collections import deque
 from multiprocessing.connection import Connection
 
 from so101_kinematics import cube_sensor
 from so101_kinematics.virtual.commands import ParentCommands
+from so101_kinematics.virtual.electrical import SUPPLY_V, THERMAL_TIME_S
+from so101_kinematics.virtual.hand import Hand
 from so101_kinematics.virtual.protocol import (
-    BAUD_RATES,
     BITS_PER_BYTE,
     BROADCAST_ID,
     INST_PING,
@@ -38,9 +40,21 @@ from so101_kinematics.virtual.servo import VirtualServo
 logger = logging.getLogger("virtual_so101")
 
 LATE_REPLY = 0.045  # [s] after this, lerobot (50 ms timeout) may have given up
+TCGETS2 = 0x802C542A  # Linux ioctl: struct termios2, whose c_ospeed is the exact rate [bit/s]
 
 
-class _Emulator(ServoRegisters, ParentCommands):
+def pty_baud_rate(fd: int) -> int | None:
+    """The baud rate [bit/s] the client set on the pty (any rate, standard or not), or None."""
+    try:
+        return struct.unpack_from("I", fcntl.ioctl(fd, TCGETS2, bytes(44)), 40)[0]
+    except OSError:  # not Linux: the standard rates only
+        speed = termios.tcgetattr(fd)[5]
+        return next((b for b in (4800, 9600, 19200, 38400, 57600, 115200, 230400, 460800,
+                                 500000, 576000, 921600, 1000000)
+                     if getattr(termios, f"B{b}", None) == speed), None)
+
+
+class _Emulator(ServoRegisters, ParentCommands, Hand):
     """The event loop of the emulator process: the pty and the protocol."""
 
     def __init__(self, conn, options: dict):
@@ -63,6 +77,10 @@ class _Emulator(ServoRegisters, ParentCommands):
             servo = VirtualServo(joint, cal, self.m)
             self.servos[servo.id] = servo
         self.by_joint = {s.joint: s for s in self.servos.values()}
+        self.hand_path, self.hand_grip = [], {}
+        self.supply = float(options.get("supply", SUPPLY_V))  # [V]
+        self.voltage = round(10 * self.supply)  # [0.1 V] Present_Voltage, updated by the physics
+        self.thermal_time_s = float(options.get("thermal_time_s", THERMAL_TIME_S))
         self.wire_timing = bool(options["wire_timing"])
         self.goal_log: deque[tuple[float, int, int]] = deque(maxlen=GOAL_LOG_LENGTH)
         self.lateness = deque(maxlen=20000)
@@ -78,19 +96,21 @@ class _Emulator(ServoRegisters, ParentCommands):
         self.latency_left = 0
         self.unplugged = False
         self.listening: dict[int, VirtualServo] = {}
-        self.sensor = types.SimpleNamespace(  # what send() needs of a replying device
-            id=cube_sensor.SENSOR_ID, drop=0, corrupt=0, removed=False, return_delay=2e-6,
-            error_bits=0, stalled_at=None)
         if options["initial"] is None:
             mujoco.mj_resetDataKeyframe(self.m, self.d, self.m.key("home").id)
             mujoco.mj_forward(self.m, self.d)
         else:
             smu.set_initial_pose(self.d, options["initial"])
-        for servo in self.servos.values():
+        self.factory_queue = []  # factory mode: servos not plugged in yet, next first
+        if options.get("factory"):
+            self.factory_reset()
+        for servo in self.by_joint.values():
             servo.set("Torque_Enable", 1 if options["torque_on_start"] else 0)
             servo.sync_cache()
             self._apply_torque(servo)
             self._hold(servo)
+        if options.get("hand_holds"):  # a hand rests on the limp arm: it does not sag
+            self.hand_move([])
         self.update_listening()
         self.inject(options["faults"])
         self.viewer = None
@@ -104,8 +124,6 @@ class _Emulator(ServoRegisters, ParentCommands):
         tty.setraw(self.slave)
         os.set_blocking(self.master, False)
         self.port = os.ttyname(self.slave)
-        self.speeds = {getattr(termios, f"B{b}"): b for b in BAUD_RATES.values()
-                       if hasattr(termios, f"B{b}")}
         self.t0 = time.perf_counter()
         self.steps = 0
 
@@ -122,7 +140,7 @@ class _Emulator(ServoRegisters, ParentCommands):
         if now < self.outage_until:  # the bus is down: requests are lost, nobody answers
             self.rx.clear()
             return
-        baud = self.speeds.get(termios.tcgetattr(self.master)[5], self.host_baud)
+        baud = pty_baud_rate(self.master) or 0  # 0: a rate no servo speaks
         if baud != self.host_baud:
             self.host_baud = baud
             self.update_listening()
@@ -137,7 +155,7 @@ class _Emulator(ServoRegisters, ParentCommands):
 
     def handle(self, packet: bytes, t_seen: float) -> None:
         target, inst, params = packet[2], packet[4], packet[5:-1]
-        tpb = BITS_PER_BYTE / self.host_baud
+        tpb = BITS_PER_BYTE / max(1, self.host_baud)
         if self.wire_timing:  # the request ends on the wire after its bytes (queued behind others)
             t_end = max(t_seen, self.wire_free) + len(packet) * tpb
             self.wire_free = t_end
@@ -147,8 +165,9 @@ class _Emulator(ServoRegisters, ParentCommands):
         replies: list[tuple[VirtualServo, bytes]] = []
         if target == cube_sensor.SENSOR_ID:  # the lab's cube sensor: READ only, never PING
             if inst == INST_READ and tuple(params) == (cube_sensor.ADDRESS, cube_sensor.SIZE):
-                self.send([(self.sensor, self.cube_reading())], t_end, tpb)
+                self.send_sensor(self.cube_reading(), t_end, tpb)
             return
+        reply_id = None  # the id a reply comes from, when it is not the servo's (a new ID)
         if inst == INST_PING:
             if target == BROADCAST_ID:
                 replies = [(s, b"") for _, s in sorted(listening.items())]
@@ -161,12 +180,11 @@ class _Emulator(ServoRegisters, ParentCommands):
             addr, data = params[0], params[1:]
             targets = list(listening.values()) if target == BROADCAST_ID else (
                 [listening[target]] if target in listening else [])
+            if target != BROADCAST_ID and targets and targets[0].regs[8] != 0:
+                replies = [(targets[0], b"")]  # built before the write: from the addressed ID
+                reply_id = target
             for servo in targets:
                 self.write(servo, addr, data)
-            if target != BROADCAST_ID and targets:
-                servo = targets[0]
-                if servo.regs[8] != 0:
-                    replies = [(servo, b"")]
         elif inst == INST_SYNC_READ and target == BROADCAST_ID and len(params) >= 2:
             addr, size = params[0], params[1]
             for servo_id in params[2:]:
@@ -181,9 +199,18 @@ class _Emulator(ServoRegisters, ParentCommands):
                 if servo is not None:
                     self.write(servo, addr, body[i + 1:i + 1 + size])
         if replies:
-            self.send(replies, t_end, tpb)
+            self.send(replies, t_end, tpb, reply_id)
 
-    def send(self, replies: list[tuple[VirtualServo, bytes]], t_end: float, tpb: float) -> None:
+    def send_sensor(self, data: bytes, t_end: float, tpb: float) -> None:
+        """The cube sensor's reply: no error bits, no servo faults (the bus-wide ones apply)."""
+        packet = status_packet(cube_sensor.SENSOR_ID, 0, data)
+        deadline = t_end + len(packet) * tpb
+        if self.wire_timing:
+            _wait_until(deadline)
+        self._emit(packet, deadline, t_end)
+
+    def send(self, replies: list[tuple[VirtualServo, bytes]], t_end: float, tpb: float,
+             reply_id: int | None = None) -> None:
         t_ready = t_end
         out = []
         for servo, params in replies:
@@ -192,7 +219,8 @@ class _Emulator(ServoRegisters, ParentCommands):
                 continue
             if servo.removed:
                 continue
-            packet = status_packet(servo.id, self.error_byte(servo), params)
+            packet = status_packet(servo.id if reply_id is None else reply_id,
+                                   self.error_byte(servo), params)
             if servo.corrupt:
                 servo.corrupt -= 1
                 packet = packet[:-1] + bytes(((packet[-1] + 1) & 0xFF,))

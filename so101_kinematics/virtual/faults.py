@@ -1,4 +1,7 @@
-"""The virtual arm's fault grammar: what ``--faults`` and ``VirtualSO101.inject`` accept."""
+"""The fault grammar of the virtual SO-101 (``--faults`` / ``VirtualSO101.inject``).
+
+The grammar and what each fault does are in :mod:`so101_kinematics.virtual.arm`'s docstring.
+"""
 
 from __future__ import annotations
 
@@ -76,5 +79,3 @@ def parse_faults(spec: str | None, calibration: Mapping[str, Mapping[str, int]])
         except (ValueError, IndexError):
             raise FaultSpecError(f"Bad fault '{item}'. Grammar: {grammar}.") from None
     return faults
-
-

@@ -16,7 +16,9 @@ until the next power cycle. Present_Velocity [ticks/s] and Present_Load
 speed limits and the PID coefficients are stored but do not shape the motion:
 the MuJoCo position actuator (upstream's sts3215 gains) does. Only
 Operating_Mode 0 (position) is emulated; in other modes goals are stored but
-the joint keeps its last target.
+the joint keeps its last target. A limp servo's Present_Load is 0 (what moves
+it is outside). Present_Current, Present_Temperature, Present_Voltage and the
+overheat/voltage/overload status bits follow ``virtual/electrical.py``'s model.
 """
 
 
@@ -26,7 +28,13 @@ import math
 import time
 
 from so101_kinematics.virtual.calibration import TICKS_PER_RAD
-from so101_kinematics.virtual.protocol import EEPROM_END, ERR_OVERLOAD, READ_ONLY, RESOLUTION
+from so101_kinematics.virtual.electrical import (
+    current_units,
+    next_temperature,
+    status_bits,
+    voltage_units,
+)
+from so101_kinematics.virtual.protocol import EEPROM_END, READ_ONLY, RESOLUTION
 from so101_kinematics.virtual.servo import VirtualServo
 
 STALL_LOAD_RATE = 2000.0  # [0.1 % per s] Present_Load rise of a stalled servo
@@ -37,12 +45,17 @@ class ServoRegisters:
     """The servos' registers applied to the MuJoCo arm (a mixin of the emulator's event loop).
 
     Expects ``m``, ``d``, ``mujoco``, ``dt``, ``t0``, ``steps``, ``servos``,
-    ``by_joint``, ``goal_log``, ``viewer`` and ``next_view`` on the instance.
+    ``by_joint``, ``goal_log``, ``viewer``, ``next_view``, ``supply`` [V],
+    ``voltage`` [0.1 V] and ``thermal_time_s`` on the instance.
     """
 
     # --- physics --------------------------------------------------------------------------
     def _apply_torque(self, servo: VirtualServo) -> None:
-        on = servo.torque
+        """The actuator pushes when torque is on, or as the hand's spring while a hand grips it."""
+        if servo.torque and servo.joint in self.hand_grip:  # the servo takes over from the hand
+            del self.hand_grip[servo.joint]
+            self.d.qfrc_applied[servo.dofadr] = 0.0
+        on = servo.torque or servo.joint in self.hand_grip
         m, act = self.m, servo.act
         m.actuator_gainprm[act, 0] = servo.kp if on else 0.0
         m.actuator_biasprm[act, 1] = -servo.kp if on else 0.0
@@ -72,6 +85,8 @@ class ServoRegisters:
                 d.qpos[s.qadr] = s.stalled_at
                 d.qvel[s.dofadr] = 0.0
         self.steps += due
+        self.step_hand(due)
+        self.update_electrical(due * self.dt)
         for s in stalled:
             err = s.get("Goal_Position") - s.angle_to_present(s.stalled_at)
             rate = STALL_LOAD_RATE * due * self.dt
@@ -85,6 +100,25 @@ class ServoRegisters:
             self.viewer.sync()
             self.next_view = time.perf_counter() + 1 / 60
 
+    def effort(self, servo: VirtualServo) -> float:
+        """What the servo's motor pushes [0.1 % of stall]: 0 when limp (a hand moves it)."""
+        if servo.stalled_at is not None:
+            return servo.load
+        if not servo.torque:
+            return 0.0
+        return float(self.d.actuator_force[servo.act]) / servo.max_force * 1000.0
+
+    def update_electrical(self, dt: float) -> None:
+        """Advance every servo's temperature and overload timer by ``dt`` [s]; the bus voltage."""
+        loads = []
+        for servo in self.by_joint.values():
+            load = self.effort(servo)
+            loads.append(load)
+            servo.temperature = next_temperature(servo.temperature, load, dt, self.thermal_time_s)
+            limit = 10 * servo.regs[36]  # Overload_Torque [%] -> [0.1 %]
+            servo.overload_time = servo.overload_time + dt if 0 < limit <= abs(load) else 0.0
+        self.voltage = voltage_units(self.supply, loads)
+
     def refresh(self, servo: VirtualServo, lo: int = 56, hi: int = 71) -> None:
         """Update the servo's Present_* registers overlapping [lo, hi) from the simulation."""
         d, regs = self.d, servo.regs
@@ -97,23 +131,28 @@ class ServoRegisters:
         if hi <= 58:
             return
         velocity = float(d.qvel[servo.dofadr]) * TICKS_PER_RAD
-        if servo.stalled_at is not None:
-            load = servo.load
-        else:
-            load = float(d.actuator_force[servo.act]) / servo.max_force * 1000.0
-        load = max(-1000, min(1000, round(load)))
+        load = max(-1000, min(1000, round(self.effort(servo))))
         servo.set("Present_Velocity", max(-32767, min(32767, round(velocity))))
         servo.set("Present_Load", load)
-        servo.set("Present_Current", abs(load) * 2)
+        regs[62] = self.voltage
+        regs[63] = max(0, min(255, round(servo.temperature)))
+        servo.set("Present_Current", current_units(load))
         regs[66] = int(abs(velocity) > 20)
         regs[65] = self.error_byte(servo)
 
     def error_byte(self, servo: VirtualServo) -> int:
-        """The servo's status error bits: injected ones, and overload once a stall loads it."""
-        bits = servo.error_bits
-        if servo.stalled_at is not None and abs(servo.load) >= 10 * servo.regs[36]:
-            bits |= ERR_OVERLOAD
-        return bits
+        """The servo's status error bits: injected ones, and the electrical model's.
+
+        A stalled joint (fault ``stall``) is overloaded as soon as its load
+        reaches Overload_Torque; any other load must stay there for Protection_Time.
+        """
+        regs = servo.regs
+        overloaded = servo.overload_time >= 0.01 * regs[35] and servo.overload_time > 0
+        if servo.stalled_at is not None and abs(servo.load) >= 10 * regs[36]:
+            overloaded = True
+        bits = status_bits(servo.temperature, self.voltage, overloaded, regs[13],
+                           (regs[15], regs[14]))
+        return servo.error_bits | bits
 
     # --- registers ------------------------------------------------------------------------
     def write_goal(self, servo: VirtualServo, low: int, high: int) -> None:
@@ -145,6 +184,8 @@ class ServoRegisters:
         if servo.id != old_id or touched & {6}:
             self.servos = {s.id: s for s in self.by_joint.values()}
             self.update_listening()
+            if touched & {6}:
+                self.on_setup_write(servo)
         if touched & {40, 16, 17}:
             self._apply_torque(servo)
             if servo.torque and not was_on:
@@ -164,6 +205,6 @@ class ServoRegisters:
 
     def update_listening(self) -> None:
         """The servos that hear the host: present, and at the host's baud rate."""
-        self.listening = {i: s for i, s in self.servos.items()
-                          if not s.removed and s.baud == self.host_baud}
+        self.listening = {s.id: s for s in self.by_joint.values()
+                          if s.plugged and not s.removed and s.baud == self.host_baud}
 

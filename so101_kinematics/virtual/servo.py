@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 from so101_kinematics.virtual.calibration import radians_to_present
+from so101_kinematics.virtual.electrical import AMBIENT_C
 from so101_kinematics.virtual.protocol import (
     ADDR,
     BAUD_RATES,
@@ -34,7 +35,7 @@ FACTORY = {
     "CW_Dead_Zone": 1, "CCW_Dead_Zone": 1, "Protection_Current": 500, "Angular_Resolution": 1,
     "Homing_Offset": 0, "Operating_Mode": 0, "Protective_Torque": 20, "Protection_Time": 200,
     "Overload_Torque": 80, "Torque_Enable": 0, "Acceleration": 0, "Torque_Limit": 1000,
-    "Lock": 1, "Present_Voltage": 120, "Present_Temperature": 30, "Maximum_Acceleration": 0,
+    "Lock": 1, "Present_Voltage": 120, "Present_Temperature": 25, "Maximum_Acceleration": 0,
 }
 
 
@@ -73,6 +74,10 @@ class VirtualServo:
         self.stalled_at: float | None = None  # [rad]
         self.load = 0.0  # stall load [0.1 %]
         self.error_bits = 0  # injected status error bits (voltage, overheat, overload)
+        # the electrical model (virtual/electrical.py)
+        self.temperature = AMBIENT_C  # [degC]
+        self.overload_time = 0.0  # [s] the load has been at or above Overload_Torque
+        self.plugged = True  # on the bus (factory mode plugs the servos in one at a time)
         self.sync_cache()
 
     def sync_cache(self) -> None:

@@ -1,0 +1,148 @@
+"""A hand on the virtual arm: moves limp joints as a student's hand does (a mixin of the emulator).
+
+The hand grips the joints it moves and guides each towards a target that
+travels along a path of waypoints (joint space, a smooth start and stop per
+segment, at most :data:`HAND_SPEED` on the joint that moves most). The grip is
+a guiding spring at the joint: the servo's own actuator with the servo's
+stiffness and force limit (3.35 N m, what a hand easily applies at a joint) while
+its Torque_Enable stays 0, plus the hand carrying the arm's weight (gravity
+compensation on the gripped joints). So joint limits and the table stop the
+hand as they stop the arm; the registers say "limp" throughout (Present_Load 0,
+Goal_Position following Present_Position); the host's view is exactly that of
+a limp servo moved from outside.
+
+Rules:
+- The hand moves only limp joints: a torqued servo holds its goal (enabling
+  torque on a gripped joint makes the hand let go of it).
+- Targets are checked against the joint limits; the whole path is checked
+  against the table before the hand moves: a path that would press a link
+  into the table (deeper than it already is, by :data:`TABLE_MARGIN`) is refused.
+- After its path the hand keeps holding the joints where it put them (a limp
+  arm would otherwise sag under gravity) until :meth:`hand_release`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+HAND_SPEED = math.radians(90.0)  # [rad/s] average speed of the joint that moves most
+MIN_SEGMENT_S = 0.3  # [s] shortest hand move
+TABLE_MARGIN = 0.002  # [m] new penetration of the table that refuses a path
+CHECK_STEP = math.radians(1.0)  # [rad] path sampling for the table check
+
+
+class HandError(ValueError):
+    """The hand cannot do that (a torqued joint, a limit, the table); the message says why."""
+
+
+class Hand:
+    """The hand's state and motion (a mixin of the emulator; expects ``m``, ``d``, ``by_joint``)."""
+
+    hand_path: list[tuple[float, dict[str, float]]]  # (time [s, perf_counter], targets)
+    hand_grip: dict[str, float]  # joint -> current target [rad]
+
+    def hand_move(self, waypoints: list[dict[str, float]]) -> float:
+        """Move the named joints through ``waypoints`` (joint -> [rad]); returns the duration [s].
+
+        Raises:
+            HandError: a joint is torqued or unknown, a target outside its limits,
+                or the path goes into the table. Nothing moves then.
+        """
+        joints = sorted({j for w in waypoints for j in w})
+        for joint in joints:
+            servo = self.by_joint.get(joint)
+            if servo is None:
+                raise HandError(f"unknown joint {joint!r}; joints are {list(self.by_joint)}")
+            if servo.torque:
+                raise HandError(f"{joint} is torqued (Torque_Enable = 1): its servo holds it and "
+                                "a hand cannot move it; release torque first (`limp`)")
+            lo, hi = (float(x) for x in self.m.joint(joint).range)
+            for w in waypoints:
+                if joint in w and not lo - 1e-9 <= w[joint] <= hi + 1e-9:
+                    raise HandError(f"{joint} = {math.degrees(w[joint]):.1f} deg is outside its "
+                                    f"limits [{math.degrees(lo):.1f}, {math.degrees(hi):.1f}]")
+        start = {j: self.hand_grip.get(j, float(self.d.qpos[self.by_joint[j].qadr]))
+                 for j in self.by_joint}
+        points = [start]
+        for w in waypoints:
+            points.append(dict(points[-1], **w))
+        self._check_table(points)
+        now = time.perf_counter()
+        path = [(now, points[0])]
+        for a, b in zip(points, points[1:], strict=False):
+            span = max(abs(b[j] - a[j]) for j in a)
+            path.append((path[-1][0] + max(MIN_SEGMENT_S, 1.5 * span / HAND_SPEED), b))
+        self.hand_path = path
+        for joint in self.by_joint:  # the hand takes the whole (limp) arm
+            servo = self.by_joint[joint]
+            if not servo.torque:
+                self.hand_grip[joint] = start[joint]
+                self._apply_torque(servo)
+        return path[-1][0] - now
+
+    def hand_remaining(self) -> float:
+        """[s] until the hand's path ends (0 when it holds still)."""
+        if not self.hand_path:
+            return 0.0
+        return max(0.0, self.hand_path[-1][0] - time.perf_counter())
+
+    def hand_release(self, joint: str | None = None) -> None:
+        """The hand lets go (of ``joint``, default all): those joints are free (limp) again."""
+        for name in [joint] if joint else list(self.hand_grip):
+            self.hand_grip.pop(name, None)
+            self.d.qfrc_applied[self.by_joint[name].dofadr] = 0.0
+            self._apply_torque(self.by_joint[name])
+        if not self.hand_grip:
+            self.hand_path = []
+
+    def step_hand(self, due: int) -> None:
+        """Set the gripped joints' spring targets for now, and carry the arm's weight."""
+        if not self.hand_grip:
+            return
+        now = time.perf_counter()
+        path = self.hand_path
+        targets = path[-1][1] if path else {}
+        for (t0, a), (t1, b) in zip(path, path[1:], strict=False):
+            if now < t1:
+                s = max(0.0, (now - t0) / (t1 - t0))
+                s = s * s * (3.0 - 2.0 * s)  # smooth start and stop
+                targets = {j: a[j] + s * (b[j] - a[j]) for j in a}
+                break
+        d = self.d
+        for joint in self.hand_grip:
+            servo = self.by_joint[joint]
+            target = targets.get(joint, self.hand_grip[joint])
+            self.hand_grip[joint] = target
+            d.ctrl[servo.act] = target
+            d.qfrc_applied[servo.dofadr] = d.qfrc_bias[servo.dofadr]
+
+    def _check_table(self, points: list[dict[str, float]]) -> None:
+        """Raise HandError if the path presses a link into the table."""
+        mujoco, m = self.mujoco, self.m
+        scratch = mujoco.MjData(m)
+        table = m.geom("table").id
+        qadr = {j: s.qadr for j, s in self.by_joint.items()}
+
+        def penetration(q: dict[str, float]) -> float:
+            scratch.qpos[:] = self.d.qpos
+            for j, value in q.items():
+                scratch.qpos[qadr[j]] = value
+            mujoco.mj_kinematics(m, scratch)
+            mujoco.mj_collision(m, scratch)
+            n = scratch.ncon
+            c = scratch.contact
+            on_table = (c.geom1[:n] == table) | (c.geom2[:n] == table)
+            return float(max(0.0, -c.dist[:n][on_table].min())) if on_table.any() else 0.0
+
+        allowed = penetration(points[0]) + TABLE_MARGIN
+        for a, b in zip(points, points[1:], strict=False):
+            n = max(1, math.ceil(max(abs(b[j] - a[j]) for j in a) / CHECK_STEP))
+            for s in np.linspace(0.0, 1.0, n + 1)[1:]:
+                q = {j: a[j] + s * (b[j] - a[j]) for j in a}
+                if penetration(q) > allowed:
+                    pose = ", ".join(f"{j}={math.degrees(v):.0f}" for j, v in q.items())
+                    raise HandError(f"that path goes into the table (at {pose} deg); "
+                                    "move the arm up first or choose another pose")

@@ -1,0 +1,219 @@
+"""lerobot's own command-line tools against shell-started virtual arms (issue 14).
+
+Each test starts ``python virtual_so101.py ...`` as a student would, drives its
+hand through stdin, and runs lerobot's unmodified tools (lerobot-setup-motors,
+lerobot-calibrate, lerobot-teleoperate, lerobot-record) as subprocesses, their
+prompts answered through a pipe. Expected values come from the shipped
+calibration (calibration/virtual_so101.json) and the issue's acceptance figures.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from so101_kinematics.paths import REPO
+
+pytestmark = [pytest.mark.hw, pytest.mark.slow]
+BIN = Path(sys.executable).parent
+SHIPPED = json.loads((REPO / "calibration" / "virtual_so101.json").read_text())
+
+
+class ShellArm:
+    """``python virtual_so101.py ARGS`` with its stdin/stdout as a command line."""
+
+    def __init__(self, *args: str):
+        self.process = subprocess.Popen([sys.executable, str(REPO / "virtual_so101.py"), *args],
+                                        stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                        text=True, cwd=REPO)
+        self.port = self.process.stdout.readline().strip()
+        assert self.port.startswith("/dev/"), self.port
+
+    def ask(self, line: str) -> str:
+        self.process.stdin.write(line + "\n")
+        self.process.stdin.flush()
+        return self.process.stdout.readline().strip()
+
+    def __call__(self, line: str) -> str:
+        answer = self.ask(line)
+        assert answer.startswith("ok"), (line, answer)
+        return answer
+
+    def pose(self) -> dict[str, float]:
+        words = self("where").split()[1:]
+        return {w.split("=")[0]: float(w.split("=")[1]) for w in words}
+
+    def close(self) -> None:
+        if self.process.poll() is None:
+            self("quit")
+            assert self.process.wait(timeout=20) == 0
+
+
+@pytest.fixture
+def env(tmp_path):
+    pytest.importorskip("lerobot")
+    return dict(os.environ, HF_LEROBOT_CALIBRATION=str(tmp_path / "calibration"),
+                HF_HUB_OFFLINE="1", HF_LEROBOT_HOME=str(tmp_path / "home"))
+
+
+class Tool:
+    """A lerobot tool as a subprocess, its output drained all along (live tables fill a pipe)."""
+
+    def __init__(self, name: str, *args: str, env: dict):
+        self.process = subprocess.Popen([str(BIN / name), *args], stdin=subprocess.PIPE,
+                                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                        text=True, env=env)
+        self.output: list[str] = []
+        self.reader = threading.Thread(target=self._drain, daemon=True)
+        self.reader.start()
+
+    def _drain(self) -> None:  # byte by byte: a prompt has no newline
+        while chunk := os.read(self.process.stdout.fileno(), 4096):
+            self.output.append(chunk.decode(errors="replace"))
+
+    def wait_for(self, text: str, timeout: float = 90) -> None:
+        deadline = time.monotonic() + timeout
+        while text not in "".join(self.output):
+            assert time.monotonic() < deadline and self.poll() is None, "".join(self.output)
+            time.sleep(0.2)
+
+    def poll(self):
+        return self.process.poll()
+
+    def type(self, text: str) -> None:
+        self.process.stdin.write(text)
+        self.process.stdin.flush()
+
+    def communicate(self, text: str = "", timeout: float = 120) -> tuple[str, None]:
+        if text:
+            self.type(text)
+        self.process.stdin.close()
+        self.process.wait(timeout=timeout)
+        self.reader.join(timeout=10)
+        return "".join(self.output), None
+
+    def terminate(self) -> None:
+        self.process.terminate()
+
+    @property
+    def returncode(self):
+        return self.process.returncode
+
+
+def tool(name: str, *args: str, env: dict) -> Tool:
+    return Tool(name, *args, env=env)
+
+
+def install_calibration(env: dict, kind: str, device_id: str) -> None:
+    folder = Path(env["HF_LEROBOT_CALIBRATION"]) / kind
+    folder.mkdir(parents=True, exist_ok=True)
+    shutil.copy(REPO / "calibration" / "virtual_so101.json", folder / f"{device_id}.json")
+
+
+def test_setup_motors_on_factory_servos_then_the_follower_connects(env):
+    arm = ShellArm("--factory")
+    try:
+        setup = tool("lerobot-setup-motors", "--robot.type=so101_follower",
+                     f"--robot.port={arm.port}", env=env)
+        out, _ = setup.communicate("\n" * 6, timeout=180)
+        assert setup.returncode == 0, out
+        for joint, motor_id in (("gripper", 6), ("shoulder_pan", 1)):
+            assert f"'{joint}' motor id set to {motor_id}" in out
+        from lerobot.robots.so_follower import SO101Follower, SO101FollowerConfig
+
+        robot = SO101Follower(SO101FollowerConfig(port=arm.port, id="fresh"))
+        robot.connect(calibrate=False)  # IDs 1..6 at 1 Mbit/s, model 777, same firmware
+        assert set(robot.bus.sync_read("Present_Position", normalize=False)) == set(SHIPPED)
+        robot.disconnect()
+    finally:
+        arm.close()
+
+
+def test_calibrate_from_the_shell_agrees_with_the_shipped_calibration(env):
+    arm = ShellArm()
+    try:
+        calibrate = tool("lerobot-calibrate", "--robot.type=so101_follower",
+                         f"--robot.port={arm.port}", "--robot.id=vlab", env=env)
+        calibrate.wait_for("middle of its range of motion and press ENTER")
+        arm("middle")
+        calibrate.type("\n")
+        calibrate.wait_for("Press ENTER to stop")
+        arm("sweep shoulder_pan shoulder_lift elbow_flex wrist_flex gripper")
+        out, _ = calibrate.communicate("\n", timeout=120)
+        assert calibrate.returncode == 0, out
+    finally:
+        arm.close()
+    written = json.loads(next(Path(env["HF_LEROBOT_CALIBRATION"]).rglob("vlab.json")).read_text())
+    for joint, shipped in SHIPPED.items():
+        got = written[joint]
+        assert got["homing_offset"] == shipped["homing_offset"], joint
+        assert got["range_min"] >= shipped["range_min"], joint  # never past a joint limit
+        assert got["range_max"] <= shipped["range_max"], joint
+        assert got["range_min"] - shipped["range_min"] <= 30, joint
+        assert shipped["range_max"] - got["range_max"] <= 30, joint
+
+
+def teleop_args(follower: ShellArm, leader: ShellArm) -> list[str]:
+    return ["--robot.type=so101_follower", f"--robot.port={follower.port}", "--robot.id=vf",
+            "--teleop.type=so101_leader", f"--teleop.port={leader.port}", "--teleop.id=vl"]
+
+
+def test_teleoperate_the_follower_tracks_the_shell_moved_leader(env):
+    install_calibration(env, "robots/so_follower", "vf")
+    install_calibration(env, "teleoperators/so_leader", "vl")
+    follower, leader = ShellArm(), ShellArm("--leader")
+    try:
+        teleop = tool("lerobot-teleoperate", *teleop_args(follower, leader), "--fps=60",
+                      "--display_data=false", env=env)
+        teleop.wait_for("Teleop loop time")  # lerobot started and connected both arms
+        leader.process.stdin.write("demo\n")
+        leader.process.stdin.flush()
+        started, errors = time.monotonic(), {j: [] for j in SHIPPED}
+        while True:
+            lead, follow = leader.pose(), follower.pose()  # the demo answers after "where"s
+            if time.monotonic() - started > 1.0:
+                for joint in errors:
+                    errors[joint].append(abs(lead[joint] - follow[joint]))
+            if time.monotonic() - started > 12.0:
+                break
+            time.sleep(0.05)
+        teleop.terminate()
+        teleop.process.wait(timeout=30)
+        assert leader.process.stdout.readline().startswith("ok")  # demo's answer
+    finally:
+        follower.close()
+        leader.close()
+    medians = {joint: statistics.median(values) for joint, values in errors.items()}
+    print("follower-leader error medians [deg / gripper %]:", medians)
+    assert all(value < 1.0 for value in medians.values()), medians
+
+
+def test_record_a_short_episode_between_shell_started_arms(env, tmp_path):
+    install_calibration(env, "robots/so_follower", "vf")
+    install_calibration(env, "teleoperators/so_leader", "vl")
+    follower, leader = ShellArm(), ShellArm("--leader")
+    root = tmp_path / "dataset"
+    try:
+        record = tool("lerobot-record", *teleop_args(follower, leader),
+                      "--dataset.repo_id=local/virtual_lab", f"--dataset.root={root}",
+                      "--dataset.num_episodes=1", "--dataset.episode_time_s=3",
+                      "--dataset.reset_time_s=0", "--dataset.push_to_hub=false",
+                      "--dataset.single_task=rehearse", "--display_data=false",
+                      "--dataset.fps=30", "--play_sounds=false", env=env)
+        out, _ = record.communicate(timeout=240)
+        assert record.returncode == 0, out[-3000:]
+    finally:
+        follower.close()
+        leader.close()
+    info = json.loads((root / "meta" / "info.json").read_text())
+    assert info["total_episodes"] == 1
+    assert info["total_frames"] >= 30  # 3 s at 30 fps, allowing for a slow start
