@@ -199,6 +199,7 @@ def measure_cycle(n: int = 1000, wire_timing: bool = True, arm=None,
         emulator's lateness behind each reply's due time
         (``emulator_lateness_median_ms`` / ``_p99_ms``) and ``late_replies``.
     """
+    from so101_kinematics.hw.bus import connect_with_retries
     from so101_kinematics.virtual.arm import VirtualSO101
     from so101_kinematics.virtual.protocol import BITS_PER_BYTE, cycle_wire_bytes, status_packet
 
@@ -208,7 +209,7 @@ def measure_cycle(n: int = 1000, wire_timing: bool = True, arm=None,
     try:
         arm.set_wire_timing(wire_timing)
         bus = virtual_arm_bus(arm)
-        bus.connect()
+        connect_with_retries(bus)
         times = _time_cycles(bus, n, warmup, on_warm=arm.clear_stats)
         stats = arm.reply_stats()
         wire_ms = cycle_wire_bytes() * BITS_PER_BYTE / bus.port_handler.getBaudRate() * 1e3

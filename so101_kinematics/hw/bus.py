@@ -43,6 +43,7 @@ from so101_kinematics.hw.port import FIND_PORT_HINT, claim_port, port_users  # n
 logger = logging.getLogger(__name__)
 
 # --- Settings ---------------------------------------------------------------
+SETUP_ATTEMPTS = 3  # a setup step (connect, configure, torque on) is tried this often
 PORT_SETTLE_S = 0.06               # a late reply dies out within the SDK's 50 ms timeout [s]
 MOTOR_MODEL = "sts3215"
 INSTALL_HINT = "pip install -e '.[hw]'  (from the so101-kinematics folder)"
@@ -122,7 +123,7 @@ def connect(port: str, calibration: Mapping[str, ServoCalibration], *, robot_id:
     bus = make_bus(port, calibration)
     bus.so101_port_lock = lock
     try:
-        bus.connect()
+        connect_with_retries(bus)
     except ConnectionError as error:
         os.close(lock)
         raise ConnectionFailed(f"Cannot open port '{port}': {str(error).strip()} "
@@ -154,6 +155,28 @@ def connect(port: str, calibration: Mapping[str, ServoCalibration], *, robot_id:
         disconnect(bus)
         raise
     return bus
+
+
+def connect_with_retries(bus) -> None:
+    """Lerobot's connect (open, ping every servo), tried ``SETUP_ATTEMPTS`` times.
+
+    Its handshake pings each servo once: one reply lost on a glitching bus (or
+    a busy host) would refuse an arm that is all there. A servo that stays
+    silent is still refused, after about 0.3 s.
+    """
+    for attempt in range(1, SETUP_ATTEMPTS + 1):
+        try:
+            bus.connect()
+            return
+        except (ConnectionError, RuntimeError) as error:
+            if attempt == SETUP_ATTEMPTS:
+                raise
+            logger.warning("Connecting failed (%s); trying again.", str(error).strip()[:80])
+            try:
+                bus.port_handler.closePort()
+            except Exception:  # noqa: BLE001 - best effort before the next try
+                logger.debug("could not close the port", exc_info=True)
+            time.sleep(PORT_SETTLE_S)
 
 
 def calibration_mismatch(bus, calibration: Mapping[str, ServoCalibration]) -> list[str]:
@@ -274,7 +297,6 @@ def port_lost(bus) -> bool:
     return isinstance(port, str) and port.startswith("/") and not os.path.exists(port)
 
 
-SETUP_ATTEMPTS = 3  # a setup step (configure, torque on) is tried this often on a glitching bus
 
 
 def with_retries(step, bus, attempts: int = SETUP_ATTEMPTS):
