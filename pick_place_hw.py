@@ -42,6 +42,7 @@ from so101_kinematics.hw.run import (
     validate_plan_for_arm,
 )
 from so101_kinematics.hw.teach import format_configuration, format_plan, teach
+from so101_kinematics.lab.sheet import PAPER_MM, write_sheet
 from so101_kinematics.motion import PROFILES, PlanError, check_number
 from so101_kinematics.outputs import check_output_path
 from so101_kinematics.plans import default_plan, load_plan
@@ -129,6 +130,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="CSV of time, commanded and measured joints per cycle (written as "
                              "the run goes)")
     parser.add_argument("--plot", type=Path, help="PNG of commanded vs measured per joint")
+    parser.add_argument("--sheet", type=Path, metavar="PATH.pdf",
+                        help="write the placement sheet (print at 100 %%) and stop; no arm needed")
+    parser.add_argument("--paper", choices=sorted(PAPER_MM), default="a4",
+                        help="paper of the --sheet (default a4)")
     parser.add_argument("--verbose", "-v", action="store_true", help="debug logging")
     add_cartesian_arguments(parser)
     return parser
@@ -224,6 +229,12 @@ def _main(args) -> int:
     check_run_settings(args.rate, args.max_speed, args.tracking_tolerance)
     plan = plan_from_arguments(args) or (
         load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold))
+    if args.sheet is not None:
+        validate_plan_for_arm(plan, None)
+        path = check_output_path(args.sheet, "--sheet", inputs=(args.plan,), suffixes=(".pdf",))
+        origin = args.plan or ("--pick/--place" if args.pick else "the course's plan")
+        print(write_sheet(plan, path, args.paper, source=str(origin)).summary())
+        return 0
     source = args.calibration or (find_calibration(args.robot_id, args.port)
                                   if args.robot_id else None)
     calibration = load_calibration(source, args.robot_id) if source is not None else None
