@@ -29,7 +29,7 @@ from so101_kinematics.hw.control import (
     signals_as_interrupt,
     speed_caps,
 )
-from so101_kinematics.hw.log import CycleLog, plot_log
+from so101_kinematics.hw.log import CycleLog, plan_record, plot_log
 from so101_kinematics.hw.run import (
     RELEASE_HINT,
     MotionAborted,
@@ -165,10 +165,14 @@ def _run(args, plan, calibration, source, release: str) -> int:
 
     def on_start(start, first_duration):
         print("Starting pose (returned to at the end): " + format_configuration(start))
+        if log is not None:
+            log.run_info["start_pose"] = dict(start)
         print(f"First move: to '{plan.steps[0].name}' in {first_duration:.2f} s, ramping from "
               "this pose.")
 
-    log = CycleLog(args.log) if args.log else None
+    log = CycleLog(args.log, {"plan": plan_record(plan), "rate_hz": args.rate, "profile":
+                              args.profile, "calibration": str(source), "robot_id": args.robot_id}
+                   ) if args.log else None
     try:
         result = run_on_arm(
             args.port, calibration, plan, robot_id=args.robot_id, source=str(source),
