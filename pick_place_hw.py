@@ -41,7 +41,13 @@ from so101_kinematics.hw.run import (
     run_on_arm,
     validate_plan_for_arm,
 )
-from so101_kinematics.hw.teach import format_configuration, format_plan, teach
+from so101_kinematics.hw.teach import (
+    cube_outcome,
+    format_configuration,
+    format_plan,
+    grasp_outcome,
+    teach,
+)
 from so101_kinematics.lab.sheet import PAPER_MM, write_sheet
 from so101_kinematics.motion import PROFILES, PlanError, check_number
 from so101_kinematics.outputs import check_output_path
@@ -195,6 +201,9 @@ def _run(args, plan, calibration, source, release: str) -> int:
     for start, length in result.outages:
         print(f"The arm did not answer for {length:.2f} s at t = {start:.2f} s; the plan paused "
               "and resumed.")
+    for line in (grasp_outcome(plan, result.cycles), cube_outcome(plan, result.cube)):
+        if line:
+            print(line)
     if status == 0:
         timing = result.timing
         print(f"Loop {timing.get('achieved_hz', 0):.1f} Hz, period p50 "

@@ -14,11 +14,19 @@ import argparse
 import json
 import logging
 import sys
-from pathlib import Path
 
 from so101_kinematics.display import has_display
-from so101_kinematics.errors import CalibrationError, FaultSpecError, VirtualSO101Error
+from so101_kinematics.errors import (
+    CalibrationError,
+    CubePositionError,
+    FaultSpecError,
+    OutputPathError,
+    VirtualSO101Error,
+)
+from so101_kinematics.outputs import check_output_path, write_text_atomic
+from so101_kinematics.sim.scene import load_model
 from so101_kinematics.virtual.arm import (  # noqa: F401 - the virtual arm's API, re-exported
+    CUBE_REACH_M,
     DEFAULT_CALIBRATION_PATH,
     VirtualSO101,
     parse_faults,
@@ -38,18 +46,30 @@ def main(argv: list[str] | None = None) -> int:
                         help="delay replies by their byte time at the host's baud rate")
     parser.add_argument("--faults", default=None,
                         help="faults from power-up, e.g. 'drop:3:5,stall:elbow_flex'")
+    parser.add_argument("--cube", nargs=2, type=float, metavar=("X", "Y"),
+                        help="put the simulator's free 26 mm cube on the table, its centre at "
+                             f"(X, Y) [m] in the base frame (each within +-{CUBE_REACH_M:g} m)")
+    parser.add_argument("--cube-yaw", type=float, default=0.0, metavar="DEG",
+                        help="the cube's turn about the vertical [deg] (default 0)")
     parser.add_argument("--write-default-calibration", metavar="PATH",
                         help="write the calibration derived from the model to PATH and exit")
+    parser.add_argument("--force", action="store_true",
+                        help="with --write-default-calibration: replace an existing file")
     parser.add_argument("-v", "--verbose", action="store_true", help="log every fault and start-up")
     args = parser.parse_args(argv)
     level = logging.INFO if args.verbose else logging.WARNING
     logging.basicConfig(level=level, stream=sys.stderr,
                         format="%(levelname)s %(name)s: %(message)s")
     if args.write_default_calibration:
-        import so101_mujoco_utils
-
-        calibration = make_default_calibration(so101_mujoco_utils.load_model())
-        Path(args.write_default_calibration).write_text(json.dumps(calibration, indent=4) + "\n")
+        try:
+            path = check_output_path(args.write_default_calibration,
+                                     "--write-default-calibration", overwrite=args.force)
+        except OutputPathError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        calibration = make_default_calibration(load_model())
+        write_text_atomic(path, json.dumps(calibration, indent=4) + "\n")
+        print(f"Calibration written to {path}")
         return 0
     if args.viewer and not has_display():
         print("error: --viewer needs a display (DISPLAY or WAYLAND_DISPLAY is not set); "
@@ -57,8 +77,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         arm = VirtualSO101(calibration=args.calibration, wire_timing=args.wire_timing,
-                           faults=args.faults, viewer=args.viewer, log_level=level)
-    except (CalibrationError, FaultSpecError, VirtualSO101Error) as exc:
+                           faults=args.faults, viewer=args.viewer, log_level=level,
+                           cube=(*args.cube, args.cube_yaw) if args.cube else None)
+    except (CalibrationError, CubePositionError, FaultSpecError, VirtualSO101Error) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     with arm:

@@ -33,6 +33,7 @@ from benchmarks.bench_fk import bench_fk  # noqa: E402
 from benchmarks.bench_hw import bench_hw  # noqa: E402
 from benchmarks.bench_ik import bench_ik  # noqa: E402
 from benchmarks.bench_pick_place import bench_pick_place  # noqa: E402
+from so101_kinematics.outputs import check_output_path, write_text_atomic  # noqa: E402
 
 BENCHMARKS: dict[str, Callable[[bool], dict]] = {
     "fk": bench_fk,
@@ -93,6 +94,8 @@ def main() -> int:
     parser.add_argument("--only", nargs="+", choices=sorted(BENCHMARKS),
                         help="run only these groups")
     args = parser.parse_args()
+    if args.json:  # checked before the minutes of measuring, not after
+        args.json = check_output_path(args.json, "--json")
 
     results: dict = {}
     started = time.perf_counter()
@@ -110,8 +113,7 @@ def main() -> int:
     }
     print(format_table(results))
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(results, indent=2))
+        write_text_atomic(args.json, json.dumps(results, indent=2))
         print(f"wrote {args.json}", file=sys.stderr)
     return 0
 

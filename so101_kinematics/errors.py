@@ -142,3 +142,7 @@ class VirtualSO101Error(SO101Error, RuntimeError):
 
 class FaultSpecError(InputError):
     """A fault specification does not follow the grammar."""
+
+
+class CubePositionError(InputError):
+    """A cube position for the virtual arm is malformed or off the table."""

@@ -1,15 +1,7 @@
 """The SO-101's kinematic facts and the building blocks of its forward kinematics.
 
-Frame convention, used in every name of the project:
-    ``g_ab`` is the pose of frame ``b`` expressed in frame ``a``: a 4x4
-    homogeneous matrix ``[[R_ab, p_ab], [0, 0, 0, 1]]`` that maps coordinates
-    in ``b`` to coordinates in ``a``. Poses chain by multiplication:
-    ``g_ac = g_ab @ g_bc``.
-
-Frames: ``w`` is the world (the base, origin on the table, z up), ``1`` to
-``5`` are the bodies moved by shoulder_pan, shoulder_lift, elbow_flex,
-wrist_flex and wrist_roll (each joint turns about its frame's local z axis),
-and ``t`` is the object (tool) frame (site ``object_frame`` in ``model/so101.xml``).
+The frame convention is written once, at the top of ``so101_forward_kinematics.py``:
+``g_ab`` is the pose of frame ``b`` in frame ``a``; frames ``w``, ``1`` ... ``5``, ``t``.
 
 Each joint's transform is a fixed displacement and rotation taken from the
 upstream SO-101 model (``so101_new_calib``, :data:`FIXED_TRANSFORMS`),

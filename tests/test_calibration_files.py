@@ -107,6 +107,7 @@ def test_calibrated_limits_are_lerobots_normalisation_of_the_range(calibration):
     assert limits["gripper"] == (0.0, 100.0)
 
 
+@pytest.mark.hw
 def test_ticks_to_user_matches_lerobot_bus_normalisation(calibration):
     pytest.importorskip("lerobot")
     bus = make_bus("/dev/null", calibration)  # constructed, never connected

@@ -23,6 +23,7 @@ from collections.abc import Mapping
 from contextlib import contextmanager
 from typing import Any
 
+from so101_kinematics import cube_sensor
 from so101_kinematics.calibration import (
     CALIBRATE_HINT,
     MOTOR_IDS,
@@ -179,6 +180,25 @@ def read_pose(bus, retries: int = 0) -> dict[str, float]:
     """
     raw = bus.sync_read("Present_Position", num_retry=retries)
     return {joint: float(raw[joint]) for joint in JOINTS}
+
+
+def read_cube_sensor(bus) -> cube_sensor.CubeReading | None:
+    """The virtual lab's cube sensor (``so101_kinematics.cube_sensor``); None on a real arm.
+
+    One READ to the sensor's bus ID: a real arm has no device there, so the read
+    times out (50 ms) and the answer is None.
+    """
+    try:
+        discard_stale_input(bus)
+        data, comm, _ = bus.packet_handler.readTxRx(bus.port_handler, cube_sensor.SENSOR_ID,
+                                                    cube_sensor.ADDRESS, cube_sensor.SIZE)
+    except Exception:  # noqa: BLE001 - no sensor, or a failing port: nothing to report
+        return None
+    finally:
+        recover_port(bus, settle=False)
+    if comm != 0 or len(data) != cube_sensor.SIZE:
+        return None
+    return cube_sensor.decode(bytes(data))
 
 
 def configure(bus) -> None:

@@ -151,6 +151,7 @@ class ArmSession:
         self._beyond: dict[str, float] = {}
         self._unobserved_since: float | None = None
         self.known_faults: dict[str, int] = {}  # joint -> status bits already reported
+        self._status_seen: dict[str, int] = {}  # joint -> bits of the last status read
         self.stale_bytes = 0  # late-reply bytes dropped before reads
         _SESSIONS[bus] = self
 
@@ -212,7 +213,7 @@ class ArmSession:
         except Exception as error:  # noqa: BLE001
             measured = None
             if port_lost(self.bus):
-                raise PortLost.during(f"'{self.step}'") from error
+                raise PortLost.during("a control cycle") from error
             recover_port(self.bus, settle=False)
             if self._unobserved_since is None:
                 self._unobserved_since = deadline
@@ -232,7 +233,7 @@ class ArmSession:
                 check_tracking(previous, measured, deadline, self.tracking_tolerance,
                                self.tracking_timeout, self._beyond)
             if len(self.cycles) % STATUS_EVERY == 0:
-                check_status(self.bus, self.known_faults)
+                check_status(self.bus, self.known_faults, self._status_seen)
         cycle = Cycle(deadline - self._t0, self.loop.woke - self._t0, self.step, command, measured)
         self.cycles.append(cycle)
         if self.on_cycle is not None:

@@ -24,6 +24,7 @@ from so101_kinematics.calibration import (
     HardwareError,
     calibrated_limits,
 )
+from so101_kinematics.cube_sensor import CubeReading
 from so101_kinematics.errors import NotConfirmed as NotConfirmed
 from so101_kinematics.frames import JOINT_LIMITS, JOINTS
 from so101_kinematics.hw.bus import (
@@ -34,6 +35,7 @@ from so101_kinematics.hw.bus import (
     connect,
     disconnect,
     enable_torque_in_place,
+    read_cube_sensor,
     read_pose,
     recover_port,
     release_torque,
@@ -137,6 +139,7 @@ class RunResult:
     frozen: bool = False
     timing: dict[str, float] = field(default_factory=dict)
     stale_bytes: int = 0  # late-reply bytes dropped before reads (see discard_stale_input)
+    cube: CubeReading | None = None  # the virtual lab's cube sensor at the end; None on a real arm
 
 
 def _describe(error: BaseException, step: str) -> str:
@@ -233,6 +236,7 @@ def execute(session: ArmSession, plan: Plan, start_pose: Configuration,
                 result.final_pose = session.read_pose()  # where it holds, or is released
             except (Exception, KeyboardInterrupt):
                 result.final_pose = None
+            result.cube = read_cube_sensor(bus)
             if result.returned_to_start:
                 result.unreleased = release_torque(bus)
                 result.torque_released = not result.unreleased

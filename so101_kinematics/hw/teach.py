@@ -1,8 +1,9 @@
-"""Teach mode and the plan table: what a student reads before and between runs on the arm."""
+"""Teach mode, the plan table and the run's outcome: what a student reads before and after a run."""
 
 from __future__ import annotations
 
 import json
+import math
 import sys
 import time
 from collections.abc import Mapping
@@ -12,7 +13,7 @@ from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.bus import PortLost, port_lost, read_pose, recover_port
 from so101_kinematics.hw.control import READ_RETRIES, RECOVERY_TIMEOUT_S, RateLoop, capped_duration
 from so101_kinematics.motion import Configuration, Plan
-from so101_kinematics.plans import pick_and_place_steps
+from so101_kinematics.plans import GRIPPER_CLOSED, pick_and_place_steps
 
 TEACH_RATE_HZ = 5.0        # live pose printing [Hz]
 MAX_TEACH_RATE_HZ = 50.0   # a terminal cannot show more [Hz]
@@ -119,3 +120,44 @@ def teach(bus, *, rate_hz: float = TEACH_RATE_HZ, duration: float | None = None,
     if pose is not None:
         print("Last pose (paste into a waypoint file): " + format_configuration(pose), file=out)
     return pose
+
+
+EMPTY_GRIP_PCT = 3.0  # the gripper this close to its closed command holds nothing [%]
+
+
+def grasp_outcome(plan: Plan, cycles) -> str | None:
+    """Whether the jaws closed on something, from the log: works on a real arm too.
+
+    The gripper is not tracked (it squeezes the cube by design), so a cube
+    between the jaws shows as a gripper that stops short of its command.
+
+    Returns:
+        A line for the student, or None if the plan does not close the gripper.
+    """
+    closing = [s for s in plan.steps if s.configuration["gripper"] <= GRIPPER_CLOSED + 1e-9]
+    if not closing:
+        return None
+    step = closing[0].name
+    measured = [c.measured["gripper"] for c in cycles if c.step == step and c.measured]
+    if not measured:
+        return None
+    final = measured[-1]
+    if final <= GRIPPER_CLOSED + EMPTY_GRIP_PCT:
+        return (f"The jaws closed on nothing at '{step}' (gripper {final:.1f} %, commanded "
+                f"{GRIPPER_CLOSED:g} %): the cube was not picked. Check where it stands against "
+                "the FK pick position.")
+    return f"The jaws closed on the cube at '{step}' (gripper stopped at {final:.1f} %)."
+
+
+def cube_outcome(plan: Plan, cube) -> str | None:
+    """Where the virtual lab's cube sensor says the cube ended, against the FK place position."""
+    if cube is None:
+        return None
+    _, place = pick_and_place_steps(plan)
+    target, _ = forward_kinematics({j: place.configuration[j] for j in ARM_JOINTS})
+    x, y, z = cube.position_m
+    miss = 1e3 * math.hypot(x - target[0], y - target[1])
+    where = "in the jaws" if cube.held else f"tilted {cube.tilt_deg:.1f} deg"
+    return (f"Cube (the virtual arm's sensor): at x = {100 * x:.1f} cm, y = {100 * y:.1f} cm, "
+            f"z = {100 * z:.1f} cm, {where}; {miss:.1f} mm from the FK place position "
+            f"({100 * target[0]:.1f}, {100 * target[1]:.1f}) cm.")

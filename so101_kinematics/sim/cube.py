@@ -73,7 +73,8 @@ class CubeStart:
 
 def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
                 render_meshes: bool = False, physics_only: bool = False,
-                explicit_pairs: bool = True) -> mujoco.MjModel:
+                explicit_pairs: bool = True,
+                cube_at: tuple[float, float, float] | None = None) -> mujoco.MjModel:
     """Compile the course scene, optionally with a free cube at the plan's pick position.
 
     Args:
@@ -84,6 +85,8 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
         physics_only: leave out the visual geoms and their meshes (for a run
             that is never drawn). They have no mass and no contact, so the
             physics is bit for bit the same; each step skips their poses.
+        cube_at: instead of ``cube``: the cube resting on the table at (x [m], y [m],
+            yaw [deg]) in the world (the virtual arm's ``--cube``).
         explicit_pairs: list the geom pairs that can touch instead of finding
             them every step (``so101_kinematics.sim.contact_pairs``; the same contacts, 6 %
             less work per step).
@@ -100,15 +103,47 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
         use_render_meshes(spec)
     if cube is not None:
         pick, _ = pick_and_place_steps(plan or default_plan())
-        centre, quat = cube.pose(pick.configuration)
-        body = spec.worldbody.add_body(name="cube", pos=centre, quat=quat)
-        body.add_freejoint(name="cube")
-        body.add_geom(name="cube", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.5 * CUBE_EDGE] * 3,
-                      mass=CUBE_MASS, friction=list(CUBE_FRICTION), condim=3, rgba=list(CUBE_RGBA))
-        spec.option.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP
+        add_cube(spec, *cube.pose(pick.configuration))
+    elif cube_at is not None:
+        add_cube(spec, *cube_on_table(*cube_at))
     if explicit_pairs:
         use_explicit_contact_pairs(spec)
     return spec.compile()
+
+
+def add_cube(spec: mujoco.MjSpec, centre, quat) -> None:
+    """Add the course's free cube to a scene: the one definition every cube here uses.
+
+    Args:
+        spec: the scene being built.
+        centre: the cube's centre [m] in the world.
+        quat: its orientation (w, x, y, z).
+    """
+    body = spec.worldbody.add_body(name="cube", pos=list(centre), quat=list(quat))
+    body.add_freejoint(name="cube")
+    body.add_geom(name="cube", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.5 * CUBE_EDGE] * 3,
+                  mass=CUBE_MASS, friction=list(CUBE_FRICTION), condim=3, rgba=list(CUBE_RGBA))
+    spec.option.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP  # a cube at rest costs nothing
+
+
+def cube_on_table(x: float, y: float, yaw_deg: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Centre [m] and quaternion (w, x, y, z) of a cube resting on the table at (x, y), turned."""
+    half = math.radians(yaw_deg) / 2
+    return (np.array([x, y, 0.5 * CUBE_EDGE]),
+            np.array([math.cos(half), 0.0, 0.0, math.sin(half)]))
+
+
+def cube_state(m: mujoco.MjModel, d: mujoco.MjData) -> tuple[np.ndarray, float, bool]:
+    """Where the cube is: centre [m], tilt of its up axis from the vertical [deg], held or not.
+
+    Held: its centre within ``HELD_DISTANCE`` of the object frame and off the table.
+    """
+    centre = d.body("cube").xpos.copy()
+    up = d.body("cube").xmat.reshape(3, 3)[:, 2]
+    tilt = math.degrees(math.acos(min(1.0, max(-1.0, float(up[2])))))
+    held = (math.dist(centre, d.site(TOOL_SITE).xpos) <= HELD_DISTANCE
+            and centre[2] > 0.5 * CUBE_EDGE + 0.002)
+    return centre, tilt, held
 
 
 def _remove_visuals(spec: mujoco.MjSpec) -> None:

@@ -95,87 +95,41 @@ from collections.abc import Mapping
 from multiprocessing.connection import Connection
 from pathlib import Path
 
+from so101_kinematics.cube_sensor import CubeReading
 from so101_kinematics.display import has_display
-from so101_kinematics.errors import FaultSpecError, VirtualSO101Error  # noqa: F401
+from so101_kinematics.errors import (  # noqa: F401
+    CubePositionError,
+    FaultSpecError,
+    VirtualSO101Error,
+)
 from so101_kinematics.paths import REPO
 from so101_kinematics.virtual.calibration import (
     DEFAULT_CALIBRATION_PATH,
     load_calibration,
 )
+from so101_kinematics.virtual.faults import FAULT_KINDS, MAX_FAULT_MS, parse_faults  # noqa: F401
 
 logger = logging.getLogger("virtual_so101")
 
 
-# --- faults -----------------------------------------------------------------------------------
-FAULT_KINDS = ("drop", "corrupt", "remove", "stall", "firmware", "outage", "unplug", "latency",
-               "overload", "overheat", "voltage")
-MAX_FAULT_MS = 60_000  # longest outage or latency [ms]
+CUBE_REACH_M = 0.5  # a cube is placed within this of the base, on the table [m]
 
 
-def parse_faults(spec: str | None, calibration: Mapping[str, Mapping[str, int]]) -> list[tuple]:
-    """Parse a fault specification (grammar in the module docstring).
-
-    Returns:
-        A list of (kind, servo_id, argument) tuples.
+def check_cube_position(cube) -> tuple[float, float, float]:
+    """(x, y[, yaw]) of a cube on the table, checked: on the table top, finite numbers.
 
     Raises:
-        FaultSpecError: naming the bad item and the grammar.
+        CubePositionError: naming the value, the allowed range and the fix.
     """
-    grammar = ("drop:SERVO[:N], corrupt:SERVO[:N], remove:SERVO, stall:SERVO, "
-               "firmware:[SERVO:]MAJOR.MINOR, outage:MS, unplug, latency:MS[:N], "
-               "overload:SERVO, overheat:SERVO, voltage:SERVO (SERVO = id or joint name, "
-               f"MS in 1..{MAX_FAULT_MS}), comma-separated")
-    ids = {name: int(entry["id"]) for name, entry in calibration.items()}
+    from so101_kinematics.checks import check_number
 
-    def servo(token: str, item: str) -> int:
-        if token in ids:
-            return ids[token]
-        if token.isdigit() and int(token) in ids.values():
-            return int(token)
-        raise FaultSpecError(f"Fault '{item}': unknown servo '{token}'; use an id in "
-                             f"{sorted(ids.values())} or a joint in {list(ids)}.")
-
-    faults = []
-    for item in (s.strip() for s in (spec or "").split(",")):
-        if not item:
-            continue
-        kind, *args = item.split(":")
-        if kind not in FAULT_KINDS:
-            raise FaultSpecError(f"Unknown fault '{item}'. Grammar: {grammar}.")
-        try:
-            if kind == "firmware":
-                if len(args) == 1:
-                    args = [str(min(ids.values())), args[0]]
-                major, minor = (int(x) for x in args[1].split("."))
-                if not (0 <= major <= 255 and 0 <= minor <= 255) or len(args) != 2:
-                    raise ValueError
-                faults.append((kind, servo(args[0], item), (major, minor)))
-            elif kind == "unplug":
-                if args:
-                    raise ValueError
-                faults.append((kind, None, None))
-            elif kind in ("outage", "latency"):
-                milliseconds = float(args[0])
-                count = int(args[1]) if len(args) == 2 else 1
-                if not (0 < milliseconds <= MAX_FAULT_MS) or count < 1 or len(args) > 2 \
-                        or (kind == "outage" and len(args) != 1):
-                    raise ValueError
-                faults.append((kind, None, milliseconds if kind == "outage"
-                               else (milliseconds, count)))
-            elif kind in ("drop", "corrupt"):
-                count = int(args[1]) if len(args) == 2 else 1
-                if len(args) not in (1, 2) or count < 1:
-                    raise ValueError
-                faults.append((kind, servo(args[0], item), count))
-            else:
-                if len(args) != 1:
-                    raise ValueError
-                faults.append((kind, servo(args[0], item), None))
-        except FaultSpecError:
-            raise
-        except (ValueError, IndexError):
-            raise FaultSpecError(f"Bad fault '{item}'. Grammar: {grammar}.") from None
-    return faults
+    if len(cube) not in (2, 3):
+        raise CubePositionError(f"A cube position is X Y [YAW], got {cube!r}.")
+    x = check_number(cube[0], "cube x", -CUBE_REACH_M, CUBE_REACH_M, "m", error=CubePositionError)
+    y = check_number(cube[1], "cube y", -CUBE_REACH_M, CUBE_REACH_M, "m", error=CubePositionError)
+    yaw = check_number(cube[2] if len(cube) == 3 else 0.0, "cube yaw", -180.0, 180.0, "deg",
+                       error=CubePositionError)
+    return x, y, yaw
 
 
 # =============================================================================================
@@ -198,6 +152,9 @@ class VirtualSO101:
         torque_on_start: servos hold the initial pose from power-up (default;
             a real STS3215 starts limp).
         log_level: logging level of the emulator process.
+        cube: (x [m], y [m][, yaw [deg]]): the simulator's free cube resting on the
+            table there, in the base frame; its pose is readable through the bus's
+            cube sensor (``so101_kinematics.cube_sensor``) and :meth:`cube`.
         startup_timeout: [s] to wait for the emulator to come up.
 
     Raises:
@@ -210,8 +167,11 @@ class VirtualSO101:
     def __init__(self, calibration: str | Path | Mapping = DEFAULT_CALIBRATION_PATH,
                  wire_timing: bool = False, faults: str | None = None, viewer: bool = False,
                  initial: Mapping[str, float] | None = None, torque_on_start: bool = True,
-                 log_level: int = logging.WARNING, startup_timeout: float = 60.0):
+                 log_level: int = logging.WARNING, startup_timeout: float = 60.0,
+                 cube: tuple[float, float] | tuple[float, float, float] | None = None):
         self.calibration = load_calibration(calibration)
+        if cube is not None:
+            cube = check_cube_position(cube)
         self._ids = {name: entry["id"] for name, entry in self.calibration.items()}
         parsed = parse_faults(faults, self.calibration)
         if viewer and not has_display():
@@ -220,7 +180,7 @@ class VirtualSO101:
         options = {"calibration": self.calibration, "wire_timing": wire_timing,
                    "faults": parsed, "viewer": viewer,
                    "initial": dict(initial) if initial is not None else None,
-                   "torque_on_start": torque_on_start, "log_level": log_level}
+                   "torque_on_start": torque_on_start, "log_level": log_level, "cube": cube}
         # A fresh interpreter (as multiprocessing's "spawn", but without re-running
         # the caller's __main__, so scripts without a __main__ guard work too).
         parent_sock, child_sock = socket.socketpair()
@@ -320,6 +280,23 @@ class VirtualSO101:
     def torque_enabled(self) -> dict[str, bool]:
         """Joint name -> whether its servo's Torque_Enable is set."""
         return self._call("torque_enabled")
+
+    def cube(self) -> CubeReading | None:
+        """Where the cube is (centre [m], tilt [deg], held), or None without a cube."""
+        return self._call("cube")
+
+    def place_cube(self, x: float, y: float, yaw_deg: float = 0.0) -> None:
+        """Put the cube on the table at (x, y) [m] in the base frame, turned ``yaw_deg`` [deg].
+
+        Raises:
+            ValueError: no cube (start with ``cube=``), or the jaws hold it.
+        """
+        x, y, yaw_deg = check_cube_position((x, y, yaw_deg))
+        self._call("place_cube", x, y, yaw_deg)
+
+    def remove_cube(self) -> None:
+        """Take the cube off the table (the sensor then reports none)."""
+        self._call("remove_cube")
 
     def inject(self, spec: str) -> None:
         """Inject faults (grammar in the module docstring), e.g. ``"drop:3:5,corrupt:2"``."""

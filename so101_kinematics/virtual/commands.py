@@ -7,6 +7,7 @@ import os
 import statistics
 import time
 
+from so101_kinematics import cube_sensor
 from so101_kinematics.virtual.protocol import ADDR, EEPROM_END, ERROR_BITS, FIRMWARE
 
 logger = logging.getLogger("virtual_so101")
@@ -72,9 +73,56 @@ class ParentCommands:
             servo.regs[0], servo.regs[1] = FIRMWARE
         self.update_listening()
 
+    # --- the cube (when the arm was started with one) ------------------------------------
+    def cube_reading(self) -> bytes:
+        """The cube sensor's reply data (see ``so101_kinematics.cube_sensor``)."""
+        if not self._has_cube():
+            return cube_sensor.encode_absent()
+        from so101_kinematics.sim.cube import cube_state
+
+        centre, tilt, held = cube_state(self.m, self.d)
+        return cube_sensor.encode(centre, tilt, held)
+
+    def _has_cube(self) -> bool:
+        return (self.mujoco.mj_name2id(self.m, self.mujoco.mjtObj.mjOBJ_BODY, "cube") >= 0
+                and not getattr(self, "cube_removed", False))
+
+    def place_cube(self, x: float, y: float, yaw_deg: float = 0.0) -> None:
+        """Put the cube on the table at (x, y) [m], turned ``yaw_deg``, as a hand would."""
+        from so101_kinematics.sim.cube import cube_on_table, cube_state
+
+        if self.mujoco.mj_name2id(self.m, self.mujoco.mjtObj.mjOBJ_BODY, "cube") < 0:
+            raise ValueError("This virtual arm has no cube. Fix: start it with --cube X Y.")
+        if self._has_cube() and cube_state(self.m, self.d)[2]:
+            raise ValueError("The cube is in the jaws: open the gripper first.")
+        joint = self.m.joint("cube")
+        centre, quat = cube_on_table(x, y, yaw_deg)
+        self.d.qpos[joint.qposadr[0]:joint.qposadr[0] + 7] = [*centre, *quat]
+        self.d.qvel[joint.dofadr[0]:joint.dofadr[0] + 6] = 0.0
+        self.m.body_gravcomp[self.m.body("cube").id] = 0.0
+        self.cube_removed = False
+        self.mujoco.mj_forward(self.m, self.d)
+
+    def remove_cube(self) -> None:
+        """Take the cube away: it floats 5 m from the arm, out of every contact."""
+        if self.mujoco.mj_name2id(self.m, self.mujoco.mjtObj.mjOBJ_BODY, "cube") < 0:
+            return
+        joint = self.m.joint("cube")
+        self.d.qpos[joint.qposadr[0]:joint.qposadr[0] + 3] = (5.0, 5.0, 1.0)
+        self.d.qvel[joint.dofadr[0]:joint.dofadr[0] + 6] = 0.0
+        self.m.body_gravcomp[self.m.body("cube").id] = 1.0
+        self.cube_removed = True
+        self.mujoco.mj_forward(self.m, self.d)
+
     def command(self, name: str, args: tuple):
         """Answer one command of the parent process (``VirtualSO101``'s methods)."""
         smu = self.smu
+        if name == "cube":
+            return cube_sensor.decode(self.cube_reading())
+        if name == "place_cube":
+            return self.place_cube(*args)
+        if name == "remove_cube":
+            return self.remove_cube()
         if name == "joint_positions":
             return smu.get_configuration(self.m, self.d)
         if name == "commanded_positions":

@@ -14,9 +14,11 @@ import signal
 import termios
 import time
 import tty
+import types
 from collections import deque
 from multiprocessing.connection import Connection
 
+from so101_kinematics import cube_sensor
 from so101_kinematics.virtual.commands import ParentCommands
 from so101_kinematics.virtual.protocol import (
     BAUD_RATES,
@@ -48,7 +50,12 @@ class _Emulator(ServoRegisters, ParentCommands):
 
         self.mujoco, self.smu = mujoco, smu
         self.conn = conn
-        self.m = smu.load_model()
+        if options.get("cube") is not None:  # the simulator's cube, on the virtual table
+            from so101_kinematics.sim.cube import build_model
+
+            self.m = build_model(cube_at=tuple(options["cube"]))
+        else:
+            self.m = smu.load_model()
         self.d = mujoco.MjData(self.m)
         self.dt = float(self.m.opt.timestep)
         self.servos: dict[int, VirtualServo] = {}
@@ -71,6 +78,9 @@ class _Emulator(ServoRegisters, ParentCommands):
         self.latency_left = 0
         self.unplugged = False
         self.listening: dict[int, VirtualServo] = {}
+        self.sensor = types.SimpleNamespace(  # what send() needs of a replying device
+            id=cube_sensor.SENSOR_ID, drop=0, corrupt=0, removed=False, return_delay=2e-6,
+            error_bits=0, stalled_at=None)
         if options["initial"] is None:
             mujoco.mj_resetDataKeyframe(self.m, self.d, self.m.key("home").id)
             mujoco.mj_forward(self.m, self.d)
@@ -135,6 +145,10 @@ class _Emulator(ServoRegisters, ParentCommands):
             t_end = t_seen
         listening = self.listening
         replies: list[tuple[VirtualServo, bytes]] = []
+        if target == cube_sensor.SENSOR_ID:  # the lab's cube sensor: READ only, never PING
+            if inst == INST_READ and tuple(params) == (cube_sensor.ADDRESS, cube_sensor.SIZE):
+                self.send([(self.sensor, self.cube_reading())], t_end, tpb)
+            return
         if inst == INST_PING:
             if target == BROADCAST_ID:
                 replies = [(s, b"") for _, s in sorted(listening.items())]

@@ -1,0 +1,12 @@
+"""Check a student's ``so101_forward_kinematics.py`` against this package, factor by factor.
+
+``so101-check-fk PATH`` (or ``python -m so101_kinematics.checker PATH``): the module is
+imported in a separate, time-bounded process (:mod:`.sandbox`, :mod:`.probe`), its
+factors and its FK are compared with this package (:mod:`.compare`), known mistakes are
+named (:mod:`.diagnose`), and the result is written for the student, as JSON, as
+Gradescope's ``results.json`` or as one CSV row per student (:mod:`.report`).
+"""
+
+from so101_kinematics.checker.cli import check_file, main
+
+__all__ = ["check_file", "main"]

@@ -1,0 +1,147 @@
+"""``so101-check-fk``: check one student's FK module, or a whole class in parallel.
+
+Exit status: 0 when every file is within the tolerance, 1 when one is outside it,
+2 when one cannot be checked (missing, crashes on import, times out) or the options
+are wrong. With several files the worst status wins.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+from so101_kinematics.checker import compare, report, sandbox
+from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number, range_help
+from so101_kinematics.errors import OutputPathError
+from so101_kinematics.outputs import check_output_path, write_text_atomic
+
+EXIT_PASS, EXIT_OUTSIDE, EXIT_UNCHECKED = 0, 1, 2
+
+
+def check_file(path: str | Path, tolerance=(1.0, 1.0), timeout: float = sandbox.DEFAULT_TIMEOUT_S,
+               count: int = compare.RANDOM_COUNT) -> dict:
+    """Check one FK module; the student's code runs in a child process.
+
+    Args:
+        path: the student's ``so101_forward_kinematics.py``.
+        tolerance: (position [mm], rotation [deg]) a test must be within.
+        timeout: time the module gets for its import and all calls [s].
+        count: random configurations for the whole FK.
+
+    Returns:
+        A JSON-ready dict: file, student, verdict ("pass", "fail", "error"), reason,
+        tests (see :func:`compare.compare_all`), note, the module's output, seconds.
+    """
+    path = Path(path)
+    check = {"file": str(path), "student": path.resolve().parent.name, "verdict": "error",
+             "reason": "", "tests": [], "note": "", "output": "", "output_size": 0,
+             "seconds": 0.0, "tolerance": list(tolerance)}
+    if not path.is_file():
+        check["reason"] = f"no such file {path}" if not path.exists() else f"{path} is a folder"
+        return check
+    run = sandbox.run_probe(path, compare.build_request(count), timeout)
+    check["seconds"] = run.seconds
+    check["output"] = run.results.get("output", "")
+    check["output_size"] = run.results.get("output_size", 0)
+    if run.status in ("import_error", "timeout") or not run.results.get("names"):
+        check["reason"] = run.reason or "the module could not be imported"
+        return check
+    check.update(compare.compare_all(run.results, tolerance, count))
+    if run.status != "ok":
+        check["note"] = (check["note"] + " " if check["note"] else "") + \
+            f"Not every call finished: {run.reason}."
+    passed = all(t["status"] in report.PASSING for t in check["tests"])
+    check["verdict"] = "pass" if passed and run.status == "ok" else "fail"
+    return check
+
+
+def _points(items: list[str]) -> dict[str, float]:
+    points = dict(report.DEFAULT_POINTS)
+    for item in items:
+        name, _, value = item.partition("=")
+        if name not in points:
+            raise ValueError(f"--points {item}: unknown test {name!r}; the tests are "
+                             f"{', '.join(points)}. Fix: e.g. --points get_g5t=5")
+        try:
+            points[name] = number(0, 1000, "points")(value)
+        except Exception:
+            raise ValueError(f"--points {item}: {value!r} is not a number in [0, 1000]. Fix: "
+                             f"e.g. --points {name}=5") from None
+    return points
+
+
+def build_parser() -> ArgumentParser:
+    """The command line."""
+    parser = ArgumentParser(prog="so101-check-fk", description=(
+        "Check so101_forward_kinematics.py against the so101_kinematics package: which "
+        "factor is wrong, by how much, and why."))
+    parser.add_argument("files", nargs="+", type=Path, metavar="FILE",
+                        help="one or more so101_forward_kinematics.py files")
+    parser.add_argument("--tolerance-mm", type=number(0, 1000, "mm", low_open=True), default=1.0,
+                        help=f"position tolerance, {range_help(0, 1000, 'mm', True)} (1)")
+    parser.add_argument("--tolerance-deg", type=number(0, 180, "deg", low_open=True),
+                        default=1.0, help=f"rotation tolerance, {range_help(0, 180, 'deg', True)}")
+    parser.add_argument("--timeout", type=number(0.5, 600, "s"), default=sandbox.DEFAULT_TIMEOUT_S,
+                        help=f"time per file, {range_help(0.5, 600, 's')} (10)")
+    parser.add_argument("--random", type=number(1, 100000, integer=True),
+                        default=compare.RANDOM_COUNT, help="random configurations (1000)")
+    parser.add_argument("--json", type=Path, help="write the full comparison (JSON)")
+    parser.add_argument("--gradescope", type=Path, metavar="RESULTS_JSON",
+                        help="write Gradescope's results.json (one file only)")
+    parser.add_argument("--csv", type=Path, help="write one row per file")
+    parser.add_argument("--points", action="append", default=[], metavar="TEST=POINTS",
+                        help="points of a test, e.g. get_forward_kinematics=40 (repeatable; "
+                        "defaults: " + ", ".join(f"{k}={v:g}" for k, v in
+                                                 report.DEFAULT_POINTS.items()) + ")")
+    parser.add_argument("--jobs", type=number(1, 256, integer=True), default=os.cpu_count() or 1,
+                        help="files checked at once (the number of cores)")
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="one line per file, even for a single file")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the checker; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        points = _points(args.points)
+    except ValueError as error:
+        parser.error(str(error))
+    if args.gradescope and len(args.files) > 1:
+        parser.error("--gradescope writes one submission's results.json; got "
+                     f"{len(args.files)} files. Fix: run once per submission, or use --csv")
+    outputs = {}
+    try:
+        for option in ("json", "gradescope", "csv"):
+            if getattr(args, option):
+                outputs[option] = check_output_path(getattr(args, option), f"--{option}",
+                                                    inputs=args.files)
+    except OutputPathError as error:
+        print(f"so101-check-fk: error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    tolerance = (args.tolerance_mm, args.tolerance_deg)
+    with ThreadPoolExecutor(max_workers=min(args.jobs, len(args.files))) as pool:
+        checks = list(pool.map(lambda f: check_file(f, tolerance, args.timeout, args.random),
+                               args.files))
+    for check in checks:
+        if len(checks) == 1 and not args.quiet:
+            print(report.text_report(check, points))
+        else:
+            print(report.text_report(check, points).splitlines()[-1].replace(
+                "Verdict", f"{check['file']}", 1) + (f" {check['reason']}" if check["reason"]
+                                                     else ""))
+    if "json" in outputs:
+        write_text_atomic(outputs["json"], report.json_report(checks))
+    if "gradescope" in outputs:
+        import json
+
+        write_text_atomic(outputs["gradescope"],
+                          json.dumps(report.gradescope_results(checks[0], points), indent=1))
+    if "csv" in outputs:
+        write_text_atomic(outputs["csv"], report.csv_report(checks, points))
+    verdicts = {check["verdict"] for check in checks}
+    return EXIT_UNCHECKED if "error" in verdicts else EXIT_OUTSIDE if "fail" in verdicts \
+        else EXIT_PASS

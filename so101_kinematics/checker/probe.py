@@ -1,0 +1,183 @@
+"""Runs in a child process: imports one student's FK module and calls its functions.
+
+Started by :mod:`so101_kinematics.checker.sandbox` as ``python -I -B probe.py
+REQUEST RESULT`` in a temporary working folder. It uses only the standard
+library and numpy (never ``so101_kinematics``), so the student's module is
+the only code of interest in this process. The student's prints are kept up
+to ``OUTPUT_LIMIT`` characters; the results are rewritten after each function,
+so a submission that hangs in ``get_forward_kinematics`` still has its factors
+checked. The current stage is written to ``RESULT.stage`` for the time-out message.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import io
+import json
+import os
+import resource
+import sys
+import traceback
+
+OUTPUT_LIMIT = 4000
+"""Characters of the student's own output kept for the report."""
+
+FILE_SIZE_LIMIT = 32 * 1024 * 1024
+"""Largest file this process may write [bytes] (a module printing without end)."""
+
+FACTORS = ("get_gw1", "get_g12", "get_g23", "get_g34", "get_g45")
+
+
+class BoundedOutput(io.TextIOBase):
+    """A text stream that keeps the first ``OUTPUT_LIMIT`` characters and counts the rest."""
+
+    def __init__(self):
+        self.kept = []
+        self.size = 0
+
+    def writable(self) -> bool:
+        """It is."""
+        return True
+
+    def write(self, text) -> int:
+        """Keep what fits, count everything."""
+        text = str(text)
+        room = OUTPUT_LIMIT - min(self.size, OUTPUT_LIMIT)
+        if room > 0:
+            self.kept.append(text[:room])
+        self.size += len(text)
+        return len(text)
+
+    def text(self) -> str:
+        """What was kept."""
+        return "".join(self.kept)
+
+
+def describe_error(error: BaseException) -> str:
+    """``Type: message`` and the student's line where it happened."""
+    where = ""
+    for frame in reversed(traceback.extract_tb(error.__traceback__)):
+        if frame.filename == MODULE_PATH:
+            where = f" (line {frame.lineno}: {(frame.line or '').strip()[:80]})"
+            break
+    message = " ".join(str(error).split())[:300]
+    return f"{type(error).__name__}: {message}{where}"
+
+
+def as_matrix(value):
+    """``(list, shape)`` of a returned value, or ``(None, description)``."""
+    import numpy as np
+
+    try:
+        array = np.asarray(value, dtype=float)
+    except Exception as error:  # not numbers
+        return None, f"not an array of numbers ({type(value).__name__}: {error})"
+    return array.tolist(), list(array.shape)
+
+
+def call(function, *args):
+    """``{"value": ..., "shape": ...}`` or ``{"error": ...}`` of one call."""
+    try:
+        value = function(*args)
+    except BaseException as error:  # the student's code may raise anything, even SystemExit
+        if isinstance(error, KeyboardInterrupt):
+            raise
+        return {"error": describe_error(error)}
+    return value
+
+
+def matrix_result(value) -> dict:
+    """A factor's return value as JSON."""
+    if isinstance(value, dict) and "error" in value:
+        return value
+    numbers, shape = as_matrix(value)
+    if numbers is None:
+        return {"error": shape}
+    return {"value": numbers, "shape": shape, "type": type(value).__name__}
+
+
+def fk_result(value) -> dict:
+    """``get_forward_kinematics``'s return value as JSON: the parts of the tuple."""
+    if isinstance(value, dict) and "error" in value:
+        return value
+    if not isinstance(value, (tuple, list)):
+        numbers, shape = as_matrix(value)
+        return {"parts": None, "type": type(value).__name__, "value": numbers, "shape": shape}
+    parts = []
+    for part in value:
+        numbers, shape = as_matrix(part)
+        parts.append({"value": numbers, "shape": shape} if numbers is not None
+                     else {"error": shape})
+    return {"parts": parts, "type": type(value).__name__}
+
+
+def main() -> None:
+    """Import the module named in the request and evaluate what it asks for."""
+    global MODULE_PATH
+    request_path, result_path = sys.argv[1], sys.argv[2]
+    resource.setrlimit(resource.RLIMIT_FSIZE, (FILE_SIZE_LIMIT, FILE_SIZE_LIMIT))
+    with open(request_path, encoding="utf-8") as handle:
+        request = json.load(handle)
+    MODULE_PATH = request["module"]
+    results = {"stage": "import", "functions": {}, "output": "", "output_size": 0}
+    captured = BoundedOutput()
+
+    def save(stage: str, keep: bool = True) -> None:
+        """Record the stage; with ``keep``, also the results so far (not after every call)."""
+        with open(result_path + ".stage", "w", encoding="utf-8") as handle:
+            handle.write(stage)
+        if keep:
+            results["stage"] = stage
+            results["output"], results["output_size"] = captured.text(), captured.size
+            with open(result_path + ".part", "w", encoding="utf-8") as handle:
+                handle.write(json.dumps(results))  # the C encoder: json.dump is 10x slower
+            os.replace(result_path + ".part", result_path)
+
+    save("import")
+    sys.path.insert(0, os.path.dirname(MODULE_PATH))
+    sys.stdout = sys.stderr = captured
+    spec = importlib.util.spec_from_file_location("so101_forward_kinematics", MODULE_PATH)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["so101_forward_kinematics"] = module
+    try:
+        spec.loader.exec_module(module)
+    except BaseException as error:
+        results["import_error"] = describe_error(error)
+        save("import failed")
+        return
+    results["names"] = sorted(name for name in dir(module)
+                              if not name.startswith("__") and callable(getattr(module, name)))
+    for name in FACTORS:
+        save(f"calling {name}", keep=False)
+        function = getattr(module, name, None)
+        if callable(function):
+            results["functions"][name] = [matrix_result(call(function, angle))
+                                          for angle in request["angles"][name]]
+    save("calling get_g5t", keep=False)
+    if callable(getattr(module, "get_g5t", None)):
+        results["functions"]["get_g5t"] = [matrix_result(call(module.get_g5t))]
+    fk = getattr(module, "get_forward_kinematics", None)
+    if callable(fk):
+        save("calling get_forward_kinematics")
+        results["functions"]["get_forward_kinematics"] = [
+            fk_result(call(fk, dict(configuration))) for configuration in request["configurations"]]
+        save("calling get_forward_kinematics without a gripper key", keep=False)
+        results["without_gripper"] = fk_result(call(fk, dict(request["without_gripper"])))
+    if request.get("product_configurations"):
+        save("multiplying the factors", keep=False)
+        products = []
+        for configuration in request["product_configurations"]:
+            row = {}
+            for name, joint in zip(FACTORS, request["joints"], strict=True):
+                function = getattr(module, name, None)
+                row[name] = matrix_result(call(function, configuration[joint])) \
+                    if callable(function) else {"error": "missing"}
+            products.append(row)
+        results["products"] = products
+    save("done")
+
+
+MODULE_PATH = ""
+
+if __name__ == "__main__":
+    main()
