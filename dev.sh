@@ -67,7 +67,7 @@ if [ ! -f "$venv/.complete" ]; then
   # major.minor: a 3.10 one does not push out the 3.11 one); each hw one is ~9 GB.
   ls -dt "$root"/venv-*-"${extras:-base}" 2>/dev/null \
     | while read -r env; do
-        grep -q "^version = ${version%.*}\." "$env/pyvenv.cfg" 2>/dev/null && echo "$env"
+        if grep -q "^version = ${version%.*}\." "$env/pyvenv.cfg" 2>/dev/null; then echo "$env"; fi
       done | tail -n +3 | xargs -r rm -rf
 fi
 # The venv is shared by clones: point its editable install at this clone.
