@@ -81,7 +81,11 @@ fi
 
 case "$job" in
   sim) exec "$venv/bin/python" pick_place_sim.py "$@" ;;
-  test) exec "$venv/bin/python" -m pytest "$@" ;;
+  test)
+    # Which lerobot line this run checks (0.4.x on 3.10/3.11, 0.6.x on 3.12+).
+    "$venv/bin/python" -c 'import importlib.metadata as m, platform
+print("Python", platform.python_version() + ", lerobot", m.version("lerobot"))' >&2 || true
+    exec "$venv/bin/python" -m pytest "$@" ;;
   test-base) exec "$venv/bin/python" -m pytest -m "not hw" "$@" ;;
   lint) exec "$venv/bin/python" -m ruff check "$@" . ;;
   bench) exec "$venv/bin/python" benchmarks/run.py "$@" ;;

@@ -29,7 +29,7 @@ from so101_kinematics.hw.control import (
     signals_as_interrupt,
     speed_caps,
 )
-from so101_kinematics.hw.log import CycleLog, plot_log
+from so101_kinematics.hw.log import CycleLog, plan_record, plot_log
 from so101_kinematics.hw.run import (
     RELEASE_HINT,
     MotionAborted,
@@ -48,6 +48,7 @@ from so101_kinematics.hw.teach import (
     grasp_outcome,
     teach,
 )
+from so101_kinematics.lab.sheet import PAPER_MM, write_sheet
 from so101_kinematics.motion import PROFILES, PlanError, check_number
 from so101_kinematics.outputs import check_output_path
 from so101_kinematics.plans import default_plan, load_plan
@@ -135,6 +136,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="CSV of time, commanded and measured joints per cycle (written as "
                              "the run goes)")
     parser.add_argument("--plot", type=Path, help="PNG of commanded vs measured per joint")
+    parser.add_argument("--sheet", type=Path, metavar="PATH.pdf",
+                        help="write the placement sheet (print at 100 %%) and stop; no arm needed")
+    parser.add_argument("--paper", choices=sorted(PAPER_MM), default="a4",
+                        help="paper of the --sheet (default a4)")
     parser.add_argument("--verbose", "-v", action="store_true", help="debug logging")
     add_cartesian_arguments(parser)
     return parser
@@ -166,10 +171,14 @@ def _run(args, plan, calibration, source, release: str) -> int:
 
     def on_start(start, first_duration):
         print("Starting pose (returned to at the end): " + format_configuration(start))
+        if log is not None:
+            log.run_info["start_pose"] = dict(start)
         print(f"First move: to '{plan.steps[0].name}' in {first_duration:.2f} s, ramping from "
               "this pose.")
 
-    log = CycleLog(args.log) if args.log else None
+    log = CycleLog(args.log, {"plan": plan_record(plan), "rate_hz": args.rate, "profile":
+                              args.profile, "calibration": str(source), "robot_id": args.robot_id}
+                   ) if args.log else None
     try:
         result = run_on_arm(
             args.port, calibration, plan, robot_id=args.robot_id, source=str(source),
@@ -233,6 +242,12 @@ def _main(args) -> int:
     check_run_settings(args.rate, args.max_speed, args.tracking_tolerance)
     plan = plan_from_arguments(args) or (
         load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold))
+    if args.sheet is not None:
+        validate_plan_for_arm(plan, None)
+        path = check_output_path(args.sheet, "--sheet", inputs=(args.plan,), suffixes=(".pdf",))
+        origin = args.plan or ("--pick/--place" if args.pick else "the course's plan")
+        print(write_sheet(plan, path, args.paper, source=str(origin)).summary())
+        return 0
     source = args.calibration or (find_calibration(args.robot_id, args.port)
                                   if args.robot_id else None)
     calibration = load_calibration(source, args.robot_id) if source is not None else None

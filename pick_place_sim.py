@@ -30,6 +30,7 @@ from so101_kinematics.cli import (
     range_help,
     report_unexpected,
 )
+from so101_kinematics.lab.compare import LogError, compare_run, draw_report
 from so101_kinematics.motion import MAX_DURATION, PlanError
 from so101_kinematics.outputs import OutputPathError, check_output_path, write_text_atomic
 from so101_kinematics.paths import REPO
@@ -139,6 +140,9 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
                         f"{range_help(*duration)} (default %(default)g)")
     add_cartesian_arguments(parser)
     parser.add_argument("--json", type=Path, metavar="PATH", help="write the run report as JSON")
+    parser.add_argument("--compare", type=Path, metavar="LOG.csv", help="replay a hardware log "
+                        "(pick_place_hw.py --log) in the simulator and compare; needs --report")
+    parser.add_argument("--report", type=Path, metavar="PATH.png", help="--compare's figure")
     parser.add_argument("--strict", action="store_true", help="exit 1 unless the cube is placed "
                         "within tolerance")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -162,6 +166,8 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
 
 def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     """Check the outputs and the plan, run, report (see :func:`main`)."""
+    if args.compare is not None:
+        return _compare(args)
     mode, video = choose_mode(args.headless, args.record, so101_display.has_display())
     try:
         json_path = None
@@ -195,6 +201,25 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         write_text_atomic(json_path, json.dumps(asdict(report), indent=2) + "\n")
     if args.strict and not report.success:
         return 1
+    return 0
+
+
+def _compare(args: argparse.Namespace) -> int:
+    """--compare LOG.csv --report PATH.png [--json PATH]: the sim-versus-arm report."""
+    try:
+        if args.report is None:
+            raise OutputPathError("--compare needs --report PATH.png for the figure.")
+        report = check_output_path(args.report, "--report", inputs=[args.compare],
+                                   suffixes=(".png",))
+        json_path = args.json and check_output_path(args.json, "--json", inputs=[args.compare])
+        result = compare_run(args.compare)
+    except (LogError, OutputPathError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print(result.summary())
+    print(f"Report: {draw_report(result, report, f'{args.compare}: simulator vs arm')}")
+    if json_path:
+        write_text_atomic(json_path, json.dumps(result.as_json(), indent=2) + "\n")
     return 0
 
 

@@ -10,19 +10,33 @@ beside the target) still holds every cycle up to its last flush.
 from __future__ import annotations
 
 import csv
+import json
 import os
 from collections.abc import Iterable
 from pathlib import Path
 
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.control import ArmSession, Cycle
-from so101_kinematics.motion import unit
-from so101_kinematics.outputs import atomic_output, temporary_beside
+from so101_kinematics.motion import Plan, unit
+from so101_kinematics.outputs import atomic_output, temporary_beside, write_text_atomic
 
 FLUSH_EVERY_S = 0.5  # the log reaches the disk at least this often [s of run time]
 HEADER = (["t_s", "wall_s", "step"] + [f"cmd_{j}" for j in JOINTS]
           + [f"meas_{j}" for j in JOINTS])
 """CSV columns: scheduled and actual cycle start [s], step, commanded and measured joints."""
+
+
+def sidecar_path(path: str | Path) -> Path:
+    """The run's sidecar beside its CSV log: ``run.csv`` -> ``run.run.json``."""
+    path = Path(path)
+    return path.with_name(path.stem + ".run.json")
+
+
+def plan_record(plan: Plan) -> dict:
+    """``plan`` as a waypoint file's table (``plans.load_plan`` reads it back)."""
+    return {"steps": [{"name": s.name, "configuration": dict(s.configuration),
+                       "duration": s.duration, "hold": s.hold} for s in plan.steps],
+            "return_to_start": plan.return_to_start, "return_duration": plan.return_duration}
 
 
 def cycle_row(cycle: Cycle) -> list[str]:
@@ -35,12 +49,19 @@ def cycle_row(cycle: Cycle) -> list[str]:
 class CycleLog:
     """A CSV log written while the arm moves; use as the session's ``on_cycle`` hook.
 
+    The CSV stays plain (one header row, one row per cycle). What a replay
+    needs (``run_info``: the plan, the measured starting pose, the rate, the
+    calibration) goes to a JSON sidecar beside it (:func:`sidecar_path`),
+    written atomically when the log is closed.
+
     Args:
         path: the CSV to produce (checked beforehand: ``outputs.check_output_path``).
+        run_info: the sidecar's content (add ``start_pose`` once measured); None: no sidecar.
     """
 
-    def __init__(self, path: str | Path):
+    def __init__(self, path: str | Path, run_info: dict | None = None):
         self.path = Path(path)
+        self.run_info = run_info
         self.temporary = temporary_beside(self.path)
         self._handle = self.temporary.open("w", newline="", encoding="utf-8")
         self._writer = csv.writer(self._handle)
@@ -70,6 +91,8 @@ class CycleLog:
             os.fsync(self._handle.fileno())
             self._handle.close()
             os.replace(self.temporary, self.path)
+            if self.run_info is not None:
+                write_text_atomic(sidecar_path(self.path), json.dumps(self.run_info, indent=1))
         return self.path
 
 

@@ -1,0 +1,196 @@
+"""Simulator versus arm: a hardware run's log replayed in MuJoCo, for the write-up.
+
+:func:`compare_run` reads a hardware log (``pick_place_hw.py --log``: the CSV
+and its ``.run.json`` sidecar, see ``hw/log.py``), starts the simulated arm
+at the run's measured starting pose and sends it the run's commands at the
+times the arm got them (the plan as it ran: speed caps and pauses included),
+and compares, per joint, the commanded, the measured and the simulated
+angles. It also puts the cube where the measured angles put the object frame
+during the pick and the place (FK of the measured pose at the end of those
+steps) against where the plan puts it. :func:`draw_report` draws it all.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from so101_kinematics.errors import InputError
+from so101_kinematics.fast_fk import forward_kinematics
+from so101_kinematics.frames import ARM_JOINTS, JOINTS
+from so101_kinematics.hw.log import sidecar_path
+from so101_kinematics.motion import Plan, Step
+from so101_kinematics.outputs import atomic_output
+from so101_kinematics.plans import pick_and_place_steps
+
+SETTLE_WINDOW_S = 0.2  # the pick/place pose: mean measured pose over the step's last [s]
+
+
+class LogError(InputError):
+    """A log that cannot be compared (missing, unreadable, or without its sidecar)."""
+
+
+@dataclass
+class Comparison:
+    """The figures of :func:`compare_run` (the JSON report is :meth:`as_json`)."""
+
+    t: np.ndarray
+    commanded: dict[str, np.ndarray]
+    measured: dict[str, np.ndarray]
+    simulated: dict[str, np.ndarray]
+    max_tracking_error_deg: dict[str, float]
+    sim_vs_arm_rms_deg: dict[str, float]
+    positions_mm: dict[str, dict[str, list[float]]] = field(default_factory=dict)
+    pick_position_error_mm: float = math.nan
+    place_position_error_mm: float = math.nan
+
+    def as_json(self) -> dict:
+        """The report's numbers (gripper values are in [%], the rest in the keys' units)."""
+        return {"max_tracking_error_deg": self.max_tracking_error_deg,
+                "sim_vs_arm_rms_deg": self.sim_vs_arm_rms_deg,
+                "pick_position_error_mm": self.pick_position_error_mm,
+                "place_position_error_mm": self.place_position_error_mm,
+                "positions_mm": self.positions_mm}
+
+    def summary(self) -> str:
+        """A few lines for the terminal."""
+        lines = ["joint           max |cmd - arm|   rms |sim - arm|"]
+        lines += [f"  {j:<14}{self.max_tracking_error_deg[j]:>10.2f}"
+                  f"{self.sim_vs_arm_rms_deg[j]:>17.2f}" for j in JOINTS]
+        for role in ("pick", "place"):
+            p = self.positions_mm[role]
+            lines.append(f"{role}: planned x, y, z = {_xyz(p['planned'])} mm, from the arm's "
+                         f"angles {_xyz(p['measured'])} mm: "
+                         f"{getattr(self, role + '_position_error_mm'):.1f} mm apart")
+        return "\n".join(lines)
+
+
+def _xyz(v) -> str:
+    return ", ".join(f"{c:.1f}" for c in v)
+
+
+def read_log(path: str | Path) -> tuple[list[dict[str, str]], dict]:
+    """The CSV rows and the sidecar of a hardware log."""
+    path = Path(path)
+    side = sidecar_path(path)
+    try:
+        with path.open(newline="", encoding="utf-8") as handle:
+            rows = list(csv.DictReader(handle))
+        info = json.loads(side.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as error:
+        raise LogError(f"--compare {path}: cannot read the log or its sidecar {side.name} "
+                       f"({error}). Fix: give a CSV written by pick_place_hw.py --log, with "
+                       "its .run.json beside it.") from None
+    if not rows or "start_pose" not in info or "plan" not in info:
+        raise LogError(f"--compare {path}: the log has no cycles or its sidecar no plan and "
+                       "starting pose (the run was refused before it moved?).")
+    return rows, info
+
+
+def _plan(record: dict) -> Plan:
+    return Plan([Step(s["name"], s["configuration"], s["duration"], s["hold"])
+                 for s in record["steps"]], record.get("return_to_start", True),
+                record.get("return_duration", 2.0))
+
+
+def replay(t: np.ndarray, commands: dict[str, np.ndarray], start: dict[str, float]):
+    """Simulated joints at each time of ``t``, the commands sent as the arm got them."""
+    import mujoco
+
+    from so101_kinematics.sim.scene import (
+        get_configuration,
+        load_model,
+        send_position_command,
+        set_initial_pose,
+    )
+
+    m = load_model()
+    d = mujoco.MjData(m)
+    set_initial_pose(d, start)
+    d.time = float(t[0])
+    out = {j: np.empty(len(t)) for j in JOINTS}
+    for k, now in enumerate(t):
+        steps = round((now - d.time) / m.opt.timestep)
+        if steps > 0:
+            mujoco.mj_step(m, d, steps)
+        for j, value in get_configuration(m, d).items():
+            out[j][k] = value
+        send_position_command(d, {j: float(commands[j][k]) for j in JOINTS})
+    return out
+
+
+def compare_run(path: str | Path) -> Comparison:
+    """Replay the hardware log ``path`` in the simulator and compare (see the module)."""
+    rows, info = read_log(path)
+    rows = [r for r in rows if r[f"meas_{JOINTS[0]}"] != ""]  # cycles whose read succeeded
+    t = np.array([float(r["t_s"]) for r in rows])
+    commanded = {j: np.array([float(r[f"cmd_{j}"]) for r in rows]) for j in JOINTS}
+    measured = {j: np.array([float(r[f"meas_{j}"]) for r in rows]) for j in JOINTS}
+    simulated = replay(t, commanded, info["start_pose"])
+    result = Comparison(
+        t, commanded, measured, simulated,
+        {j: float(np.max(np.abs(commanded[j] - measured[j]))) for j in JOINTS},
+        {j: float(np.sqrt(np.mean((simulated[j] - measured[j]) ** 2))) for j in JOINTS})
+    steps = np.array([r["step"] for r in rows])
+    for role, step in zip(("pick", "place"), pick_and_place_steps(_plan(info["plan"])),
+                          strict=True):
+        planned = _position_mm(step.configuration)
+        inside = np.flatnonzero(steps == step.name)
+        if inside.size == 0:
+            continue
+        last = inside[t[inside] >= t[inside[-1]] - SETTLE_WINDOW_S]
+        pose = {j: float(np.mean(measured[j][last])) for j in ARM_JOINTS}
+        seen = _position_mm(pose)
+        result.positions_mm[role] = {"planned": planned.tolist(), "measured": seen.tolist()}
+        setattr(result, f"{role}_position_error_mm", float(np.linalg.norm(seen - planned)))
+    return result
+
+
+def _position_mm(cfg) -> np.ndarray:
+    return forward_kinematics({j: cfg[j] for j in ARM_JOINTS})[0] * 1000.0
+
+
+def draw_report(result: Comparison, path: str | Path, title: str = "") -> Path:
+    """PNG: per joint, commanded / measured / simulated over time and the differences."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(4, 3, figsize=(15, 11), sharex=True,
+                             gridspec_kw={"height_ratios": [2, 1, 2, 1]})
+    for k, joint in enumerate(JOINTS):
+        top, bottom = axes[2 * (k // 3), k % 3], axes[2 * (k // 3) + 1, k % 3]
+        unit = "%" if joint == "gripper" else "deg"
+        top.plot(result.t, result.commanded[joint], lw=1.4, label="commanded")
+        top.plot(result.t, result.measured[joint], lw=1.0, ls="--", label="measured (arm)")
+        top.plot(result.t, result.simulated[joint], lw=1.0, ls=":", label="simulated")
+        top.set_title(f"{joint} [{unit}]", fontsize=10)
+        bottom.plot(result.t, result.measured[joint] - result.commanded[joint], lw=0.9,
+                    label="arm - commanded")
+        bottom.plot(result.t, result.measured[joint] - result.simulated[joint], lw=0.9,
+                    label=f"arm - sim (rms {result.sim_vs_arm_rms_deg[joint]:.2f})")
+        bottom.legend(fontsize=7, loc="upper right")
+        for ax in (top, bottom):
+            ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=8)
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]")
+    text = []
+    for role in ("pick", "place"):
+        if role in result.positions_mm:
+            p = result.positions_mm[role]
+            text.append(f"{role}: planned ({_xyz(p['planned'])}) mm, from the measured angles "
+                        f"({_xyz(p['measured'])}) mm, "
+                        f"{getattr(result, role + '_position_error_mm'):.1f} mm apart")
+    fig.suptitle((title + "\n" if title else "") + "\n".join(text), fontsize=10)
+    fig.tight_layout()
+    with atomic_output(path) as temporary:
+        fig.savefig(temporary, dpi=90, format="png")
+    plt.close(fig)
+    return Path(path)

@@ -1,0 +1,83 @@
+"""pick_place_sim.py --compare: a hardware log replayed in the simulator (the virtual arm's run)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+import pick_place_hw
+import pick_place_sim
+from so101_forward_kinematics import get_forward_kinematics
+from so101_kinematics.frames import ARM_JOINTS
+from so101_kinematics.hw.log import sidecar_path
+from so101_kinematics.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION
+
+pytestmark = [pytest.mark.hw, pytest.mark.slow]
+OFFSET_DEG = 3.0
+
+
+@pytest.fixture(scope="module")
+def hw_log(tmp_path_factory):
+    """The course's plan, shortened, run on a fresh virtual arm with --log."""
+    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+
+    log = tmp_path_factory.mktemp("run") / "run.csv"
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as arm:
+        assert pick_place_hw.main(["--port", arm.port, "--calibration",
+                                   str(DEFAULT_CALIBRATION_PATH), "--yes", "--move-duration",
+                                   "0.8", "--hold", "0.2", "--log", str(log)]) == 0
+    return log
+
+
+def compare(log, tmp_path):
+    report, out = tmp_path / "report.png", tmp_path / "report.json"
+    assert pick_place_sim.main(["--compare", str(log), "--report", str(report),
+                                "--json", str(out)]) == 0
+    assert report.read_bytes().startswith(b"\x89PNG")
+    return json.loads(out.read_text())
+
+
+def test_the_sidecar_holds_what_a_replay_needs(hw_log):
+    info = json.loads(sidecar_path(hw_log).read_text())
+    assert [s["name"] for s in info["plan"]["steps"]][2] == "start_open"
+    assert set(info["start_pose"]) >= set(ARM_JOINTS) and info["rate_hz"] > 0
+    with hw_log.open(newline="") as handle:  # the CSV is still plain: one header, then cycles
+        header = next(csv.reader(handle))
+    assert header[:3] == ["t_s", "wall_s", "step"]
+
+
+def test_on_the_virtual_arm_simulator_and_arm_agree(hw_log, tmp_path):
+    report = compare(hw_log, tmp_path)
+    assert all(report["sim_vs_arm_rms_deg"][j] < 1.0 for j in ARM_JOINTS)
+    assert report["pick_position_error_mm"] < 3.0
+    assert report["place_position_error_mm"] < 3.0
+    assert all(report["max_tracking_error_deg"][j] >= 0.0 for j in ARM_JOINTS)
+
+
+def test_a_shoulder_pan_offset_shows_as_its_shift(hw_log, tmp_path):
+    shifted = tmp_path / "shifted.csv"
+    with hw_log.open(newline="") as source, shifted.open("w", newline="") as target:
+        rows = list(csv.DictReader(source))
+        writer = csv.DictWriter(target, fieldnames=list(rows[0]))
+        writer.writeheader()
+        for row in rows:
+            if row["meas_shoulder_pan"]:
+                row["meas_shoulder_pan"] = f"{float(row['meas_shoulder_pan']) + OFFSET_DEG:.4f}"
+            writer.writerow(row)
+    shutil.copy(sidecar_path(hw_log), sidecar_path(shifted))
+    clean, report = compare(hw_log, tmp_path), compare(shifted, tmp_path)
+    assert report["sim_vs_arm_rms_deg"]["shoulder_pan"] == pytest.approx(OFFSET_DEG, abs=0.5)
+    for key, cfg in (("pick_position_error_mm", STARTING_CONFIGURATION),
+                     ("place_position_error_mm", FINAL_CONFIGURATION)):
+        # hand check: turning the pan by 3 deg moves the object frame by the chord
+        # 2 r sin(1.5 deg), r = its distance from the pan axis (course FK)
+        planned = get_forward_kinematics(cfg)[0] * 1000.0
+        turned = get_forward_kinematics(dict(cfg, shoulder_pan=cfg["shoulder_pan"]
+                                             + OFFSET_DEG))[0] * 1000.0
+        expected = float(np.linalg.norm(turned - planned))
+        assert expected > 10.0
+        assert report[key] == pytest.approx(expected, abs=clean[key] + 1.0)
