@@ -244,6 +244,7 @@ def test_an_outage_of_half_a_second_pauses_the_move_and_resumes_it(calibration, 
     assert flex[-1] == pytest.approx(60.0)
     assert cycles[-1].t_s == pytest.approx(1.0 + 0.5, abs=0.02)  # it finished 0.5 s later
     assert len(session.outages) == 1 and session.outages[0][1] == pytest.approx(0.5, abs=0.011)
+    assert session.plan_lag_s == pytest.approx(0.5, abs=0.011)  # reported with the timing
 
 
 def test_a_longer_outage_stops_the_motion_with_a_bus_error(calibration, clock):

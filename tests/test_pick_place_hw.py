@@ -212,9 +212,11 @@ def test_measured_trajectory_matches_the_simulator(full_run, sim_comparison):
     the emulator's physics lost more than 20 ms of real time), the test skips.
     """
     error, ok = sim_comparison["error"], sim_comparison["on_schedule"]
-    if ok.mean() < 0.5 or full_run["slip"] > 0.02:
+    lag = full_run["result"].timing["plan_lag_s"]  # the plan slowed for a stalled host
+    if ok.mean() < 0.5 or full_run["slip"] > 0.02 or lag > 0.02:
         pytest.skip(f"host too loaded to compare timing: {ok.mean():.0%} of cycles on schedule, "
-                    f"emulator lost {1e3 * full_run['slip']:.0f} ms")
+                    f"emulator lost {1e3 * full_run['slip']:.0f} ms, the plan "
+                    f"{1e3 * lag:.0f} ms")
     error = error[ok]
     worst = {j: round(float(error[:, k].max()), 2) for k, j in enumerate(JOINTS)}
     assert error.max() <= 3.0, worst

@@ -150,6 +150,7 @@ class ArmSession:
         self._t0: float | None = None
         self._beyond: dict[str, float] = {}
         self._unobserved_since: float | None = None
+        self.plan_lag_s = 0.0  # [s] the plan ran behind the wall clock (outages, host stalls)
         self.known_faults: dict[str, int] = {}  # joint -> status bits already reported
         self._status_seen: dict[str, int] = {}  # joint -> bits of the last status read
         self.stale_bytes = 0  # late-reply bytes dropped before reads
@@ -260,8 +261,10 @@ class ArmSession:
 
         def at(deadline: float) -> Mapping[str, float]:
             nonlocal elapsed, last
+            step = deadline - last
             if self.observed:
-                elapsed = min(duration, elapsed + min(deadline - last, MAX_ADVANCE_S))
+                elapsed = min(duration, elapsed + min(step, MAX_ADVANCE_S))
+            self.plan_lag_s += step if not self.observed else max(0.0, step - MAX_ADVANCE_S)
             last = deadline
             return command_at(elapsed)
 
@@ -353,7 +356,8 @@ class ArmSession:
     def timing(self) -> dict[str, float]:
         """Loop timing of the cycles so far (see :func:`loop_timing_stats`), plus overruns."""
         stats = loop_timing_stats([c.wall_s for c in self.cycles], 1.0 / self.loop.period)
-        stats.update(overruns=self.loop.overruns, skipped=self.loop.skipped)
+        stats.update(overruns=self.loop.overruns, skipped=self.loop.skipped,
+                     plan_lag_s=self.plan_lag_s)
         return stats
 
 
