@@ -6,7 +6,6 @@ import math
 import time
 
 import pytest
-import serial
 
 from so101_kinematics.virtual import electrical, shell
 from so101_kinematics.virtual.arm import VirtualSO101
@@ -25,8 +24,14 @@ def test_current_temperature_voltage_model_by_hand():
     assert electrical.status_bits(30, 39, True, 70, (40, 140)) == 0x01 | 0x20
 
 
+def open_link(port: str, baud: int):
+    """A raw serial link to the virtual arm (pyserial comes with the hw extra)."""
+    serial = pytest.importorskip("serial")
+    return serial.Serial(port, baud, timeout=0.2)
+
+
 def ping(port, servo_id, baud):
-    with serial.Serial(port, baud, timeout=0.2) as link:
+    with open_link(port, baud) as link:
         link.reset_input_buffer()
         link.write(instruction_packet(servo_id, INST_PING))
         return link.read(6)
@@ -45,7 +50,7 @@ def test_servos_answer_only_at_their_configured_rate(arm):
 
 
 def test_a_write_of_the_id_answers_from_the_addressed_id(arm):
-    with serial.Serial(arm.port, 1_000_000, timeout=0.2) as link:
+    with open_link(arm.port, 1_000_000) as link:
         link.write(instruction_packet(1, INST_WRITE, bytes((5, 7))))  # servo 1: ID := 7
         reply = link.read(6)
         link.write(instruction_packet(7, INST_WRITE, bytes((5, 1))))  # and back
