@@ -12,7 +12,7 @@ from conftest import REPO
 
 import so101_inverse_kinematics as ik
 import so101_kinematics.cartesian_plan as cp
-import so101_kinematics.plans as so101_motion
+import so101_kinematics.plans as plans
 from so101_forward_kinematics import ARM_JOINTS, JOINTS, get_forward_kinematics, get_gw1
 from so101_kinematics.errors import PlanError
 
@@ -74,8 +74,8 @@ def test_solving_does_not_import_mujoco():
 
 
 # --- The course's configurations ---------------------------------------------------------
-@pytest.mark.parametrize("configuration", [so101_motion.STARTING_CONFIGURATION,
-                                           so101_motion.FINAL_CONFIGURATION])
+@pytest.mark.parametrize("configuration", [plans.STARTING_CONFIGURATION,
+                                           plans.FINAL_CONFIGURATION])
 def test_assignment_configurations_come_back(configuration):
     position, rotation = get_forward_kinematics(configuration)
     for yaw in (None, math.degrees(yaw_of(rotation))):
@@ -360,20 +360,20 @@ def test_jacobian_matches_mujoco(model, data):
 
 # --- Cartesian pick-and-place ------------------------------------------------------------
 def assignment_positions():
-    pick, _ = get_forward_kinematics(so101_motion.STARTING_CONFIGURATION)
-    place, _ = get_forward_kinematics(so101_motion.FINAL_CONFIGURATION)
+    pick, _ = get_forward_kinematics(plans.STARTING_CONFIGURATION)
+    place, _ = get_forward_kinematics(plans.FINAL_CONFIGURATION)
     return pick, place
 
 
 def test_cartesian_plan_has_the_default_plans_waypoints():
     plan = cp.cartesian_plan(*assignment_positions())
-    default = so101_motion.default_plan()
+    default = plans.default_plan()
     assert [s.name for s in plan.steps] == [s.name for s in default.steps]
     timing = [(s.duration, s.hold) for s in plan.steps]
     assert timing == [(s.duration, s.hold) for s in default.steps]
     assert plan.return_to_start == default.return_to_start
     assert plan.return_duration == default.return_duration
-    so101_motion.validate_plan(plan, {**ik.JOINT_LIMITS, "gripper": (0.0, 100.0)})
+    plans.validate_plan(plan, {**ik.JOINT_LIMITS, "gripper": (0.0, 100.0)})
     for step in plan.steps:
         assert list(step.configuration) == list(JOINTS)
 
@@ -382,10 +382,10 @@ def test_cartesian_plan_has_the_default_plans_waypoints():
 def test_cartesian_plan_reproduces_the_assignment(cube_yaw):
     pick, place = assignment_positions()
     if cube_yaw == "assignment":  # the yaw the course's cubes have (FK of its configuration)
-        _, rotation = get_forward_kinematics(so101_motion.STARTING_CONFIGURATION)
+        _, rotation = get_forward_kinematics(plans.STARTING_CONFIGURATION)
         cube_yaw = math.degrees(yaw_of(rotation))
     plan = cp.cartesian_plan(pick, place, cube_yaw_deg=cube_yaw).configurations()
-    default = so101_motion.default_plan().configurations()
+    default = plans.default_plan().configurations()
     for name in ("start_open", "start_closed", "final_closed", "final_open"):
         for joint in JOINTS:
             assert plan[name][joint] == pytest.approx(default[name][joint], abs=1e-6), (name, joint)
@@ -410,7 +410,7 @@ def test_cartesian_plan_waypoints_are_where_asked():
         offset = get_forward_kinematics(plan[name])[0] - get_forward_kinematics(plan[grasp])[0]
         assert np.linalg.norm(offset) == pytest.approx(cp.PRE_GRASP_SLIDE, abs=1e-9)
         assert abs(offset[2]) < 1e-9
-    assert plan["start_closed"]["gripper"] == so101_motion.GRIPPER_CLOSED
+    assert plan["start_closed"]["gripper"] == plans.GRIPPER_CLOSED
     assert plan["start_open"]["gripper"] == ik.GRIPPER_OPEN
 
 
