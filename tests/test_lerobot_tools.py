@@ -191,6 +191,8 @@ def test_teleoperate_the_follower_follows_the_shell_moved_leader(env):
 
 
 def test_record_a_short_episode_between_shell_started_arms(env, tmp_path):
+    # lerobot 0.6 moved the dataset code into an extra (lerobot[dataset]); 0.4 has it built in
+    pytest.importorskip("datasets", reason="lerobot-record needs lerobot[dataset] here")
     install_calibration(env, "robots/so_follower", "vf")
     install_calibration(env, "teleoperators/so_leader", "vl")
     follower, leader = ShellArm(), ShellArm("--leader")
