@@ -51,7 +51,8 @@ def soak(runs: int = 20, busy: int = 2) -> list[dict]:
                     [sys.executable, str(REPO / "pick_place_hw.py"), "--port", arm.port,
                      "--calibration", str(DEFAULT_CALIBRATION_PATH), "--yes"],
                     cwd=REPO, capture_output=True, text=True, timeout=600)
-                lines = (run.stdout + run.stderr).strip().splitlines()
+                # the script's last line: stdout when done, stderr when it stopped
+                lines = (run.stdout if run.returncode == 0 else run.stderr).strip().splitlines()
                 p99 = re.search(r"p99 error ([0-9.]+) ms", run.stdout)
                 results.append({
                     "run": i + 1, "exit": run.returncode, "seconds": time.perf_counter() - started,

@@ -95,6 +95,9 @@ def temporary_beside(path: str | Path) -> Path:
     target = Path(path)
     handle, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{target.suffix}",
                                     dir=target.parent)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.fchmod(handle, 0o666 & ~umask)  # mkstemp makes it 0600; the output is an ordinary file
     os.close(handle)
     return Path(name)
 

@@ -58,3 +58,16 @@ def test_a_refused_run_leaves_an_existing_log_untouched(tmp_path):
     log.discard()
     assert target.read_text() == "yesterday's run\n"
     assert list(tmp_path.iterdir()) == [target]
+
+
+def test_outputs_get_the_permissions_of_an_ordinary_file(tmp_path):
+    """Written through a temporary file, a log is still readable by others (umask 022: 0644)."""
+    import os
+    import stat
+
+    old = os.umask(0o022)
+    try:
+        path = hwlog.write_log_csv([], tmp_path / "run.csv")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o644
