@@ -33,6 +33,15 @@ class PlanError(InputError):
     """A plan (waypoints, durations, options) is malformed or cannot be run."""
 
 
+class CallShapeError(PlanError, TypeError):
+    """A course function was called with its arguments in a shape it does not accept.
+
+    The message names the shapes it does accept (e.g. ``hold_position(m, d, viewer,
+    duration)`` or ``hold_position(m, d, viewer, cfg, duration)``). Also a ``TypeError``,
+    what Python raises for a call with the wrong arguments.
+    """
+
+
 class JointLimitError(PlanError):
     """A configuration is outside the joint limits (the model's or the arm's calibration)."""
 
