@@ -63,7 +63,7 @@ MOVE_TIME = 1.0  # [s] to each target, as the course's script
 HOLD_TIME = 2.0  # [s] at each target, as the course's script
 TARGETS = 5  # targets per run, as the course's script
 TARGETS_RANGE = (1, 100)
-SEED_RANGE = (0, 2**32 - 1)
+SEED_RANGE = (0, 999_999)
 
 
 def reach_targets(m, d, viewer, targets, move_time: float = MOVE_TIME,
