@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import test_ik_mujoco
+from so101_forward_kinematics import get_forward_kinematics
 from so101_inverse_kinematics import get_inverse_kinematics
 from so101_kinematics.sim.fk_pictures import project_to_pixels
 from so101_kinematics.sim.ik_demo import (
@@ -131,7 +132,7 @@ def test_headless_seeded_run_exits_0_with_each_random_target_reached(tmp_path, c
 
 
 def test_a_target_not_reached_exits_1_saying_which_and_by_how_much(capsys):
-    # No time to move: the arm is still at the course's initial pose, 0.4 m out at 0.24 m up.
+    # No time to move: the arm is still at the course's all-zero pose, 0.4 m out at 0.24 m up.
     code, out, err = run_script(capsys, "--headless", "--move-duration", "0", "--hold", "0",
                                 "--target", "0.2", "0.2", "0")
     assert code == 1
@@ -139,7 +140,7 @@ def test_a_target_not_reached_exits_1_saying_which_and_by_how_much(capsys):
     miss = re.search(r"missed: target 1 at \(0\.2000, 0\.2000, 0\.0140\) m, yaw 0\.0 deg: "
                      r"missed by ([\d.]+) mm", err)
     assert miss, err
-    start = np.array([0.4007, -0.0006, 0.2395])  # the FK of the all-zero configuration
+    start, _ = get_forward_kinematics(test_ik_mujoco.INITIAL_CONFIG)
     assert float(miss.group(1)) == pytest.approx(np.linalg.norm(start - [0.2, 0.2, 0.014]) * 1e3,
                                                  abs=1.0)
 
@@ -247,3 +248,19 @@ def test_show_cube_replaces_the_viewers_cube(model):
     np.testing.assert_allclose(geom.mat, [[c, -s, 0], [s, c, 0], [0, 0, 1]], atol=1e-6)
     assert geom.rgba[3] == pytest.approx(0.2)  # translucent
     show_cube(None, [0.2, 0.0, 0.014], np.eye(3))  # headless: nothing to draw, no error
+
+
+def test_an_interrupted_recording_leaves_an_existing_video_as_it_was(tmp_path, capsys,
+                                                                     monkeypatch):
+    video = tmp_path / "ik.mp4"
+    video.write_bytes(b"an earlier video")
+
+    def interrupted(m, d, viewer, targets, *args):
+        move_to_pose(m, d, viewer, test_ik_mujoco.INITIAL_CONFIG, 0.2)  # some frames written
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(test_ik_mujoco, "reach_targets", interrupted)
+    code, _, err = run_script(capsys, "--record", str(video), "--target", "0.2", "0.2", "0")
+    assert code == 130 and "Interrupted" in err
+    assert video.read_bytes() == b"an earlier video"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ik.mp4"]  # no temporary left
