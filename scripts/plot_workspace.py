@@ -38,7 +38,7 @@ def reachable_grid(step: float, yaw_deg: float | None):
     for j, y in enumerate(ys):
         for i, x in enumerate(xs):
             try:
-                ik.get_inverse_kinematics((x, y, HEIGHT), "down", yaw_deg)
+                ik.get_inverse_kinematics((x, y, HEIGHT), approach="down", yaw_deg=yaw_deg)
             except ik.UnreachableError:
                 continue
             reachable[j, i] = True
@@ -57,7 +57,7 @@ def fk_samples(draws: int):
     solved = 0
     for position, yaw in zip(positions, yaws, strict=True):
         try:
-            ik.get_inverse_kinematics(position, "down", float(yaw))
+            ik.get_inverse_kinematics(position, approach="down", yaw_deg=float(yaw))
         except ik.UnreachableError as error:
             log.warning("FK sample %s not solved: %s", position.round(4), error)
             continue

@@ -50,10 +50,11 @@ class UnreachableError(PlanError):
     """No configuration within the joint limits puts the object frame at the target.
 
     Attributes:
-        reason: "below_table", "too_far", "too_close", "joint_limit" or
-            "no_convergence".
+        reason: "below_table", "too_far", "too_close", "joint_limit",
+            "no_convergence" or "orientation".
         distance: how far off the target is: [m] for the reach reasons, [deg]
-            beyond the limit for "joint_limit".
+            beyond the limit for "joint_limit", [deg] from the asked
+            orientation for "orientation".
         joint: the joint at its limit for "joint_limit", else None.
     """
 

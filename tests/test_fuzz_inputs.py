@@ -332,7 +332,8 @@ def test_fk_then_position_ik_round_trips(cfg):
 def test_ik_gives_a_configuration_or_a_project_error(call):
     position, approach, yaw, pitch, gripper = call
     try:
-        cfg = ik.get_inverse_kinematics(position, approach, yaw, pitch, gripper=gripper)
+        cfg = ik.get_inverse_kinematics(position, approach=approach, yaw_deg=yaw, pitch_deg=pitch,
+                                        gripper=gripper)
     except (fk.KinematicsInputError, PlanError) as error:  # PlanError: UnreachableError
         event(type(error).__name__)
         assert "\n" not in str(error)

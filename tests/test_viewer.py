@@ -135,7 +135,7 @@ def test_fk_viewer_shows_the_cylinder_in_the_gripper_and_exits_cleanly(display, 
     position, rotation = get_forward_kinematics(fk_script.TEST_CONFIGURATION)
     red = is_red(image)
     # The cylinder's upper half (its lower half is under the table) where the FK pose projects ...
-    for point in (position - 0.02 * rotation[:, 2], position - 0.04 * rotation[:, 2]):
+    for point in (position + 0.02 * rotation[:, 2], position + 0.04 * rotation[:, 2]):
         assert share_around(red, *project(model, "pick_place", size, point)) > 0.9, point
     # ... and not at the other cube position (shoulder_pan +45 deg instead of -45 deg).
     other, _ = get_forward_kinematics(dict(fk_script.TEST_CONFIGURATION, shoulder_pan=45.0))
