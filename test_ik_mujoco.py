@@ -75,10 +75,11 @@ def reach_targets(m, d, viewer, targets, move_time: float = MOVE_TIME,
     """
     results = [] if results is None else results
     for target in targets:
-        show_cube(viewer, target.position, target.rotation)
-        joint_configuration = get_inverse_kinematics(
-            target.position, approach="down", yaw_deg=target.yaw_deg,
-            initial=get_command(m, d), gripper=GRIPPER_OPEN)
+        desired_position, desired_orientation = target.position, target.rotation  # Rz(yaw)
+        show_cube(viewer, desired_position, desired_orientation)
+        joint_configuration = get_inverse_kinematics(desired_position, desired_orientation,
+                                                     initial=get_command(m, d),
+                                                     gripper=GRIPPER_OPEN)
         move_to_pose(m, d, viewer, joint_configuration, move_time)
         hold_position(m, d, viewer, joint_configuration, hold_time)
         results.append(measure_target(m, d, target))

@@ -47,12 +47,6 @@ def course_random_position(rng) -> list[float]:
             COURSE_HEIGHT]
 
 
-def object_frame_yaw(d) -> float:
-    """Heading [deg] of the object frame's x axis in the world."""
-    rotation = d.site(TOOL_SITE).xmat.reshape(3, 3)
-    return math.degrees(math.atan2(rotation[1, 0], rotation[0, 0]))
-
-
 def test_assignment7_call_sequence_puts_the_object_frame_on_each_target(model):
     """The course's test script, headless: its calls, shapes and order, with viewer = None."""
     m, d = model, mujoco.MjData(model)
@@ -65,15 +59,17 @@ def test_assignment7_call_sequence_puts_the_object_frame_on_each_target(model):
     targets = [[0.2, 0.2, 0.014]] + [course_random_position(rng) for _ in range(4)]
     for desired_position in targets:
         desired_orientation = np.eye(3)
-        assert np.array_equal(desired_orientation, np.eye(3))  # top-down, zero yaw
-        joint_configuration = get_inverse_kinematics(desired_position, approach="down",
-                                                     yaw_deg=0.0)
+        joint_configuration = get_inverse_kinematics(desired_position, desired_orientation)
         move_to_pose(m, d, viewer, joint_configuration, 1.0)
         hold_position(m, d, viewer, joint_configuration, 2.0)
         reached = d.site(TOOL_SITE).xpos
         assert np.linalg.norm(reached - desired_position) <= POSITION_TOL, (desired_position,
                                                                              reached)
-        assert abs(yaw_difference(object_frame_yaw(d), 0.0)) <= YAW_TOL
+        # The course's frame: np.eye(3) is a top-down grasp at yaw 0 (z up), asked and reached.
+        rotation = d.site(TOOL_SITE).xmat.reshape(3, 3)
+        angle = math.degrees(math.acos(min(1.0, (np.trace(desired_orientation.T @ rotation)
+                                                 - 1.0) / 2.0)))
+        assert angle <= YAW_TOL, (desired_position, rotation)  # 0.03-0.06 deg measured
     assert d.time == pytest.approx(5 * 3.0, abs=1e-6)
 
 

@@ -34,8 +34,9 @@ import numpy as np
 from so101_kinematics import display
 from so101_kinematics.constants import CUBE_HALF_SIZE
 from so101_kinematics.errors import KinematicsInputError, PlanError, UnreachableError
-from so101_kinematics.frames import TOOL_SITE, Rz
-from so101_kinematics.ik.solver import get_inverse_kinematics, sample_top_down_targets
+from so101_kinematics.frames import TOOL_SITE, Rz, check_angle
+from so101_kinematics.ik.course import get_inverse_kinematics
+from so101_kinematics.ik.solver import sample_top_down_targets
 from so101_kinematics.sim.cube import build_model
 from so101_kinematics.sim.render import (
     DEFAULT_CAMERA,
@@ -95,7 +96,8 @@ def check_target(x: float, y: float, yaw_deg: float, name: str = "target") -> Ta
         KinematicsInputError: a coordinate or yaw that is not a finite number in range.
     """
     try:
-        get_inverse_kinematics((x, y, TARGET_HEIGHT), approach="down", yaw_deg=yaw_deg)
+        # The course's call, as the run makes it: the position and the cube's Rz(yaw).
+        get_inverse_kinematics((x, y, TARGET_HEIGHT), Rz(check_angle(yaw_deg, "yaw_deg")))
     except UnreachableError as error:
         raise UnreachableError(f"{name} ({x:g}, {y:g}) m, yaw {yaw_deg:g} deg: {error}",
                                error.reason, error.distance, error.joint) from None
