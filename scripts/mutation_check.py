@@ -8,7 +8,7 @@ the list). The repository is copied to a temporary folder once; each mutant is
 applied to the copy, its tests run with a timeout, and the copy restored. Your
 worktree is never modified.
 
-Not part of CI (about 5 minutes on 2 busy cores: 40 mutants, a baseline run
+Not part of CI (about 5 minutes on 2 busy cores: 41 mutants, a baseline run
 first). Run it after changing tests or the code they guard (see README, "Development")::
 
     python scripts/mutation_check.py                 # every mutant
@@ -101,6 +101,9 @@ MUTANTS: list[Mutant] = [
     m("ik_tilted_yaw_uncorrected", "a tilted orientation solved once, its yaw never corrected",
       "so101_kinematics/ik/course.py", "_solve_rotation", "        yaw += turn", "        break",
       "tests/test_ik_course_shapes.py"),
+    m("hold_ignores_cfg", "hold_position(m, d, viewer, cfg, duration) holds the old command",
+      "so101_kinematics/sim/stepping.py", "hold_position", "d.ctrl[act] = angles[name]", "pass",
+      "tests/test_mujoco_utils.py", "tests/test_ik_demo.py"),
     m("degrees_off_5", "one joint's degree conversion off by 5 deg (elbow_flex)",
       SCENE, "to_radians", "else math.radians(value)",
       'else math.radians(value + (5.0 if name == "elbow_flex" else 0.0))',
