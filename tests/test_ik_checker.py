@@ -34,6 +34,8 @@ KNOWN_CAUSES = {
     "no_mount_tilt": "the gripper mount's -2.79 deg tilt is left out",
     "ignores_orientation": "the asked orientation is ignored (always yaw 0)",
     "radians": "the angles are in radians",
+    "tilt_sign": "the gripper mount's tilt is added with the wrong sign: the yaw is off by "
+                 "-5.58 deg",
 }
 """Planted mistake (fixture name) -> the start of the cause the checker must name."""
 
@@ -107,6 +109,17 @@ def test_a_branch_beyond_the_joint_limits_is_named_with_the_joints(checks):
                for c in test["causes"])
     # Its answers do reach the targets: only the limits fail them.
     assert test["error_mm"]["max"] < 1e-6
+
+
+def test_branches_say_elbow_up_and_reaching_backwards():
+    start = [-45.0, 45.0, -45.0, 90.0, 0.0]  # the course's starting configuration
+    folded_back = [0.0, -80.0, -10.0, 0.0, 0.0]  # upper arm leaning back past the pan axis
+    angles = np.array([start, folded_back])
+    positions, _ = forward_kinematics_batch(angles)
+    assert positions[1, 0] < ik_targets.PAN_AXIS_POINT[0] < positions[0, 0]
+    targets = np.c_[positions, np.zeros(2)]
+    assert ik_compare._branches(targets, angles) == ["elbow up",
+                                                     "elbow down, reaching backwards"]
 
 
 def test_nan_on_reachable_targets_is_counted_apart_from_wrong_answers(checks):
