@@ -105,13 +105,16 @@ def text_report(check: dict) -> str:
             lines.append("  by height: " + _zones(test["by_height"]))
             lines.append("  by branch: " + _zones(test["by_branch"]))
             for example in test["examples"]:
-                got = (f"{example['error_mm']} mm, tilt {example['tilt_deg']} deg, yaw "
-                       f"{example['yaw_error_deg']} deg off" if example["error_mm"] is not None
-                       else example["problem"])
+                if example["error_mm"] is None:
+                    got = "returned NaN" if example["kind"] == "nan" else example["problem"]
+                else:
+                    got = (f"{example['error_mm']} mm, tilt {example['tilt_deg']} deg, yaw "
+                           f"{example['yaw_error_deg']} deg off" + (
+                               f", beyond the limit: {', '.join(example['beyond'])}"
+                               if example["beyond"] else "")
+                           + f"; answer {example['answer_deg']}")
                 lines.append(f"  e.g. target {example['target']} m, yaw {example['yaw_deg']} deg: "
-                             f"{got}" + (f", beyond the limit: {', '.join(example['beyond'])}"
-                                         if example["beyond"] else "")
-                             + f"; answer {example['answer_deg']}")
+                             + got)
         if test["at_limit"]:
             lines.append("  at a limit (within 0.5 deg, allowed): " + ", ".join(
                 f"{joint} {n}" for joint, n in test["at_limit"].items()))

@@ -46,6 +46,8 @@ _SIDEWAYS = (FIXED_TRANSFORMS["12"][0][1] + FIXED_TRANSFORMS["23"][0][2]
              + FIXED_TRANSFORMS["34"][0][2] + FIXED_TRANSFORMS["45"][0][2])  # [m]
 _TOOL = np.array(FIXED_TRANSFORMS["5t"][0])
 _PAN_X = PAN_AXIS_POINT[0]
+_TURNED = (f" (the cube's centre is {math.hypot(*_TOOL[:2]) * 1000:.1f} mm off the roll axis, "
+           "so a wrong roll also moves it)")
 _LIMIT_HINTS = {
     "wrist_roll": " Fix: a cube looks the same every 90 deg: turn the grasp by 90 deg to bring "
                   "wrist_roll back within its range",
@@ -211,11 +213,11 @@ def causes(targets, angles, yaw_error, ok, tolerance) -> list[str]:
     tilt = GRIPPER_MOUNT_TILT_DEG
     yaw_causes = [
         ("wrist_roll has the wrong sign relative to shoulder_pan (wrist_roll = -shoulder_pan "
-         "+ ...): the yaw is off by -2 x shoulder_pan. Fix: wrist_roll = shoulder_pan + yaw "
-         f"+ {-tilt:.2f} deg", -2.0 * angles[:, 0]),
-        ("the asked orientation is ignored (always yaw 0): the yaw is off by the asked yaw. "
-         "Fix: read the yaw from target_orientation (atan2(R[1, 0], R[0, 0])) and add it to "
-         "wrist_roll", -np.degrees(targets[:, 3])),
+         "+ ...): the yaw is off by -2 x shoulder_pan" + _TURNED + ". Fix: wrist_roll = "
+         f"shoulder_pan + yaw + {-tilt:.2f} deg", -2.0 * angles[:, 0]),
+        ("the asked orientation is ignored (always yaw 0): the yaw is off by the asked yaw"
+         + _TURNED + ". Fix: read the yaw from target_orientation (atan2(R[1, 0], R[0, 0])) "
+         "and add it to wrist_roll", -np.degrees(targets[:, 3])),
         (f"the gripper mount's tilt is added with the wrong sign: the yaw is off by "
          f"{2 * tilt:.2f} deg everywhere. Fix: wrist_roll = shoulder_pan + yaw - "
          f"({tilt:.2f} deg)", np.full(len(ok), 2.0 * tilt)),
@@ -343,7 +345,11 @@ def compare_ik(results: dict, tolerance, count: int = ik_targets.TARGET_COUNT) -
                      + ", ".join(f"{row['name']} {row['failing']}" for row in nan_regions
                                  if row["failing"]) + ")")
     examples = []
-    for i in np.flatnonzero(failing)[np.argsort(-np.nan_to_num(mm[failing], nan=1e9))][:3]:
+    wrong = np.flatnonzero(answered & ~ok)
+    picked = list(wrong[np.argsort(-mm[wrong])][:2])  # the worst wrong answers, then one
+    for kind in ("nan", "raised", "broken"):           # of each kind of non-answer
+        picked += [i for i, k in enumerate(kinds) if k == kind][:1]
+    for i in picked[:4]:
         examples.append({
             "target": [round(float(v), 4) for v in targets[i, :3]],
             "yaw_deg": round(math.degrees(targets[i, 3]), 2), "name": names[i],
