@@ -67,6 +67,8 @@ def check_ik_file(path: str | Path, tolerance=(1.0, 1.0),
                      f"Your so101_forward_kinematics was used: {fk}.")
     if run.status != "ok":  # a hang or a crash in a call: the answers before it are judged
         check["reason"] = run.reason
+        if run.status == "timeout":
+            check["reason"] += " (or an IK that is only slow: give it more time with --timeout)"
         return check
     check["verdict"] = "pass" if test["status"] == "ok" else "fail"
     return check
