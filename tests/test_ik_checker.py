@@ -14,8 +14,10 @@ import pytest
 
 from so101_kinematics.checker import ik_compare, ik_targets
 from so101_kinematics.checker.ik import check_ik_file, main
+from so101_kinematics.errors import UnreachableError
 from so101_kinematics.fast_fk import forward_kinematics_batch
 from so101_kinematics.frames import ARM_JOINTS
+from so101_kinematics.ik.course import get_inverse_kinematics
 
 try:
     import tomllib
@@ -70,6 +72,22 @@ def test_a_correct_ik_is_right_at_every_target_with_the_fallback_fk(checks):
     assert all(named["right"] for named in test["named"]) and len(test["named"]) == 3
     # The folder has no so101_forward_kinematics.py: the import found the checker's.
     assert test["fk_module"] == "fallback" and "the checker's" in check["note"]
+    assert [answer["answer"] for answer in test["out_of_reach"]] == \
+        ["NaN (unreachable, as the course says it)"] * 3
+
+
+def test_out_of_reach_targets_are_unreachable_and_a_silent_answer_is_reported(tmp_path):
+    for x, y, z, yaw in ik_targets.OUT_OF_REACH.values():
+        with pytest.raises(UnreachableError):
+            get_inverse_kinematics([x, y, z], yaw, 0.0)
+    module = tmp_path / "so101_inverse_kinematics.py"
+    source = (SUBMISSIONS / "correct.py").read_text()
+    module.write_text(source.replace("abs(angles[0]) <= PAN_LIMIT and ", ""))  # no pan limit
+    answers = ik_test(check_ik_file(module, count=20))["out_of_reach"]
+    assert answers[0]["answer"] == answers[1]["answer"] == \
+        "NaN (unreachable, as the course says it)"
+    assert answers[2]["answer"].startswith("a configuration, 0.0 mm from the target, "
+                                           "shoulder_pan beyond the limit, without saying")
 
 
 @pytest.mark.parametrize("name", sorted(KNOWN_CAUSES))

@@ -117,6 +117,8 @@ def text_report(check: dict) -> str:
                            + f"; answer {example['answer_deg']}")
                 lines.append(f"  e.g. target {example['target']} m, yaw {example['yaw_deg']} deg: "
                              + got)
+        for answer in test["out_of_reach"]:
+            lines.append(f"  out of reach (not graded), {answer['name']}: {answer['answer']}")
         if test["at_limit"]:
             lines.append("  at a limit (within 0.5 deg, allowed): " + ", ".join(
                 f"{joint} {n}" for joint, n in test["at_limit"].items()))

@@ -62,7 +62,7 @@ def build_request(count: int = ik_targets.TARGET_COUNT) -> dict:
     """What the probe evaluates: the targets, and the fallback FK (cached: do not change it)."""
     _, targets, _ = ik_targets.build_targets(count)
     return {"kind": "ik", "module_name": "so101_inverse_kinematics",
-            "targets": targets.tolist(),
+            "targets": targets.tolist() + [list(t) for t in ik_targets.OUT_OF_REACH.values()],
             "fallback_modules": {"so101_forward_kinematics": ik_targets.reference_fk_source()}}
 
 
@@ -304,6 +304,8 @@ def compare_ik(results: dict, tolerance, count: int = ik_targets.TARGET_COUNT) -
             f"not defined; {close!r} looks like it: name it get_inverse_kinematics (the "
             "course's name)" if close else "not defined"]}
     names, targets, _ = ik_targets.build_targets(count)
+    out_of_reach = ik_targets.out_of_reach_answers(calls[len(targets):])
+    calls = calls[:len(targets)]
     targets, names = targets[:len(calls)], names[:len(calls)]
     angles, kinds, problems = _read_answers(calls)
     mm, tilt, yaw = _errors(targets, angles)
@@ -375,7 +377,8 @@ def compare_ik(results: dict, tolerance, count: int = ik_targets.TARGET_COUNT) -
         "beyond_limit": {j: int(beyond[:, k].sum()) for k, j in enumerate(ARM_JOINTS)
                          if beyond[:, k].any()},
         "at_limit": {j: int(at[:, k].sum()) for k, j in enumerate(ARM_JOINTS) if at[:, k].any()},
-        "fk_module": results.get("fk_module", ""), "examples": examples}
+        "fk_module": results.get("fk_module", ""), "examples": examples,
+        "out_of_reach": out_of_reach}
 
 
 def count_targets(count: int = ik_targets.TARGET_COUNT) -> int:

@@ -23,6 +23,7 @@ import math
 import numpy as np
 
 from so101_kinematics.errors import UnreachableError
+from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINT_LIMITS, joint_transform
 from so101_kinematics.ik.course import get_inverse_kinematics
 from so101_kinematics.ik.geometry import PAN_AXIS_POINT
@@ -44,6 +45,14 @@ COURSE_TARGETS = {
     "(0.2, 0.1, 0.014) m, yaw pi/4": (0.2, 0.1, 0.014, math.pi / 4),
 }
 """Named targets (x, y, z [m], yaw [rad]), checked first."""
+
+OUT_OF_REACH = {
+    "beyond the reach (0.45, 0, 0.014) m": (0.45, 0.0, 0.014, 0.0),
+    "too high for a top-down grasp (0.2, 0, 0.25) m": (0.2, 0.0, 0.25, 0.0),
+    "behind the base (-0.2, 0, 0.014) m, shoulder_pan beyond its limit": (-0.2, 0.0, 0.014, 0.0),
+}
+"""Targets no configuration within the limits reaches (x, y, z [m], yaw [rad]), asked after
+the others: what the IK says there is reported, not graded (the course expects NaN)."""
 
 REACH_ZONES = ((0.12, "near the base"), (0.2, "mid reach"), (math.inf, "far reach"))
 """Horizontal distance from the pan axis [m] (upper bound) -> the zone's name."""
@@ -118,6 +127,30 @@ def build_targets(count: int = TARGET_COUNT, seed: int = TARGET_SEED) -> tuple:
         rows.append((*positions[i], math.radians(yaws[i] % 90.0)))
         references.append(list(angles[i]))
     return tuple(names), np.array(rows, dtype=float), np.array(references, dtype=float)
+
+
+def out_of_reach_answers(calls: list[dict]) -> list[dict]:
+    """What the IK answered at each :data:`OUT_OF_REACH` target: {name, answer} (text)."""
+    answers = []
+    for name, call in zip(OUT_OF_REACH, calls, strict=False):
+        target = OUT_OF_REACH[name]
+        if "error" in call:
+            text = f"raised {call['error']} (the course's way is NaN)"
+        elif any(joint not in call["value"] for joint in ARM_JOINTS):
+            text = f"returned keys {sorted(call['value'])}"
+        elif any(math.isnan(call["value"][joint]) for joint in ARM_JOINTS):
+            text = "NaN (unreachable, as the course says it)"
+        else:
+            config = {joint: call["value"][joint] for joint in ARM_JOINTS}
+            beyond = [joint for joint in ARM_JOINTS if not JOINT_LIMITS[joint][0] - 0.01
+                      <= config[joint] <= JOINT_LIMITS[joint][1] + 0.01]
+            position, _ = forward_kinematics(config)
+            miss = float(np.linalg.norm(position - np.array(target[:3]))) * 1000
+            text = (f"a configuration, {miss:.1f} mm from the target"
+                    + (f", {', '.join(beyond)} beyond the limit" if beyond else "")
+                    + ", without saying it is out of reach")
+        answers.append({"name": name, "answer": text})
+    return answers
 
 
 def region(x: float, y: float, z: float) -> tuple[str, str, str]:
