@@ -29,7 +29,7 @@ from so101_kinematics.trims import TRIM_LIMIT_DEG, as_trims
 
 HOME_CONFIGURATION = dict.fromkeys(JOINTS, 0.0)  # the course's home: every joint 0, gripper 0
 HOME_CHECK_SPEED_DEG_S = 30.0  # "slowly": the speed cap of the home check [deg/s]
-HOME_CHECK_MOVE_S = 3.0        # the move there and back (stretched by the speed cap) [s]
+HOME_CHECK_MOVE_S = 6.0        # the move there and back: 90 deg at 30 deg/s, min-jerk [s]
 HOME_CHECK_HOLD_S = 5.0        # how long the arm holds at home [s]
 SETTLE_WINDOW_S = 0.5          # the measured home pose: mean over the hold's last [s]
 
