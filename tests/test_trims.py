@@ -104,9 +104,8 @@ def test_pick_place_hw_refuses_a_big_trim_before_the_port_in_one_line(tmp_path, 
 @pytest.fixture
 def arm():
     pytest.importorskip("lerobot")
-    from so101_kinematics.virtual.arm import VirtualSO101
-
     import so101_kinematics.hw.course as course
+    from so101_kinematics.virtual.arm import VirtualSO101
 
     with VirtualSO101(calibration=CALIBRATION_PATH) as virtual:
         yield virtual
