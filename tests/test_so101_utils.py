@@ -210,6 +210,19 @@ def test_an_unknown_robot_is_refused_in_one_line(tmp_path, monkeypatch, capsys):
         assert refused.value.code == 2 and "robot id" in refused.value.line
 
 
+def test_setup_motors_refuses_what_is_not_a_calibration_in_one_line(capsys):
+    from so101_utils import setup_motors
+
+    with pytest.raises(course.ScriptEnded) as refused:
+        setup_motors(None, "/dev/ttyACM0")
+    assert refused.value.code == 2 and "load_calibration(ROBOT_NAME)" in refused.value.line
+    with pytest.raises(course.ScriptEnded) as refused:
+        setup_motors(load_calibration(CALIBRATION_PATH), "/dev/ttyACM0",
+                     offset_config={"elbow_flex": 9.0})  # refused before the port is opened
+    assert "elbow_flex = 9 deg is beyond the 5 deg" in refused.value.line
+    assert capsys.readouterr().err.count("\n") == 2  # one line each
+
+
 def test_a_calibration_path_and_a_robot_id_load_the_same(tmp_path, monkeypatch):
     from so101_utils import load_calibration
 

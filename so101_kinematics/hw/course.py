@@ -154,6 +154,11 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
     """
     try:
         trims = as_trims(offset_config)
+        if not isinstance(calibration, Mapping):
+            raise CalibrationError(f"setup_motors needs the calibration from load_calibration, "
+                                   f"got {calibration!r}. Fix: calibration = "
+                                   "load_calibration(ROBOT_NAME), then setup_motors(calibration, "
+                                   "PORT_ID).")
         robot_id = getattr(calibration, "robot_id", None)
         checked = load_calibration(calibration, robot_id)
         bus = connect(port, checked, robot_id=robot_id)
@@ -186,11 +191,11 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
 
     def disable_torque(motors=None, num_retry: int = 0) -> None:
         """The course's last call: release at the starting pose (returning there first)."""
-        if _RUNS.get(id(bus)) is run:
+        if run.ended is None:
             end_at_start(run, "bus.disable_torque()")
-        elif run.ended is None or run.ended.endswith("torque off."):
+        elif run.ended.endswith("torque off."):  # already released: lerobot's own call is harmless
             original(motors, num_retry=num_retry)
-        else:
+        else:  # the run ended holding away from the start (a fault): holding is safer
             logger.warning("Not releasing the torque away from the starting pose: %s", run.ended)
 
     bus.disable_torque = disable_torque
