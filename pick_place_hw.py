@@ -29,6 +29,7 @@ from so101_kinematics.hw.control import (
     signals_as_interrupt,
     speed_caps,
 )
+from so101_kinematics.hw.home_check import add_calibration_check_arguments, home_check
 from so101_kinematics.hw.log import CycleLog, plan_record, plot_log
 from so101_kinematics.hw.run import (
     RELEASE_HINT,
@@ -125,6 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
                            "object position")
     mode.add_argument("--release", action="store_true",
                       help="release the torque of every servo (hold the arm: it falls)")
+    add_calibration_check_arguments(parser, mode)
     parser.add_argument("--yes", "-y", action="store_true",
                         help="do not ask before enabling (or releasing) torque")
     parser.add_argument("--write-calibration", action="store_true",
@@ -185,7 +187,8 @@ def _run(args, plan, calibration, source, release: str) -> int:
             rate_hz=args.rate, profile=args.profile, max_joint_speed=args.max_speed,
             tracking_tolerance=args.tracking_tolerance, confirm=lambda q: ask(q, args.yes),
             write_calibration=args.write_calibration,
-            return_on_abort=not args.no_return_on_abort, on_cycle=log, on_start=on_start)
+            return_on_abort=not args.no_return_on_abort, on_cycle=log, on_start=on_start,
+            trims=args.trims)
         status = 0
     except MotionAborted as error:
         print(f"ABORTED: {error}", file=sys.stderr)
@@ -282,6 +285,8 @@ def _main(args) -> int:
         finally:
             disconnect(bus)
         return 0
+    if args.home_check:
+        return home_check(args, calibration, source, release, lambda q: ask(q, args.yes))
     return _run(args, plan, calibration, source, release)
 
 

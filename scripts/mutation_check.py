@@ -211,10 +211,10 @@ MUTANTS: list[Mutant] = [
     m("gripper_overload_stops", "the gripper's overload (its squeeze) stops the motion",
       CHECKS, "check_status", "bits &= ~GRIPPER_OVERLOAD", "pass", T_CONTROL),
     m("release_away_from_start", "torque released wherever the run ended",
-      RUN, "execute", "            if result.returned_to_start:\n                result.unreleased",
-      "            if True:\n                result.unreleased", T_RUN),
+      RUN, "finish", "        if result.returned_to_start:\n            result.unreleased",
+      "        if True:\n            result.unreleased", T_RUN),
     m("no_return_after_abort", "no slow return after an abort: the arm holds where it stopped",
-      RUN, "_after_abort", "                session.return_slowly(start_pose)\n"
+      RUN, "after_abort", "                session.return_slowly(start_pose)\n"
       "                result.returned_to_start = True", "                pass", T_RUN),
     m("log_not_flushed", "the run's log not flushed as the run goes",
       LOG, "CycleLog.__call__", "            self._handle.flush()\n", "            pass\n",

@@ -65,6 +65,10 @@ class UnreachableError(PlanError):
         self.joint = joint
 
 
+class TrimError(InputError):
+    """A trim (the course's "offset_config") names an unknown joint, is not a number or too big."""
+
+
 class OutputPathError(InputError):
     """An output path cannot be written (a folder, not writable, or one of the inputs)."""
 

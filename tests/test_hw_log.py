@@ -21,11 +21,31 @@ def test_log_csv_has_time_command_and_measurement_per_cycle(calibration, clock, 
     rows = path.read_text().splitlines()
     header = rows[0].split(",")
     assert header[:3] == ["t_s", "wall_s", "step"]
-    assert header[3:] == [f"cmd_{j}" for j in JOINTS] + [f"meas_{j}" for j in JOINTS]
+    assert header[3:] == ([f"cmd_{j}" for j in JOINTS] + [f"meas_{j}" for j in JOINTS]
+                          + [f"trim_{j}" for j in JOINTS])
     assert len(rows) == 1 + len(session.cycles)
     last = dict(zip(header, rows[-1].split(","), strict=True))
     assert float(last["cmd_wrist_flex"]) == pytest.approx(40.0)
     assert float(last["meas_wrist_flex"]) == pytest.approx(40.0)
+    assert all(float(last[f"trim_{j}"]) == 0.0 for j in JOINTS)  # no trims: zeros, said
+
+
+def test_a_trimmed_run_logs_model_angles_and_its_trims(calibration, clock, tmp_path):
+    """The servo gets command + trim; the log keeps the model's angles and says the trims."""
+    trims = {"shoulder_lift": 2.0, "elbow_flex": -4.0}
+    log = hwlog.CycleLog(tmp_path / "run.csv")
+    session, bus = make_session(calibration, clock, on_cycle=log, trims=trims)
+    session.move(dict(HOME, wrist_flex=40.0), 0.3)
+    log.close()
+    assert bus.goals[-1]["shoulder_lift"] == pytest.approx(HOME["shoulder_lift"] + 2.0)
+    assert bus.goals[-1]["elbow_flex"] == pytest.approx(HOME["elbow_flex"] - 4.0)
+    assert bus.pose["elbow_flex"] == pytest.approx(HOME["elbow_flex"] - 4.0)  # the servo's own
+    rows = (tmp_path / "run.csv").read_text().splitlines()
+    last = dict(zip(rows[0].split(","), rows[-1].split(","), strict=True))
+    assert float(last["cmd_elbow_flex"]) == pytest.approx(HOME["elbow_flex"])
+    assert float(last["meas_elbow_flex"]) == pytest.approx(HOME["elbow_flex"])
+    assert (float(last["trim_shoulder_lift"]), float(last["trim_elbow_flex"])) == (2.0, -4.0)
+    assert float(last["trim_wrist_flex"]) == 0.0
 
 
 def test_plot_is_written(calibration, clock, tmp_path):

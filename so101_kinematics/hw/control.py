@@ -79,6 +79,7 @@ from so101_kinematics.motion import (
     check_configuration,
     unit,
 )
+from so101_kinematics.trims import Trims, as_trims
 
 logger = logging.getLogger(__name__)
 
@@ -116,6 +117,8 @@ class ArmSession:
             failing) before the motion stops [s]; meanwhile the plan pauses.
         on_cycle: called with (session, cycle) after each cycle (tests, monitors, the log).
         clock, sleep: time sources (tests).
+        trims: per-joint offsets (the course's offset_config; ``so101_kinematics.trims``),
+            added to every goal written and taken off every position read, here only.
     """
 
     def __init__(self, bus, *, rate_hz: float = DEFAULT_RATE_HZ, profile: str = "minimum_jerk",
@@ -125,12 +128,13 @@ class ArmSession:
                  outage_tolerance: float = OUTAGE_TOLERANCE_S,
                  on_cycle: Callable[[ArmSession, Cycle], None] | None = None,
                  clock: Callable[[], float] = time.perf_counter,
-                 sleep: Callable[[float], None] = time.sleep):
+                 sleep: Callable[[float], None] = time.sleep, trims: Trims | None = None):
         if profile not in PROFILES:
             raise PlanError(f"Unknown profile '{profile}'; use one of {', '.join(PROFILES)}.")
         check_rate(rate_hz)
         self.bus = bus
-        self.limits = calibrated_limits(bus.calibration)
+        self.trims = as_trims(trims)  # commands and readings here are the model's angles
+        self.limits = self.trims.limits(calibrated_limits(bus.calibration))
         self.loop = RateLoop(rate_hz, clock, sleep)
         self.profile = profile
         self.max_speed = dict(max_speed or speed_caps())
@@ -158,8 +162,8 @@ class ArmSession:
 
     # measurement and command
     def _read(self) -> Configuration:
-        """Present_Position of every joint, retried within the call; raises what the bus raises."""
-        return read_pose(self.bus, READ_RETRIES)
+        """Present_Position of every joint less its trim, retried in the call; raises as the bus."""
+        return self.trims.from_wire(read_pose(self.bus, READ_RETRIES))
 
     def read_pose(self) -> Configuration:
         """Present_Position of every joint ([deg]; gripper [0, 100]); raises BusError, PortLost."""
@@ -190,7 +194,7 @@ class ArmSession:
 
     def _send(self, command: Configuration) -> None:
         try:
-            self.bus.sync_write("Goal_Position", command)
+            self.bus.sync_write("Goal_Position", self.trims.to_wire(command))
         except Exception as error:  # noqa: BLE001 - a broadcast gets no reply: only the port fails
             if port_lost(self.bus):
                 raise PortLost.during("sending Goal_Position") from error

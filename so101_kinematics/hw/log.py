@@ -19,11 +19,14 @@ from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.control import ArmSession, Cycle
 from so101_kinematics.motion import Plan, unit
 from so101_kinematics.outputs import atomic_output, temporary_beside, write_text_atomic
+from so101_kinematics.trims import Trims
 
 FLUSH_EVERY_S = 0.5  # the log reaches the disk at least this often [s of run time]
 HEADER = (["t_s", "wall_s", "step"] + [f"cmd_{j}" for j in JOINTS]
-          + [f"meas_{j}" for j in JOINTS])
-"""CSV columns: scheduled and actual cycle start [s], step, commanded and measured joints."""
+          + [f"meas_{j}" for j in JOINTS] + [f"trim_{j}" for j in JOINTS])
+"""CSV columns: scheduled and actual cycle start [s], step, commanded and measured joints, and
+each joint's trim (the course's offset_config: the servo got cmd + trim and read meas + trim;
+cmd and meas are the model's angles)."""
 
 
 def sidecar_path(path: str | Path) -> Path:
@@ -39,11 +42,13 @@ def plan_record(plan: Plan) -> dict:
             "return_to_start": plan.return_to_start, "return_duration": plan.return_duration}
 
 
-def cycle_row(cycle: Cycle) -> list[str]:
+def cycle_row(cycle: Cycle, trims: Trims | None = None) -> list[str]:
     """One CSV row; the measured columns are empty when the read failed."""
     measured = [f"{cycle.measured[j]:.4f}" if cycle.measured else "" for j in JOINTS]
+    trims = trims or Trims()
     return ([f"{cycle.t_s:.6f}", f"{cycle.wall_s:.6f}", cycle.step]
-            + [f"{cycle.command[j]:.4f}" for j in JOINTS] + measured)
+            + [f"{cycle.command[j]:.4f}" for j in JOINTS] + measured
+            + [f"{trims.offsets[j]:g}" for j in JOINTS])
 
 
 class CycleLog:
@@ -72,7 +77,7 @@ class CycleLog:
 
     def __call__(self, session: ArmSession, cycle: Cycle) -> None:
         """Append ``cycle``; flush once ``FLUSH_EVERY_S`` of run time passed since the last."""
-        self._writer.writerow(cycle_row(cycle))
+        self._writer.writerow(cycle_row(cycle, session.trims))
         self.rows += 1
         if cycle.wall_s - self._flushed_at >= FLUSH_EVERY_S:
             self._handle.flush()
@@ -96,13 +101,13 @@ class CycleLog:
         return self.path
 
 
-def write_log_csv(cycles: Iterable[Cycle], path: str | Path) -> Path:
-    """Write ``cycles`` as a CSV at once (complete, or not at all); returns the path."""
+def write_log_csv(cycles: Iterable[Cycle], path: str | Path, trims: Trims | None = None) -> Path:
+    """Write ``cycles`` (run with ``trims``) as a CSV at once (complete, or not at all)."""
     with atomic_output(path) as temporary, temporary.open("w", newline="",
                                                           encoding="utf-8") as handle:
         writer = csv.writer(handle)
         writer.writerow(HEADER)
-        writer.writerows(cycle_row(c) for c in cycles)
+        writer.writerows(cycle_row(c, trims) for c in cycles)
     return Path(path)
 
 

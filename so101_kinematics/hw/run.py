@@ -72,12 +72,12 @@ from so101_kinematics.motion import (
     unit,
 )
 from so101_kinematics.plans import validate_plan
+from so101_kinematics.trims import Trims, as_trims
 
 logger = logging.getLogger("pick_place_hw")
 
 LIMIT_SLACK_DEG = 2.0  # a start this far outside the calibration is clamped [deg]
-RELEASE_HINT = "python pick_place_hw.py --release --port {port} {arm}"
-"""The documented command that releases the torque, with the arm held by hand."""
+RELEASE_HINT = "python pick_place_hw.py --release --port {port} {arm}"  # arm held by hand
 
 
 class MotionAborted(HardwareError):
@@ -89,7 +89,7 @@ class MotionAborted(HardwareError):
 
 
 def validate_plan_for_arm(plan: Plan, calibration: Mapping[str, Any] | None,
-                          source: str = "the calibration") -> Plan:
+                          source: str = "the calibration", trims: Trims | None = None) -> Plan:
     """Check every waypoint against the model's limits and the arm's calibrated limits.
 
     Raises:
@@ -103,10 +103,10 @@ def validate_plan_for_arm(plan: Plan, calibration: Mapping[str, Any] | None,
             from None
     if calibration is not None:
         try:
-            validate_plan(plan, calibrated_limits(calibration))
+            validate_plan(plan, as_trims(trims).limits(calibrated_limits(calibration)))
         except JointLimitError as error:
-            raise JointLimitError(f"{error} (calibrated range of this arm, from {source}; if the "
-                                  "range looks too small, recalibrate)") from None
+            raise JointLimitError(f"{error} (calibrated range of this arm, from {source}, less "
+                                  "any trim; if the range looks too small, recalibrate)") from None
     return plan
 
 
@@ -153,9 +153,11 @@ def _describe(error: BaseException, step: str) -> str:
     return f"{type(error).__name__}: {text}{where}"
 
 
-def _after_abort(session: ArmSession, error: BaseException, start_pose: Configuration,
-                 return_on_abort: bool, result: RunResult) -> None:
+def after_abort(session: ArmSession, error: BaseException, start_pose: Configuration,
+                return_on_abort: bool, result: RunResult) -> None:
     """Controlled stop; then the slow return when the whole arm answers; else hold."""
+    result.aborted = _describe(error, session.step)
+    logger.error("Aborting: %s", result.aborted)
     bus = session.bus
     if isinstance(error, PortLost):
         result.usb_lost = True
@@ -163,10 +165,7 @@ def _after_abort(session: ArmSession, error: BaseException, start_pose: Configur
     try:
         with stop_on_signals(session, freeze_at_once=True):
             if isinstance(error, FreezeRequested):
-                recover_port(bus)
-                session.stop_here()
-                result.frozen = True
-                return
+                raise error  # a freeze, not a stop: below
             pose = session.stop_here()
             if pose is None:
                 logger.warning("Holding; waiting up to %g s for every servo to answer ...",
@@ -211,7 +210,6 @@ def execute(session: ArmSession, plan: Plan, start_pose: Configuration,
         MotionAborted: after the controlled ending; ``.result`` has the details.
     """
     result = RunResult(dict(start_pose))
-    bus = session.bus
 
     def on_step(step: Step) -> None:
         session.step = step.name
@@ -222,27 +220,30 @@ def execute(session: ArmSession, plan: Plan, start_pose: Configuration,
             run_plan(plan, session.move, session.hold, initial=start_pose, on_step=on_step)
         result.returned_to_start = plan.return_to_start
     except (Exception, KeyboardInterrupt) as error:
-        result.aborted = _describe(error, session.step)
-        logger.error("Aborting: %s", result.aborted)
-        _after_abort(session, error, start_pose, return_on_abort, result)
+        after_abort(session, error, start_pose, return_on_abort, result)
     finally:
-        result.cycles, result.segments = session.cycles, session.segments
-        result.stretched, result.outages = session.stretched, session.outages
-        result.stale_bytes, result.final_step = session.stale_bytes, session.step
-        if len(session.cycles) >= 3:
-            result.timing = session.timing()
-        if not result.usb_lost:
-            try:
-                result.final_pose = session.read_pose()  # where it holds, or is released
-            except (Exception, KeyboardInterrupt):
-                result.final_pose = None
-            result.cube = read_cube_sensor(bus)
-            if result.returned_to_start:
-                result.unreleased = release_torque(bus)
-                result.torque_released = not result.unreleased
+        finish(session, result)
     if result.aborted is not None:
         raise MotionAborted(f"Pick-and-place aborted: {result.aborted}.", result)
     return result
+
+
+def finish(session: ArmSession, result: RunResult) -> None:
+    """Record the run in ``result``; release the torque only if the arm returned to the start."""
+    result.cycles, result.segments = session.cycles, session.segments
+    result.stretched, result.outages = session.stretched, session.outages
+    result.stale_bytes, result.final_step = session.stale_bytes, session.step
+    if len(session.cycles) >= 3:
+        result.timing = session.timing()
+    if not result.usb_lost:
+        try:
+            result.final_pose = session.read_pose()  # where it holds, or is released
+        except (Exception, KeyboardInterrupt):
+            result.final_pose = None
+        result.cube = read_cube_sensor(session.bus)
+        if result.returned_to_start:
+            result.unreleased = release_torque(session.bus)
+            result.torque_released = not result.unreleased
 
 
 def ending(result: RunResult, release: str) -> str:
@@ -309,7 +310,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
                max_joint_speed: float = MAX_JOINT_SPEED_DEG_S,
                tracking_tolerance: float = TRACKING_TOLERANCE_DEG,
                confirm: Callable[[str], bool] | None = None, write_calibration: bool = False,
-               return_on_abort: bool = True,
+               return_on_abort: bool = True, trims: Trims | str | None = None,
                on_cycle: Callable[[ArmSession, Cycle], None] | None = None,
                on_start: Callable[[Configuration, float], None] | None = None) -> RunResult:
     """The whole hardware run: check, connect, confirm, torque on, run, return, torque off.
@@ -331,6 +332,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
         confirm: asked before torque on; False refuses.
         write_calibration: write the calibration into the servos if they differ.
         return_on_abort: after an abort, move back slowly when the arm answers.
+        trims: per-joint offsets added to every goal (a Trims, a mapping or a trim file).
         on_cycle: hook called after each control cycle (the log).
         on_start: called with the measured starting pose and the first move's
             duration [s] before ``confirm``.
@@ -340,15 +342,17 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
             refused before anything moved.
         MotionAborted: aborted during motion (controlled ending done).
     """
-    validate_plan_for_arm(plan, calibration, source)
+    trims = as_trims(trims)
+    validate_plan_for_arm(plan, calibration, source, trims)
     check_run_settings(rate_hz, max_joint_speed, tracking_tolerance)
     bus = connect(port, calibration, robot_id=robot_id, write_calibration=write_calibration)
     armed = False
     try:
-        start = starting_pose(bus, calibration, port, robot_id)
+        start = trims.from_wire(starting_pose(bus, calibration, port, robot_id))
         session = ArmSession(
             bus, rate_hz=rate_hz, profile=profile, max_speed=speed_caps(max_joint_speed),
-            tracking_tolerance=tracking_tolerances(tracking_tolerance), on_cycle=on_cycle)
+            tracking_tolerance=tracking_tolerances(tracking_tolerance), on_cycle=on_cycle,
+            trims=trims)
         session.command = dict(start)
         first = plan.steps[0]
         if on_start is not None:

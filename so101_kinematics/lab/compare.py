@@ -8,6 +8,9 @@ and compares, per joint, the commanded, the measured and the simulated
 angles. It also puts the cube where the measured angles put the object frame
 during the pick and the place (FK of the measured pose at the end of those
 steps) against where the plan puts it. :func:`draw_report` draws it all.
+The trims the run applied (``--trims``, the log's ``trim_*`` columns) are
+reported: the commanded and measured angles are the model's, the servos got
+the commands plus the trims.
 """
 
 from __future__ import annotations
@@ -48,6 +51,7 @@ class Comparison:
     positions_mm: dict[str, dict[str, list[float]]] = field(default_factory=dict)
     pick_position_error_mm: float = math.nan
     place_position_error_mm: float = math.nan
+    trims_deg: dict[str, float] = field(default_factory=lambda: dict.fromkeys(JOINTS, 0.0))
 
     def as_json(self) -> dict:
         """The report's numbers (gripper values are in [%], the rest in the keys' units)."""
@@ -55,11 +59,12 @@ class Comparison:
                 "sim_vs_arm_rms_deg": self.sim_vs_arm_rms_deg,
                 "pick_position_error_mm": self.pick_position_error_mm,
                 "place_position_error_mm": self.place_position_error_mm,
-                "positions_mm": self.positions_mm}
+                "positions_mm": self.positions_mm, "trims_deg": self.trims_deg}
 
     def summary(self) -> str:
         """A few lines for the terminal."""
-        lines = ["joint           max |cmd - arm|   rms |sim - arm|"]
+        lines = [f"trims (added to every goal sent to the arm): {self.describe_trims()}",
+                 "joint           max |cmd - arm|   rms |sim - arm|"]
         lines += [f"  {j:<14}{self.max_tracking_error_deg[j]:>10.2f}"
                   f"{self.sim_vs_arm_rms_deg[j]:>17.2f}" for j in JOINTS]
         for role in ("pick", "place"):
@@ -68,6 +73,11 @@ class Comparison:
                          f"angles {_xyz(p['measured'])} mm: "
                          f"{getattr(self, role + '_position_error_mm'):.1f} mm apart")
         return "\n".join(lines)
+
+    def describe_trims(self) -> str:
+        """The run's non-zero trims in one line, or "none"."""
+        return ", ".join(f"{j} {v:+.1f} {'%' if j == 'gripper' else 'deg'}"
+                         for j, v in self.trims_deg.items() if v) or "none"
 
 
 def _xyz(v) -> str:
@@ -136,6 +146,7 @@ def compare_run(path: str | Path) -> Comparison:
         t, commanded, measured, simulated,
         {j: float(np.max(np.abs(commanded[j] - measured[j]))) for j in JOINTS},
         {j: float(np.sqrt(np.mean((simulated[j] - measured[j]) ** 2))) for j in JOINTS})
+    result.trims_deg = {j: float(rows[0].get(f"trim_{j}") or 0.0) for j in JOINTS}
     steps = np.array([r["step"] for r in rows])
     for role, step in zip(("pick", "place"), pick_and_place_steps(_plan(info["plan"])),
                           strict=True):
@@ -188,6 +199,7 @@ def draw_report(result: Comparison, path: str | Path, title: str = "") -> Path:
             text.append(f"{role}: planned ({_xyz(p['planned'])}) mm, from the measured angles "
                         f"({_xyz(p['measured'])}) mm, "
                         f"{getattr(result, role + '_position_error_mm'):.1f} mm apart")
+    text.append(f"trims (added to every goal): {result.describe_trims()}")
     fig.suptitle((title + "\n" if title else "") + "\n".join(text), fontsize=10)
     fig.tight_layout()
     with atomic_output(path) as temporary:

@@ -1,0 +1,306 @@
+"""The course's hardware helpers (so101_utils.py) over the hardware backend, with its fault policy.
+
+Assignment 8's example drives the arm with ``load_calibration``,
+``setup_motors``, ``move_to_pose(bus, cfg, duration)``,
+``hold_position(bus, duration)`` and ends with ``bus.disable_torque()``.
+Here they are a thin face: the control loop is :class:`ArmSession`'s
+(``hw/control.py``), the endings are ``hw/run.py``'s, so each call keeps the
+policy of docs/hardware_safety.md (holding is safer than letting go; torque
+is released only at the starting pose, the pose the arm had at
+:func:`setup_motors`):
+
+- a fault, Ctrl-C, SIGTERM, SIGHUP or an exception inside ``move_to_pose`` or
+  ``hold_position``: controlled stop, slow return to the starting pose, torque
+  released there; the last line says where the arm is and whether it is
+  torqued, and the script ends there (:class:`ScriptEnded`, exit status 1);
+- ``bus.disable_torque()`` at the starting pose releases at once; away from
+  it, the arm first returns there slowly (so the course's "move back, then
+  disable torque" and a forgotten move back both end released at the start);
+- a script that ends without it (done, an exception, Ctrl-C or SIGTERM/SIGHUP
+  between the calls) gets the same ending when Python exits;
+- input refused before anything moved (calibration, port): one line, exit 2.
+"""
+
+from __future__ import annotations
+
+import atexit
+import gc
+import logging
+import os
+import sys
+from collections.abc import Callable, Mapping
+from contextlib import ExitStack
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from so101_kinematics.calibration import find_calibration, load_calibration
+from so101_kinematics.checks import check_number, is_finite_number
+from so101_kinematics.errors import CalibrationError, PlanError, SO101Error
+from so101_kinematics.frames import ARM_JOINTS, JOINTS
+from so101_kinematics.hw.bus import (
+    bus_errors,
+    configure,
+    connect,
+    disconnect,
+    enable_torque_in_place,
+    release_torque,
+    with_retries,
+)
+from so101_kinematics.hw.control import ArmSession, signals_as_interrupt, stop_on_signals
+from so101_kinematics.hw.run import (
+    LIMIT_SLACK_DEG,
+    RELEASE_HINT,
+    RunResult,
+    after_abort,
+    ending,
+    finish,
+    format_pose,
+    starting_pose,
+)
+from so101_kinematics.motion import Configuration
+from so101_kinematics.trims import as_trims
+
+logger = logging.getLogger("so101_utils")
+
+# --- Settings ---------------------------------------------------------------
+AT_START_TOLERANCE_DEG = 3.0  # an arm joint this close to its starting pose is "at the start"
+MAX_MOVE_S = 60.0             # longest move_to_pose duration accepted [s]
+MAX_HOLD_S = 3600.0           # longest hold_position duration accepted [s]
+
+
+class ScriptEnded(SystemExit):
+    """The helpers ended the script; ``line`` (printed to stderr) says why and how the arm is left.
+
+    A ``SystemExit``: the script stops there without a traceback, with exit
+    status ``code`` (2: refused, nothing moved; 1: a fault's ending ran).
+    ``result`` is the run's :class:`RunResult` after a fault (else None).
+    """
+
+    def __init__(self, code: int, line: str, result: RunResult | None = None):
+        super().__init__(code)
+        self.line = line
+        self.result = result
+
+
+class CourseCalibration(dict):
+    """A loaded calibration (joint -> ServoCalibration) that remembers where it came from."""
+
+    source: Path | None = None
+    robot_id: str | None = None
+
+
+@dataclass
+class CourseRun:
+    """One arm set up by :func:`setup_motors`: its session, starting pose and how to release it."""
+
+    session: ArmSession
+    start: Configuration          # the model's angles (trims taken off) [deg], gripper [0, 100]
+    release: str                  # the documented command that releases the torque by hand
+    restore: ExitStack = field(default_factory=ExitStack)
+    ended: str | None = None      # the run's last line, once it ended
+
+
+_RUNS: dict[int, CourseRun] = {}  # id(bus) -> its run, while it is set up and not ended
+
+
+def _refuse(error: BaseException) -> ScriptEnded:
+    line = "Refused, nothing moved: " + " ".join(str(error).split())
+    print(line, file=sys.stderr, flush=True)
+    return ScriptEnded(2, line)
+
+
+def course_load_calibration(robot_name_or_path: str | os.PathLike) -> CourseCalibration:
+    """The calibration of a robot id (where lerobot keeps it) or of a calibration JSON file.
+
+    Raises:
+        ScriptEnded: no such robot id or file, or a malformed calibration (one line, exit 2).
+    """
+    try:
+        if not isinstance(robot_name_or_path, (str, os.PathLike)) or not str(robot_name_or_path):
+            raise CalibrationError(
+                f"load_calibration needs a robot id (the --robot.id given to lerobot-calibrate) "
+                f"or a calibration JSON path, got {robot_name_or_path!r}. Fix: e.g. "
+                "load_calibration(\"follower-1\").")
+        text = os.fspath(robot_name_or_path)
+        is_path = text.endswith(".json") or os.sep in text or Path(text).is_file()
+        robot_id = None if is_path else text
+        path = Path(text) if is_path else find_calibration(text)
+        calibration = CourseCalibration(load_calibration(path, robot_id))
+    except SO101Error as error:
+        raise _refuse(error) from None
+    calibration.source, calibration.robot_id = path, robot_id
+    return calibration
+
+
+def setup_motors(calibration: Mapping[str, Any], port: str,
+                 offset_config: Mapping[str, float] | str | Path | Callable | None = None):
+    """Connect, configure and torque the arm where it stands; returns the lerobot bus.
+
+    The port is taken for this program alone; the servos must hold this
+    calibration; torque comes on with each goal set to the present position,
+    so nothing moves. That pose is the starting pose every ending returns to.
+
+    Args:
+        calibration: from :func:`course_load_calibration` (or any lerobot calibration mapping).
+        port: the arm's serial port (``lerobot-find-port``).
+        offset_config: trims added to every goal ([deg] per joint; a dict, a trim
+            file, or the course's ``offset_config(config)`` function); see
+            ``so101_kinematics.trims``. Positions read back through the bus
+            (``bus.sync_read``) are the servos' own, without the trims.
+
+    Raises:
+        ScriptEnded: refused before anything moved (one line, exit status 2).
+    """
+    try:
+        trims = as_trims(offset_config)
+        if not isinstance(calibration, Mapping):
+            raise CalibrationError(f"setup_motors needs the calibration from load_calibration, "
+                                   f"got {calibration!r}. Fix: calibration = "
+                                   "load_calibration(ROBOT_NAME), then setup_motors(calibration, "
+                                   "PORT_ID).")
+        robot_id = getattr(calibration, "robot_id", None)
+        checked = load_calibration(calibration, robot_id)
+        bus = connect(port, checked, robot_id=robot_id)
+    except SO101Error as error:
+        raise _refuse(error) from None
+    armed = False
+    try:
+        start = trims.from_wire(starting_pose(bus, checked, port, robot_id))
+        armed = True
+        with bus_errors("configuring the servos and enabling torque"):
+            with_retries(configure, bus)
+            with_retries(enable_torque_in_place, bus)
+    except BaseException as error:
+        if armed:  # torque may be on at the starting pose, nothing moved: release there
+            release_torque(bus)
+        disconnect(bus)
+        if isinstance(error, SO101Error):
+            raise _refuse(error) from None
+        raise
+    source = getattr(calibration, "source", None)
+    arm = f"--id {robot_id}" if robot_id else f"--calibration {source or 'YOUR_CALIBRATION.json'}"
+    run = CourseRun(ArmSession(bus, trims=trims), start, RELEASE_HINT.format(port=port, arm=arm))
+    run.session.command = dict(start)
+    run.restore.callback(_unlock_port, bus)  # a run that ended leaves the port to other programs
+    run.restore.enter_context(signals_as_interrupt())  # SIGTERM/SIGHUP between calls: as Ctrl-C
+    gc.collect()
+    gc.freeze()  # no 0.2 s full garbage collection in the middle of a move (hw/signals.py)
+    run.restore.callback(gc.unfreeze)
+    original = bus.disable_torque
+
+    def disable_torque(motors=None, num_retry: int = 0) -> None:
+        """The course's last call: release at the starting pose (returning there first)."""
+        if run.ended is None:
+            end_at_start(run, "bus.disable_torque()")
+        elif run.ended.endswith("torque off."):  # already released: lerobot's own call is harmless
+            original(motors, num_retry=num_retry)
+        else:  # the run ended holding away from the start (a fault): holding is safer
+            logger.warning("Not releasing the torque away from the starting pose: %s", run.ended)
+
+    bus.disable_torque = disable_torque
+    _RUNS[id(bus)] = run
+    logger.info("Torque on, holding where the arm stands (%s); trims: %s.", format_pose(start),
+                trims.describe())
+    return bus
+
+
+def _unlock_port(bus) -> None:
+    lock = getattr(bus, "so101_port_lock", None)
+    if lock is not None:
+        bus.so101_port_lock = None
+        os.close(lock)
+
+
+def _run_of(bus, what: str) -> CourseRun:
+    run = _RUNS.get(id(bus))
+    if run is None:
+        raise _refuse(PlanError(
+            f"{what} needs the bus returned by setup_motors (set up and not ended). Fix: "
+            "bus = setup_motors(calibration, PORT_ID) before moving the arm."))
+    return run
+
+
+def _guarded(bus, what: str, action: Callable[[ArmSession], None]) -> None:
+    """Run ``action(session)``; on any fault, signal or exception end as the policy says."""
+    run = _run_of(bus, what)
+    session = run.session
+    session.step = what
+    try:
+        with stop_on_signals(session):
+            action(session)
+    except (Exception, KeyboardInterrupt) as error:
+        result = RunResult(dict(run.start))
+        after_abort(session, error, run.start, True, result)
+        finish(session, result)
+        print(f"ABORTED: {what}: {result.aborted}.", file=sys.stderr)
+        line = _end(run, result)
+        raise ScriptEnded(1, line, result) from None
+
+
+def course_move_to_pose(bus, cfg: Mapping[str, float], duration: float) -> None:
+    """Move to ``cfg`` ([deg], gripper [0, 100]) in ``duration`` [s]; joints left out stay put.
+
+    A target within ``LIMIT_SLACK_DEG`` outside the calibrated range (a pose
+    read back with ``bus.sync_read``) is clamped into it.
+    """
+    def move(session: ArmSession) -> None:
+        seconds = check_number(duration, "move_to_pose duration", 0.0, MAX_MOVE_S, "s")
+        if not isinstance(cfg, Mapping):
+            raise PlanError(f"move_to_pose needs a configuration dict joint -> [deg], got "
+                            f"{type(cfg).__name__}. Fix: e.g. {{'shoulder_pan': 0.0, ...}}.")
+        target = dict(session.command, **cfg)
+        for joint in JOINTS:
+            low, high = session.limits[joint]
+            value = target.get(joint)
+            if is_finite_number(value) and low - LIMIT_SLACK_DEG <= value <= high + LIMIT_SLACK_DEG:
+                target[joint] = min(high, max(low, float(value)))
+        session.move(target, seconds)
+
+    _guarded(bus, "move_to_pose", move)
+
+
+def course_hold_position(bus, duration: float) -> None:
+    """Hold the last commanded pose for ``duration`` [s], reading and checking the arm."""
+    def hold(session: ArmSession) -> None:
+        session.hold(check_number(duration, "hold_position duration", 0.0, MAX_HOLD_S, "s"))
+
+    _guarded(bus, "hold_position", hold)
+
+
+def end_at_start(run: CourseRun, why: str) -> str:
+    """The run's normal ending: back to the starting pose (slowly, if away), torque off there."""
+    session = run.session
+    session.step = "return_to_start"
+    result = RunResult(dict(run.start))
+    try:
+        with stop_on_signals(session, freeze_at_once=True):
+            pose = session.read_pose()
+            away = [j for j in ARM_JOINTS if abs(pose[j] - run.start[j]) > AT_START_TOLERANCE_DEG]
+            if away:
+                logger.warning("%s away from the starting pose (%s): returning there slowly "
+                               "before releasing the torque.", why, ", ".join(away))
+                session.return_slowly(run.start)
+        result.returned_to_start = True
+    except (Exception, KeyboardInterrupt) as error:
+        after_abort(session, error, run.start, True, result)
+    finish(session, result)
+    return _end(run, result)
+
+
+def _end(run: CourseRun, result: RunResult) -> str:
+    """Close the run and print its last line (where the arm is, whether it is torqued)."""
+    _RUNS.pop(id(run.session.bus), None)
+    run.restore.close()
+    run.ended = ending(result, run.release)
+    released = result.returned_to_start and result.torque_released
+    print(run.ended, file=sys.stdout if released and result.aborted is None else sys.stderr,
+          flush=True)
+    return run.ended
+
+
+@atexit.register
+def _end_forgotten_runs() -> None:
+    """A script that ends without ``bus.disable_torque()`` gets the same ending as with it."""
+    for run in list(_RUNS.values()):
+        end_at_start(run, "The script ended without bus.disable_torque():")

@@ -1,0 +1,107 @@
+"""Hardware helpers for the SO-101 follower, with the course's names: load, set up, move, hold.
+
+Assignment 8 runs its inverse kinematics on the real arm with four helpers::
+
+    from so101_utils import load_calibration, move_to_pose, hold_position, setup_motors
+
+    calibration = load_calibration("follower-1")          # the id given to lerobot-calibrate
+    bus = setup_motors(calibration, "/dev/ttyACM0")       # torque on, holding where it stands
+    starting_pose = bus.sync_read("Present_Position")
+    move_to_pose(bus, desired_configuration, 2.0)         # [deg], gripper 0-100; [s]
+    hold_position(bus, 10.0)                              # [s]
+    move_to_pose(bus, starting_pose, 2.0)
+    bus.disable_torque()                                  # released at the starting pose
+
+They are a thin face over ``so101_kinematics/hw`` (the same control loop,
+speed caps, checks and endings as ``pick_place_hw.py``), so the fault policy
+of docs/hardware_safety.md holds in a student's script too:
+
+- a fault (a stall, a servo's error bit, the arm silent for more than 1 s),
+  Ctrl-C, SIGTERM, SIGHUP or an exception inside ``move_to_pose`` or
+  ``hold_position``: the arm stops, returns slowly (20 deg/s) to the pose it
+  had at ``setup_motors`` and is released there; the last line says where the
+  arm is and whether it is torqued, and the script ends (exit status 1). A
+  second signal during that return freezes the arm where it is, torque on;
+- ``bus.disable_torque()``: at the starting pose (every arm joint within
+  3 deg of it) the torque is released at once; away from it the arm first
+  returns there slowly, then is released. A servo holds its last goal by
+  itself, so holding is safer than letting go: this program never lets the
+  arm fall. To release it elsewhere, hold it and run
+  ``python pick_place_hw.py --release --port PORT --id ID``;
+- a script that ends without ``bus.disable_torque()`` (finished, an
+  exception, Ctrl-C or SIGTERM/SIGHUP between the calls) gets the same ending
+  when Python exits: slow return to the start, release there, last line;
+- bad input before anything moved (an unknown robot id, a malformed
+  calibration, a port that is missing or in use): one line, exit status 2.
+
+Trims (the course's ``offset_config``): ``setup_motors(calibration, PORT,
+offset_config={"shoulder_lift": 2.0, "elbow_flex": -4.0})`` (or a trim file,
+or the course's ``offset_config`` function) adds each joint's trim [deg] to
+every goal written; at most 5 deg per joint (beyond that, recalibrate).
+``bus.sync_read("Present_Position")`` gives the servos' own readings.
+"""
+
+from __future__ import annotations
+
+from so101_kinematics.hw.course import (  # noqa: F401 - the course's helpers and their settings
+    AT_START_TOLERANCE_DEG,
+    ScriptEnded,
+    course_hold_position,
+    course_load_calibration,
+    course_move_to_pose,
+)
+from so101_kinematics.hw.course import setup_motors as _setup_motors
+
+
+def load_calibration(robot_name_or_path):
+    """The arm's lerobot calibration, by robot id or from a calibration JSON file.
+
+    Args:
+        robot_name_or_path: the ``--robot.id`` given to ``lerobot-calibrate``
+            (looked up where lerobot keeps calibrations:
+            ``$HF_LEROBOT_CALIBRATION/robots/so_follower/ID.json``), or the path of a
+            calibration JSON file.
+
+    Returns:
+        joint name -> calibration (servo id, drive mode, homing offset, range [ticks]).
+    """
+    return course_load_calibration(robot_name_or_path)
+
+
+def setup_motors(calibration, port, offset_config=None):
+    """Connect to the arm and turn torque on where it stands; returns the lerobot bus.
+
+    Nothing moves: each servo's goal is set to its present position before
+    torque comes on. That pose is where every ending returns the arm.
+
+    Args:
+        calibration: from :func:`load_calibration`.
+        port: the arm's serial port (``lerobot-find-port`` tells which).
+        offset_config: optional trims, joint -> [deg] added to every goal (a
+            dict, a JSON/TOML trim file, or an ``offset_config(config)`` function).
+
+    Returns:
+        lerobot's ``FeetechMotorsBus``, connected, arm joints in [deg], gripper 0-100.
+    """
+    return _setup_motors(calibration, port, offset_config)
+
+
+def move_to_pose(bus, desired_position, duration):
+    """Move the arm smoothly to ``desired_position`` in ``duration`` seconds.
+
+    Args:
+        bus: from :func:`setup_motors`.
+        desired_position: joint name -> [deg] (gripper 0-100); joints left out keep their goal.
+        duration: [s]; stretched (with a warning) if a joint would exceed its speed cap.
+    """
+    course_move_to_pose(bus, desired_position, duration)
+
+
+def hold_position(bus, duration):
+    """Hold the last commanded pose for ``duration`` seconds, watching the arm.
+
+    Args:
+        bus: from :func:`setup_motors`.
+        duration: [s].
+    """
+    course_hold_position(bus, duration)
