@@ -18,7 +18,7 @@ import numpy as np
 from so101_kinematics.cli import number, range_help
 from so101_kinematics.errors import UnreachableError
 from so101_kinematics.fast_fk import forward_kinematics
-from so101_kinematics.ik.geometry import GRIPPER_OPEN, POSITION_LIMIT
+from so101_kinematics.ik.geometry import GRIPPER_OPEN, MIN_HEIGHT, POSITION_LIMIT
 from so101_kinematics.ik.solver import as_position, get_inverse_kinematics
 from so101_kinematics.motion import Plan, PlanError, check_number
 from so101_kinematics.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION, pick_and_place_plan
@@ -61,6 +61,7 @@ def cartesian_plan(
     *,
     approach_height: float = APPROACH_HEIGHT,
     slide: float = PRE_GRASP_SLIDE,
+    min_height: float = MIN_HEIGHT,
 ) -> Plan:
     """The course's pick-and-place plan from the Cartesian pick and place positions.
 
@@ -92,6 +93,8 @@ def cartesian_plan(
         place_yaw_deg: the cube's yaw at the place [deg]; default ``cube_yaw_deg``.
         approach_height: height of approach and depart above pre_grasp and retreat [m].
         slide: horizontal offset of pre_grasp and retreat from the grasps [m].
+        min_height: the IK's lowest accepted target [m] (lower it by the mount's
+            height when the table is below the base frame: ``stacking.min_target_height``).
 
     Returns:
         The plan; configurations [deg], gripper [0, 100].
@@ -130,11 +133,12 @@ def cartesian_plan(
         try:
             try:
                 return get_inverse_kinematics(target, "down", yaw, initial=initial,
-                                              gripper=GRIPPER_OPEN)
+                                              gripper=GRIPPER_OPEN, min_height=min_height)
             except UnreachableError:
                 if top_down_only:
                     raise
-                return get_inverse_kinematics(target, None, initial=initial, gripper=GRIPPER_OPEN)
+                return get_inverse_kinematics(target, None, initial=initial, gripper=GRIPPER_OPEN,
+                                              min_height=min_height)
         except UnreachableError as error:
             raise UnreachableError(f"Waypoint '{name}': {error}", error.reason, error.distance,
                                    error.joint) from None
