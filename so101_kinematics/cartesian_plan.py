@@ -192,8 +192,9 @@ def add_cartesian_arguments(parser: argparse.ArgumentParser, cube_yaw: bool = Tr
 def plan_from_arguments(args: argparse.Namespace) -> Plan | None:
     """The Cartesian plan if ``--pick`` and ``--place`` were given, else None.
 
-    Reads ``pick``, ``place``, ``cube_yaw``, ``lift_height``, ``move_duration``
-    and ``hold`` from ``args`` (see :func:`add_cartesian_arguments`).
+    Reads ``pick``, ``place``, ``cube_yaw``, ``lift_height``, ``move_duration``,
+    ``hold`` and ``base_height`` (the table below the base frame [m]: the IK's lowest
+    target follows it) from ``args`` (see :func:`add_cartesian_arguments`).
 
     Raises:
         PlanError: only one of --pick/--place, or together with --plan.
@@ -210,4 +211,5 @@ def plan_from_arguments(args: argparse.Namespace) -> Plan | None:
     return cartesian_plan(pick, place, cube_yaw_deg=getattr(args, "cube_yaw", None),
                           lift_height=getattr(args, "lift_height", DEFAULT_LIFT_HEIGHT),
                           move_duration=getattr(args, "move_duration", 2.0),
-                          hold_duration=getattr(args, "hold", 0.5))
+                          hold_duration=getattr(args, "hold", 0.5),
+                          min_height=MIN_HEIGHT - getattr(args, "base_height", 0.0))

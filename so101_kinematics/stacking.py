@@ -45,7 +45,7 @@ from so101_kinematics.constants import CUBE_HALF_SIZE, CUBE_SIZE, HOME_POSE
 from so101_kinematics.errors import UnreachableError
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS
-from so101_kinematics.ik.geometry import POSITION_LIMIT
+from so101_kinematics.ik.geometry import MIN_HEIGHT, POSITION_LIMIT
 from so101_kinematics.ik.solver import get_inverse_kinematics
 from so101_kinematics.motion import Plan, PlanError, Step, check_number
 
@@ -86,7 +86,7 @@ def min_target_height(base_height: float = 0.0) -> float:
 
     1 mm under a resting cube's centre: the IK's own default for ``base_height`` 0.
     """
-    return resting_height(base_height) - 0.001
+    return MIN_HEIGHT - float(base_height)
 
 
 def block_height(level: int, base_height: float = 0.0) -> float:
@@ -145,7 +145,7 @@ def check_stack_reach(stack_xy: Sequence[float], blocks: int, base_height: float
         try:
             _top_down((x, y, z), None, base_height)
         except UnreachableError as error:
-            reason = str(error).split(" Fix:")[0]
+            reason = str(error).split(" Fix:")[0].rstrip(".")
             most = f"at most {level} block(s) here" if level else "another spot"
             raise PlanError(
                 f"--stack {x:g} {y:g} with {blocks} blocks: block {level + 1}'s centre at "

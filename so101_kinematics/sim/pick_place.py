@@ -141,6 +141,7 @@ def run_pick_place(
     progress: bool = True,
     timestep: float | None = None,
     show_ui: bool = False,
+    base_height: float = 0.0,
 ) -> RunReport:
     """Run a pick-and-place plan in simulation and measure what happened to the cube.
 
@@ -159,6 +160,8 @@ def run_pick_place(
         timestep: physics step [s] instead of the model's 4 ms (to check
             that a result does not depend on it).
         show_ui: mode "viewer": show MuJoCo's side panels from the start.
+        base_height: the table is this far below the base frame [m] (the cube
+            rests on it).
 
     Returns:
         The run report.
@@ -185,7 +188,8 @@ def run_pick_place(
     # faster, and without any (headless). Only the interactive viewer shows
     # the upstream meshes.
     light = mode == "record" and QUALITY[quality].light_meshes
-    m = build_model(plan, cube, render_meshes=light, physics_only=mode == "headless")
+    m = build_model(plan, cube, render_meshes=light, physics_only=mode == "headless",
+                    base_height=base_height)
     if timestep is not None:
         m.opt.timestep = timestep
     pick, place = pick_and_place_steps(plan)
