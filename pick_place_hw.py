@@ -7,6 +7,7 @@ import logging
 import sys
 from pathlib import Path
 
+from so101_kinematics import stack_report, stacking
 from so101_kinematics.calibration import (
     CalibrationError,
     HardwareError,
@@ -142,6 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="paper of the --sheet (default a4)")
     parser.add_argument("--verbose", "-v", action="store_true", help="debug logging")
     add_cartesian_arguments(parser)
+    stacking.add_stack_arguments(parser)
     return parser
 
 
@@ -165,7 +167,7 @@ def _dry_run(args, plan, calibration) -> int:
     return 0
 
 
-def _run(args, plan, calibration, source, release: str) -> int:
+def _run(args, plan, calibration, source, release: str, stack=None) -> int:
     print(format_plan(plan, rate_hz=args.rate, profile=args.profile,
                       max_speed=speed_caps(args.max_speed)))
 
@@ -201,7 +203,9 @@ def _run(args, plan, calibration, source, release: str) -> int:
     for start, length in result.outages:
         print(f"The arm did not answer for {length:.2f} s at t = {start:.2f} s; the plan paused "
               "and resumed.")
-    for line in (grasp_outcome(plan, result.cycles), cube_outcome(plan, result.cube)):
+    outcome = (stack_report.stack_outcome(stack, result.cubes) if stack
+               else cube_outcome(plan, result.cube))
+    for line in (grasp_outcome(plan, result.cycles), outcome):
         if line:
             print(line)
     if status == 0:
@@ -240,13 +244,15 @@ def _main(args) -> int:
     check_number(args.move_duration, "--move-duration", 0.0, MAX_MOVE_DURATION_S, "s")
     check_number(args.hold, "--hold", 0.0, MAX_MOVE_DURATION_S, "s")
     check_run_settings(args.rate, args.max_speed, args.tracking_tolerance)
-    plan = plan_from_arguments(args) or (
+    stack = stacking.stack_from_arguments(args)
+    plan = stack.plan if stack else plan_from_arguments(args) or (
         load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold))
     if args.sheet is not None:
         validate_plan_for_arm(plan, None)
         path = check_output_path(args.sheet, "--sheet", inputs=(args.plan,), suffixes=(".pdf",))
         origin = args.plan or ("--pick/--place" if args.pick else "the course's plan")
-        print(write_sheet(plan, path, args.paper, source=str(origin)).summary())
+        print(write_sheet(plan, path, args.paper, source=str(origin), stack=stack,
+                          base_height=args.base_height).summary())
         return 0
     source = args.calibration or (find_calibration(args.robot_id, args.port)
                                   if args.robot_id else None)
@@ -257,6 +263,8 @@ def _main(args) -> int:
     if source is not None:
         logger.info("Calibration: %s", source)
     validate_plan_for_arm(plan, calibration, str(source))
+    if stack is not None:
+        print(stack.describe())
     for option, path in (("--log", args.log), ("--plot", args.plot)):
         if path is not None:
             check_output_path(path, option, inputs=(source, args.plan))
@@ -282,7 +290,7 @@ def _main(args) -> int:
         finally:
             disconnect(bus)
         return 0
-    return _run(args, plan, calibration, source, release)
+    return _run(args, plan, calibration, source, release, stack)
 
 
 if __name__ == "__main__":

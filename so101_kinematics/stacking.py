@@ -117,6 +117,17 @@ class StackPlan:
     blocks: list[Block] = field(default_factory=list)
     base_height: float = 0.0
 
+    def describe(self) -> str:
+        """Where to put the blocks and where they go, for the student [cm]."""
+        x, y, _ = self.blocks[0].target
+        lines = [f"Stack of {len(self.blocks)} blocks at x = {100 * x:.1f} cm, y = "
+                 f"{100 * y:.1f} cm (the table {100 * self.base_height:.1f} cm below the base "
+                 "frame). Put the blocks here:"]
+        lines += [f"  block {i + 1}: x = {100 * b.start[0]:.1f} cm, y = {100 * b.start[1]:.1f} "
+                  f"cm, turned {b.start_yaw_deg:.0f} deg; stacked with its centre at z = "
+                  f"{100 * b.target[2]:.1f} cm" for i, b in enumerate(self.blocks)]
+        return "\n".join(lines)
+
 
 def _grasp_yaw(cfg) -> float:
     """The cube yaw [deg] a top-down grasp ``cfg`` takes: the tool x axis's azimuth.

@@ -131,3 +131,35 @@ def test_pick_place_sim_refuses_an_unreachable_stack_in_one_line(capsys):
     err = capsys.readouterr().err
     assert code == 2
     assert err.count("\n") == 1 and "z = 0.091 m" in err and "Traceback" not in err
+
+
+def test_pick_place_hw_dry_run_shows_where_the_blocks_go(capsys):
+    import pick_place_hw
+
+    assert pick_place_hw.main(["--stack", "0.15", "0.1", "--blocks", "3", "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert "Stack of 3 blocks at x = 15.0 cm, y = 10.0 cm" in out
+    assert "block3_final_open" in out and "centre at z = 6.5 cm" in out
+    assert pick_place_hw.main(["--stack", "0.2", "0", "--blocks", "4", "--dry-run"]) == 2
+    assert "z = 0.091 m" in capsys.readouterr().err
+
+
+def test_the_placement_sheet_of_a_stack_on_the_mount(tmp_path):
+    from so101_kinematics.lab.sheet import write_sheet
+
+    stack = stack_plan(STACK, 2, base_height=0.015)
+    info = write_sheet(stack.plan, tmp_path / "sheet.pdf", stack=stack, base_height=0.015)
+    assert [c.role for c in info.cubes] == ["block 1", "block 2", "stack"]
+    assert (info.cubes[-1].x_cm, info.cubes[-1].y_cm) == pytest.approx((15.0, 10.0))
+    assert "15 mm mount" in info.summary() and "z = -0.2 cm" in info.summary()
+    assert (tmp_path / "sheet.pdf").stat().st_size > 0
+
+
+def test_pick_and_place_on_a_lower_table_with_ik_targets_below_the_base(capsys):
+    # --pick/--place at a resting cube's centre on a 15 mm lower table: z = -0.002 m,
+    # which the IK refuses without --base-height (below its table)
+    where = ["--pick", "0.23", "0.19", "-0.002", "--place", "0.229", "-0.191", "-0.002",
+             "--headless", "--no-progress", "--strict"]
+    assert pick_place_sim.main(where) == 2
+    assert pick_place_sim.main([*where, "--base-height", "0.015"]) == 0
+    assert "Cube final position:  (0.229" in capsys.readouterr().out

@@ -35,7 +35,7 @@ from so101_kinematics.hw.bus import (
     connect,
     disconnect,
     enable_torque_in_place,
-    read_cube_sensor,
+    read_cube_sensors,
     read_pose,
     recover_port,
     release_torque,
@@ -140,6 +140,7 @@ class RunResult:
     timing: dict[str, float] = field(default_factory=dict)
     stale_bytes: int = 0  # late-reply bytes dropped before reads (see discard_stale_input)
     cube: CubeReading | None = None  # the virtual lab's cube sensor at the end; None on a real arm
+    cubes: list[CubeReading] = field(default_factory=list)  # every cube it reports (stacking)
 
 
 def _describe(error: BaseException, step: str) -> str:
@@ -236,7 +237,8 @@ def execute(session: ArmSession, plan: Plan, start_pose: Configuration,
                 result.final_pose = session.read_pose()  # where it holds, or is released
             except (Exception, KeyboardInterrupt):
                 result.final_pose = None
-            result.cube = read_cube_sensor(bus)
+            result.cubes = read_cube_sensors(bus)
+            result.cube = result.cubes[0] if result.cubes else None
             if result.returned_to_start:
                 result.unreleased = release_torque(bus)
                 result.torque_released = not result.unreleased

@@ -19,7 +19,7 @@ from so101_kinematics.constants import CUBE_SIZE
 from so101_kinematics.motion import PlanError
 from so101_kinematics.plans import validate_plan
 from so101_kinematics.sim.cube import build_model, cube_names, scene_limits, scene_model
-from so101_kinematics.sim.pick_place import TILT_TOLERANCE, execute_plan
+from so101_kinematics.sim.pick_place import execute_plan
 from so101_kinematics.sim.render import (
     DEFAULT_CAMERA,
     DEFAULT_FPS,
@@ -31,11 +31,8 @@ from so101_kinematics.sim.render import (
     check_frame_size,
 )
 from so101_kinematics.sim.render import Overlay as _Overlay
+from so101_kinematics.stack_report import STACK_TILT_TOLERANCE, STACK_TOLERANCE, measure_stack
 from so101_kinematics.stacking import StackPlan
-
-STACK_TOLERANCE = 0.005
-"""[m] each block's centre this close to the one below it horizontally (the bottom one: to the
-stack's (x, y)) and to its level's height: a stack."""
 
 
 @dataclass
@@ -74,7 +71,7 @@ class StackReport:
         lines.append(f"Stack lean: {self.lean_deg:.1f} deg (bottom to top centre from vertical)")
         lines.append("Result: SUCCESS - the blocks stand stacked." if self.success else
                      f"Result: FAILED - a block is more than {STACK_TOLERANCE * 1e3:.0f} mm off "
-                     f"its place or tilted beyond {TILT_TOLERANCE:.0f} deg.")
+                     f"its place or tilted beyond {STACK_TILT_TOLERANCE:.0f} deg.")
         return "\n".join(lines)
 
 
@@ -92,24 +89,9 @@ def stack_report(positions: Sequence[Sequence[float]], rotations: Sequence[np.nd
     Returns:
         The geometric keys of :class:`StackReport`.
     """
-    finals = [np.asarray(p, dtype=float) for p in positions]
     tilts = [math.degrees(math.acos(min(1.0, float(np.max(np.abs(np.asarray(r)[2, :]))))))
              for r in rotations]
-    targets = [np.asarray(b.target, dtype=float) for b in stack.blocks]
-    offsets = [float(np.linalg.norm(finals[0][:2] - targets[0][:2]))]
-    offsets += [float(np.linalg.norm(finals[i][:2] - finals[i - 1][:2]))
-                for i in range(1, len(finals))]
-    rise = finals[-1] - finals[0]
-    lean = math.degrees(math.atan2(float(np.linalg.norm(rise[:2])), float(rise[2]))) \
-        if len(finals) > 1 else 0.0
-    heights_ok = all(abs(f[2] - t[2]) <= STACK_TOLERANCE for f, t in zip(finals, targets,
-                                                                        strict=True))
-    success = (heights_ok and all(o <= STACK_TOLERANCE for o in offsets)
-               and all(t <= TILT_TOLERANCE for t in tilts))
-    return dict(blocks_final_position_m=[[float(v) for v in f] for f in finals],
-                blocks_target_position_m=[[float(v) for v in t] for t in targets],
-                blocks_tilt_deg=tilts, blocks_offset_m=offsets, lean_deg=lean,
-                base_height_m=stack.base_height, success=success)
+    return measure_stack(positions, tilts, stack)
 
 
 def run_stack(
