@@ -38,7 +38,7 @@ FK_DRAWS = 400_000           # random configurations drawn for the FK samples
 SLAB = 0.002                 # FK samples kept within this of HEIGHT [m]
 SEED = 0
 LEVEL_STEP = 0.01            # spacing of the IK grids of the stacking heights [m]
-LEVEL_COLORS = ("tab:orange", "tab:red", "tab:purple", "tab:brown")
+LEVEL_COLORS = ("darkorange", "tab:cyan", "magenta", "tab:brown")
 
 log = logging.getLogger("plot_workspace")
 
@@ -98,7 +98,7 @@ def plot(output: Path, step: float, draws: int) -> None:
     log.info("FK samples within %.0f mm of z = %.3f m: %d, solved by the IK: %d",
              SLAB * 1e3, HEIGHT, len(positions), solved)
 
-    fig, ax = plt.subplots(figsize=(7.5, 8.0), dpi=120)
+    fig, ax = plt.subplots(figsize=(7.5, 9.0), dpi=120)
     extent = (xs[0] - step / 2, xs[-1] + step / 2, ys[0] - step / 2, ys[-1] + step / 2)
     ax.imshow(any_yaw, origin="lower", extent=extent, interpolation="nearest",
               cmap=ListedColormap(["#f4f4f4", "#9fd89f"]), vmin=0, vmax=1)
@@ -115,7 +115,7 @@ def plot(output: Path, step: float, draws: int) -> None:
                            linewidths=1.0, linestyles=style)
         log.info("block %d, z = %.3f m: %d grid points reachable on the table, %d on the mount",
                  k + 1, z, *counts)
-        empty = " (none on the table)" if not counts[0] else ""
+        empty = "" if any(counts) else ": none (wrist_flex limit)"
         level_handles.append(plt.Line2D([], [], color=color, label=f"block {k + 1} centre, "
                                         f"z = {z * 1e3:.0f} mm above the table{empty}"))
     base = ik.PAN_AXIS_POINT  # the shoulder_pan axis
@@ -136,7 +136,8 @@ def plot(output: Path, step: float, draws: int) -> None:
     ax.grid(True, linewidth=0.3, alpha=0.5)
     ax.set_title("SO-101: where a cube can be picked from above\n"
                  f"cube centre z = {HEIGHT * 1e3:.0f} mm, top-down approach, "
-                 "joint limits respected; outlines: the course's stacking heights",
+                 "joint limits respected\noutlines: the course's stacking heights "
+                 "(assignment 8), top-down",
                  fontsize=10)
     ax.legend(handles=[
         Patch(color="#9fd89f", label="reachable, wrist_roll free (IK grid)"),
@@ -146,7 +147,7 @@ def plot(output: Path, step: float, draws: int) -> None:
         *level_handles,
         plt.Line2D([], [], color="0.3", ls="--", label=f"the same on the lab's "
                    f"{LAB_BASE_HEIGHT * 1e3:.0f} mm mount"),
-    ], loc="lower left", fontsize=7, framealpha=0.9)
+    ], loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=2, fontsize=7, framealpha=0.9)
     fig.tight_layout()
     output.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(output)
