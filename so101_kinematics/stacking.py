@@ -13,10 +13,12 @@ Heights. Block ``k`` (0 = the bottom one) of the stack has its centre at
 ``base_height`` below the base frame (the lab's arms stand on a 15 mm mount).
 With the model's 26 mm cubes on the table (``base_height`` 0) that is
 0.013, 0.039, 0.065 and 0.091 m; the course quotes 0.014, 0.043, 0.071 and
-0.100 m (``COURSE_BLOCK_HEIGHTS``, a pitch of about 28.7 mm: its blocks and
-gaps as measured in the lab, not the 26 mm cube of its simulation). The
-model's wrist_flex limit (95 deg) ends top-down grasps at about z = 0.08 m, so
-three blocks stack on the table, four on the 15 mm mount.
+0.100 m (``COURSE_BLOCK_HEIGHTS``: a pitch of about 28.7 mm, where the model's
+cube gives 26 mm). The model's wrist_flex limit (95 deg) ends top-down grasps
+at about z = 0.08 m in the base frame, so three blocks stack on the table and
+four on the 15 mm mount. From the third block on, the approach to a block
+comes in higher than ``cartesian_plan``'s 5 cm, so that the open jaws pass
+over the stack on their way from the last depart.
 
 Default starts (:data:`DEFAULT_STARTS`, in this order, skipping any closer
 than ``CLEARANCE`` to the stack or to a block already chosen): the course's
@@ -36,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from so101_kinematics.cartesian_plan import (
+    APPROACH_HEIGHT,
     CUBE_YAW_RANGE,
     DEFAULT_LIFT_HEIGHT,
     cartesian_plan,
@@ -62,9 +65,9 @@ BASE_HEIGHT_RANGE = (0.0, 0.05)
 LAB_BASE_HEIGHT = 0.015
 """The lab's mount [m]: its arms' base frame is this far above the table."""
 
-CLEARANCE = 0.060
+CLEARANCE = 0.080
 """Least horizontal distance between two blocks' starts, or a start and the stack [m]:
-two cube edges apart, and room for the open jaws (about 35 mm wide) beside a cube."""
+room for the gripper (about 50 mm wide) coming down beside a stack of four."""
 
 DEFAULT_STARTS = ((0.230, 0.190), (0.229, -0.191), (0.150, 0.220), (0.150, -0.220),
                   (0.280, 0.000), (0.140, 0.000))
@@ -172,6 +175,7 @@ def check_stack_reach(stack_xy: Sequence[float], blocks: int, base_height: float
 REST_GRIPPER_LENGTH = 0.10  # [m] from the rest pose's object frame back towards the base
 REST_GRIPPER_HALF_WIDTH = 0.035  # [m]
 REST_GRIPPER_BELOW = 0.020  # [m] the jaws' lowest point below the rest pose's object frame
+JAW_MARGIN = 0.010  # [m] the open jaws' tips pass this far over the stack's top
 
 
 def check_rest_pose_clear(stack_xy: Sequence[float], blocks: int,
@@ -268,6 +272,7 @@ def stack_plan(
             part = cartesian_plan(pick, place, cube_yaw_deg=yaw, place_yaw_deg=stack_yaw,
                                   lift_height=lift_height, move_duration=move_duration,
                                   hold_duration=hold_duration,
+                                  approach_height=_approach_height(index),
                                   min_height=min_target_height(base_height))
         except UnreachableError as error:
             raise PlanError(f"Block {index + 1} (start ({sx:g}, {sy:g}) m, stack level "
@@ -280,6 +285,17 @@ def stack_plan(
         result.blocks.append(Block(pick, float(yaw), place))
     result.plan.steps.append(_clear_step(result, lift_height, move_duration))
     return result
+
+
+def _approach_height(level: int) -> float:
+    """How high above a block's pick the approach comes in [m], with ``level`` blocks stacked.
+
+    ``cartesian_plan``'s 5 cm, or higher: the open jaws (their tips
+    ``REST_GRIPPER_BELOW`` under the object frame) pass ``JAW_MARGIN`` over the
+    stack's top on the way from the last depart, even from a start near it.
+    """
+    stack_top_over_pick = level * CUBE_SIZE - CUBE_HALF_SIZE
+    return max(APPROACH_HEIGHT, stack_top_over_pick + REST_GRIPPER_BELOW + JAW_MARGIN)
 
 
 def _clear_step(stack: StackPlan, lift_height: float, move_duration: float) -> Step:

@@ -19,7 +19,7 @@ import pick_place_sim
 from so101_kinematics.motion import PlanError
 from so101_kinematics.sim.cube import build_model
 from so101_kinematics.sim.stack import run_stack, stack_report
-from so101_kinematics.stacking import CLEARANCE, block_height, default_starts, stack_plan
+from so101_kinematics.stacking import block_height, default_starts, stack_plan
 
 STACK = (0.15, 0.10)  # [m] a stack to the side of the arm's rest pose, well inside the reach
 
@@ -85,9 +85,18 @@ def test_starts_too_close_are_refused_and_defaults_keep_clear():
         stack_plan(STACK, 2, [(0.22, -0.12), (0.16, 0.13)])
     starts = default_starts((0.23, 0.17), 3)  # next to the first default start: it is skipped
     assert (0.230, 0.190) not in starts and len(starts) == 3
-    for i, a in enumerate(starts):
-        assert math.dist(a, (0.23, 0.17)) >= CLEARANCE
-        assert all(math.dist(a, b) >= CLEARANCE for b in starts[i + 1:])
+    for i, a in enumerate(starts):  # two cube edges and the open jaws between any two
+        assert math.dist(a, (0.23, 0.17)) >= 0.06
+        assert all(math.dist(a, b) >= 0.06 for b in starts[i + 1:])
+
+
+@pytest.mark.parametrize("where", [(0.25, 0.10), (0.20, -0.15), (0.12, -0.16), (0.28, -0.04)])
+def test_two_blocks_stack_across_the_workspace(where):
+    report = run_stack(stack_plan(where, 2), progress=False)
+    finals = np.array(report.blocks_final_position_m)
+    assert np.linalg.norm(finals[0, :2] - where) <= 0.005
+    assert np.linalg.norm(finals[1, :2] - finals[0, :2]) <= 0.005
+    assert finals[1, 2] == pytest.approx(0.039, abs=0.003) and report.success
 
 
 def test_report_measures_offsets_lean_and_tilt():
