@@ -275,8 +275,8 @@ def stack_plan(
                                   approach_height=_approach_height(index),
                                   min_height=min_target_height(base_height))
         except UnreachableError as error:
-            raise PlanError(f"Block {index + 1} (start ({sx:g}, {sy:g}) m, stack level "
-                            f"z = {place[2]:.3f} m): {error}") from None
+            raise PlanError(f"--stack {x:g} {y:g}, block {index + 1} (start ({sx:g}, {sy:g}) "
+                            f"m, stack level z = {place[2]:.3f} m): {error}") from None
         if stack_yaw is None:  # the blocks above turn as the bottom one: a square stack
             stack_yaw = _grasp_yaw(part.configurations()["final_open"])
         result.plan.steps += [Step(f"block{index + 1}_{step.name}", step.configuration,
