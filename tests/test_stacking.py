@@ -172,3 +172,16 @@ def test_pick_and_place_on_a_lower_table_with_ik_targets_below_the_base(capsys):
     assert pick_place_sim.main(where) == 2
     assert pick_place_sim.main([*where, "--base-height", "0.015"]) == 0
     assert "Cube final position:  (0.229" in capsys.readouterr().out
+
+
+def test_the_virtual_arm_shell_lists_every_cube_on_one_line():
+    from so101_kinematics.cube_sensor import CubeReading
+    from so101_kinematics.virtual import shell
+
+    class TwoCubes:
+        def cube(self, index=0):
+            return [CubeReading((0.15, 0.1, 0.013), 0.5, False),
+                    CubeReading((0.15, 0.1, 0.039), 1.0, True)][index] if index < 2 else None
+
+    assert shell.COMMANDS["cube"].handler(TwoCubes(), []) == (
+        "cube 0.1500 0.1000 0.0130 tilt 0.5 free | cube_2 0.1500 0.1000 0.0390 tilt 1.0 held")
