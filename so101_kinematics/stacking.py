@@ -142,8 +142,9 @@ def _grasp_yaw(cfg) -> float:
     return math.degrees(math.atan2(rotation[1, 0], rotation[0, 0]))
 
 
-def _top_down(position, yaw_deg, base_height, initial=None):
-    return get_inverse_kinematics(position, approach="down", yaw_deg=yaw_deg, initial=initial,
+def _top_down(position, yaw_deg, base_height):
+    """A top-down grasp at ``position`` [m] over a table ``base_height`` [m] below the base."""
+    return get_inverse_kinematics(position, approach="down", yaw_deg=yaw_deg,
                                   min_height=min_target_height(base_height))
 
 
