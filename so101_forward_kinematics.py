@@ -10,9 +10,15 @@ Frames: ``w`` is the world (the base, origin on the table, z up), ``1`` to
 ``5`` are the bodies moved by shoulder_pan, shoulder_lift, elbow_flex,
 wrist_flex and wrist_roll (each joint turns about its frame's local z axis),
 and ``t`` is the object (tool) frame: the centre of a 26 mm cube held between
-the jaws, z along the approach direction, x along the jaw-closing direction
-(site ``object_frame`` in ``model/so101.xml``). The gripper joint moves only
-the moving jaw, so it does not enter the object pose.
+the jaws, with frame 5's axes (site ``object_frame`` in ``model/so101.xml``):
+z from the fingertips towards the wrist, x from the fixed jaw towards the
+moving one. At a top-down grasp it is ``Rz(yaw)``, z up, as the course's
+inverse kinematics assignment draws it, with ``yaw = wrist_roll -
+shoulder_pan + GRIPPER_MOUNT_TILT_DEG``: the model's gripper mount is turned
+-2.79 deg about the roll axis (the course's diagram has it square), so
+``wrist_roll = shoulder_pan`` gives ``Rz(-2.79 deg)``, not quite the
+identity. The gripper joint moves only the moving jaw, so it does not enter
+the object pose.
 
 Each ``get_gxx`` is a fixed displacement and rotation taken from the
 upstream SO-101 model (``so101_new_calib``; the numbers are in
@@ -29,8 +35,10 @@ Example (the course's test configuration)::
     ...     "wrist_flex": 90.0, "wrist_roll": 0.0})
     >>> position.round(4)  # [m]; the cube centre, 13 mm above the table
     array([0.2301, 0.1903, 0.013 ])
-    >>> rotation[:, 2].round(6) + 0.0  # the approach axis points straight down
-    array([ 0.,  0., -1.])
+    >>> rotation.round(4) + 0.0  # Rz(42.21 deg): yaw = wrist_roll - shoulder_pan - 2.79 deg
+    array([[ 0.7407, -0.6719,  0.    ],
+           [ 0.6719,  0.7407,  0.    ],
+           [ 0.    ,  0.    ,  1.    ]])
 """
 
 from __future__ import annotations

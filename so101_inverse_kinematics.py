@@ -1,16 +1,27 @@
 """Inverse kinematics of the SO-101 arm for the object frame of the FK module.
 
 The SO-101 has five arm joints, so a full 6-D pose of the object frame ``t``
-(the centre of a held 26 mm cube, z = approach, x = jaw closing; see
-``so101_forward_kinematics``) is reachable only on a 5-D subset. This module
-solves the three useful cases:
+(the centre of a held 26 mm cube; at a top-down grasp ``Rz(yaw)``, z up, as
+the course draws it; see ``so101_forward_kinematics``) is reachable only on a
+5-D subset. :func:`get_inverse_kinematics` takes the course's call shapes:
 
-- ``approach="down"``: position plus a top-down approach (tool z pointing
-  straight down) and the cube's yaw about the vertical;
-- ``approach="pitch"``: position plus the approach's pitch below the
-  horizontal (90 deg is top-down);
-- ``approach=None``: position only; the wrist keeps its roll and the approach
-  stays as close to the reference pitch as reach and limits allow.
+- ``get_inverse_kinematics(position)``: a top-down grasp at yaw 0;
+- ``get_inverse_kinematics(position, orientation)``: a 3x3 rotation,
+  ``np.eye(3)`` for a top-down grasp at yaw 0, ``Rz(yaw)`` for another yaw (a
+  tilted orientation only where the five joints can take it);
+- ``get_inverse_kinematics(position, yaw, pitch)``: radians, as the course
+  passes them; pitch is the approach's tilt from the vertical (0 top-down);
+
+and the package's keywords (degrees): ``approach="down"`` with ``yaw_deg``
+(the cube's yaw, any of its four grasps), ``approach="pitch"`` with
+``pitch_deg`` (below the horizontal, 90 top-down), ``approach=None``
+(position only: the wrist keeps its roll, the pitch stays near the
+reference's), plus ``initial``, ``gripper`` and ``min_height``.
+
+At a top-down grasp the frame's yaw is ``wrist_roll - shoulder_pan +
+GRIPPER_MOUNT_TILT_DEG``: the course's ``wrist_roll = shoulder_pan`` for yaw 0
+is right up to the gripper mount's -2.79 deg tilt, which this IK includes
+(``wrist_roll = shoulder_pan + 2.79 deg``).
 
 Closed form, derived from the exact model numbers of ``so101_kinematics/frames.py``.
 Shoulder_lift, elbow_flex and wrist_flex turn about parallel horizontal
@@ -25,8 +36,8 @@ sideways from the pan axis:
   horizontal distance of the target from the pan axis; the mirrored
   solution ``pi - asin(L / r) - azimuth`` reaches backwards over the base;
 - the approach pitch below the horizontal is ``psi = shoulder_lift +
-  elbow_flex + wrist_flex``; with ``psi = 90 deg`` the cube's yaw in the world
-  is ``180 deg - shoulder_pan + alpha`` (and repeats every 90 deg);
+  elbow_flex + wrist_flex``; with ``psi = 90 deg`` the frame's yaw is
+  ``alpha - shoulder_pan`` (a cube repeats every 90 deg);
 - in the arm's plane the object frame is the wrist_flex axis plus
   ``0.0611 + 0.1075`` m along the approach and ``-(0.0051 cos(alpha) +
   0.000218 sin(alpha))`` m across it; the wrist_flex axis is reached by two
@@ -40,7 +51,7 @@ normally off by ~1e-16) it is refined by damped least squares on the
 analytic Jacobian (:func:`get_jacobian`), which also finishes position-only
 targets the closed-form search misses. The solver lives in
 ``so101_kinematics/ik/`` (geometry, the closed-form search, refinement, the
-entry point); this file is what the course's scripts import.
+course's call shapes); this file is what the course's scripts import.
 
 Angles are degrees at this module's boundary (configuration dicts, as the
 course's), radians inside. Example (the course's starting position)::
@@ -56,7 +67,12 @@ from __future__ import annotations
 
 from so101_kinematics.constants import CUBE_HALF_SIZE  # noqa: F401 - the course's names
 from so101_kinematics.errors import UnreachableError  # noqa: F401
-from so101_kinematics.frames import JOINT_LIMITS, JOINT_RANGES_RAD  # noqa: F401
+from so101_kinematics.frames import (  # noqa: F401
+    GRIPPER_MOUNT_TILT_DEG,
+    JOINT_LIMITS,
+    JOINT_RANGES_RAD,
+)
+from so101_kinematics.ik.course import get_inverse_kinematics  # noqa: F401
 from so101_kinematics.ik.geometry import (  # noqa: F401
     GRIPPER_OPEN,
     MIN_HEIGHT,
@@ -67,8 +83,4 @@ from so101_kinematics.ik.geometry import (  # noqa: F401
     SOLVE_TOL,
     get_jacobian,
 )
-from so101_kinematics.ik.solver import (  # noqa: F401
-    as_position,
-    get_inverse_kinematics,
-    sample_top_down_targets,
-)
+from so101_kinematics.ik.solver import as_position, sample_top_down_targets  # noqa: F401

@@ -2,7 +2,9 @@
 
 Load the scene, set the arm's pose, command it, and move it as the course
 does: ``move_to_pose(m, d, viewer, cfg, duration)`` and
-``hold_position(m, d, viewer, duration)``, with arm joints in [deg] and the
+``hold_position(m, d, viewer, duration)`` (assignment 6) or
+``hold_position(m, d, viewer, cfg, duration)`` (assignment 7: command ``cfg``,
+then hold), with arm joints in [deg] and the
 gripper in [0, 100] (0 closed, 100 open). The machinery lives in the
 package: ``so101_kinematics/sim/scene.py`` (loading, units, poses, commands)
 and ``so101_kinematics/sim/stepping.py`` (the timed moves, the viewer).
@@ -21,7 +23,7 @@ Example (the course's test pose, headless)::
 from __future__ import annotations
 
 from so101_kinematics.display import has_display  # noqa: F401 - the scripts' display check
-from so101_kinematics.errors import ViewerClosed  # noqa: F401
+from so101_kinematics.errors import CallShapeError, ViewerClosed  # noqa: F401
 from so101_kinematics.frames import GRIPPER_RANGE, JOINTS, TOOL_SITE  # noqa: F401
 from so101_kinematics.sim.scene import (  # noqa: F401 - the course's names
     MODEL_DIR,
@@ -42,6 +44,7 @@ from so101_kinematics.sim.scene import (  # noqa: F401 - the course's names
 )
 from so101_kinematics.sim.stepping import (  # noqa: F401
     COMMAND_BLOCK_STEPS,
+    HOLD_SHAPES,
     VIEWER_SYNC_PERIOD,
     hold_position,
     move_to_pose,

@@ -16,9 +16,10 @@ def bench_ik(quick: bool) -> dict:
     n = 300 if quick else 1000
     targets = [(tuple(p), float(y)) for p, y in zip(positions[:n], yaws[:n], strict=True)]
     calls = {
-        "ik_solve_us": lambda t: ik.get_inverse_kinematics(t[0], "down", t[1]),
-        "ik_solve_free_yaw_us": lambda t: ik.get_inverse_kinematics(t[0], "down", None),
-        "ik_solve_position_only_us": lambda t: ik.get_inverse_kinematics(t[0], None),
+        "ik_solve_us": lambda t: ik.get_inverse_kinematics(t[0], approach="down", yaw_deg=t[1]),
+        "ik_solve_free_yaw_us":
+            lambda t: ik.get_inverse_kinematics(t[0], approach="down", yaw_deg=None),
+        "ik_solve_position_only_us": lambda t: ik.get_inverse_kinematics(t[0], approach=None),
     }
     out = {}
     for key, call in calls.items():
@@ -36,7 +37,7 @@ def bench_ik(quick: bool) -> dict:
     solved = 0
     for position, yaw in zip(positions, yaws, strict=True):
         try:
-            ik.get_inverse_kinematics(position, "down", float(yaw))
+            ik.get_inverse_kinematics(position, approach="down", yaw_deg=float(yaw))
             solved += 1
         except ik.UnreachableError:
             pass

@@ -8,7 +8,7 @@ the list). The repository is copied to a temporary folder once; each mutant is
 applied to the copy, its tests run with a timeout, and the copy restored. Your
 worktree is never modified.
 
-Not part of CI (about 5 minutes on 2 busy cores: 37 mutants, a baseline run
+Not part of CI (about 5 minutes on 2 busy cores: 41 mutants, a baseline run
 first). Run it after changing tests or the code they guard (see README, "Development")::
 
     python scripts/mutation_check.py                 # every mutant
@@ -82,6 +82,28 @@ MUTANTS: list[Mutant] = [
       FRAMES, None, '("z", GRIPPER_MOUNT_TILT_DEG)))', '("z", 0.0)))', T_FK),
     m("object_frame_2mm", "the object frame moved 2 mm along x of frame 5",
       FRAMES, None, '"5t": ((0.0051,', '"5t": ((0.0071,', T_FK),
+    m("object_frame_half_turned", "the object frame half a turn about y (z down, before the "
+      "course's IK assignment redrew it)", FRAMES, None, '-0.1075), ()),',
+      '-0.1075), (("y", 180.0),)),', T_FK, "tests/test_ik_course_shapes.py",
+      more=(Edit("so101_kinematics/fast_fk.py", "_closed_form_assumptions", '"5t": np.eye(3),',
+                 '"5t": Ry(180.0),'),
+            Edit("so101_kinematics/fast_fk.py", None, "    Rx,\n", "    Rx,\n    Ry,\n"))),
+    m("ik_course_yaw_any_grasp", "the course's IK shapes take any of the cube's grasps, not "
+      "the asked frame", "so101_kinematics/ik/course.py", "get_inverse_kinematics",
+      'return solve_keywords(position, "down", 0.0, initial=initial, gripper=gripper,\n'
+      '                                  min_height=min_height, exact_yaw=True)',
+      'return solve_keywords(position, "down", 0.0, initial=initial, gripper=gripper,\n'
+      '                                  min_height=min_height, exact_yaw=False)',
+      "tests/test_ik_course_shapes.py",
+      more=(Edit("so101_kinematics/ik/course.py", "_solve_rotation",
+                 'return solve_keywords(position, "down", yaw, exact_yaw=True, **solve)',
+                 'return solve_keywords(position, "down", yaw, exact_yaw=False, **solve)'),)),
+    m("ik_tilted_yaw_uncorrected", "a tilted orientation solved once, its yaw never corrected",
+      "so101_kinematics/ik/course.py", "_solve_rotation", "        yaw += turn", "        break",
+      "tests/test_ik_course_shapes.py"),
+    m("hold_ignores_cfg", "hold_position(m, d, viewer, cfg, duration) holds the old command",
+      "so101_kinematics/sim/stepping.py", "hold_position", "d.ctrl[act] = angles[name]", "pass",
+      "tests/test_mujoco_utils.py", "tests/test_ik_demo.py"),
     m("degrees_off_5", "one joint's degree conversion off by 5 deg (elbow_flex)",
       SCENE, "to_radians", "else math.radians(value)",
       'else math.radians(value + (5.0 if name == "elbow_flex" else 0.0))',

@@ -18,8 +18,9 @@ import numpy as np
 from so101_kinematics.cli import number, range_help
 from so101_kinematics.errors import UnreachableError
 from so101_kinematics.fast_fk import forward_kinematics
+from so101_kinematics.ik.course import get_inverse_kinematics
 from so101_kinematics.ik.geometry import GRIPPER_OPEN, MIN_HEIGHT, POSITION_LIMIT
-from so101_kinematics.ik.solver import as_position, get_inverse_kinematics
+from so101_kinematics.ik.solver import as_position
 from so101_kinematics.motion import Plan, PlanError, check_number
 from so101_kinematics.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION, pick_and_place_plan
 
@@ -45,9 +46,10 @@ PRE_GRASP_SLIDE = 0.012
 """Offset of pre_grasp and retreat from the grasps along the jaw axis, towards the fixed jaw [m]."""
 
 def _jaw_axis_and_yaw(cfg: Mapping[str, float]) -> tuple[np.ndarray, float]:
-    """Jaw-closing axis (tool x, toward the fixed jaw's side) and the cube yaw [deg] of a grasp."""
+    """Jaw-closing axis (the tool's -x: towards the fixed jaw) and its yaw [deg] at a grasp."""
     _, rotation = forward_kinematics(cfg)
-    return rotation[:, 0], math.degrees(math.atan2(rotation[1, 0], rotation[0, 0]))
+    axis = -rotation[:, 0]
+    return axis, math.degrees(math.atan2(axis[1], axis[0]))
 
 
 def cartesian_plan(
@@ -132,13 +134,13 @@ def cartesian_plan(
     def solve(name, target, yaw, initial, top_down_only=True):
         try:
             try:
-                return get_inverse_kinematics(target, "down", yaw, initial=initial,
+                return get_inverse_kinematics(target, approach="down", yaw_deg=yaw, initial=initial,
                                               gripper=GRIPPER_OPEN, min_height=min_height)
             except UnreachableError:
                 if top_down_only:
                     raise
-                return get_inverse_kinematics(target, None, initial=initial, gripper=GRIPPER_OPEN,
-                                              min_height=min_height)
+                return get_inverse_kinematics(target, approach=None, initial=initial,
+                                              gripper=GRIPPER_OPEN, min_height=min_height)
         except UnreachableError as error:
             raise UnreachableError(f"Waypoint '{name}': {error}", error.reason, error.distance,
                                    error.joint) from None

@@ -33,6 +33,15 @@ class PlanError(InputError):
     """A plan (waypoints, durations, options) is malformed or cannot be run."""
 
 
+class CallShapeError(PlanError, TypeError):
+    """A course function was called with its arguments in a shape it does not accept.
+
+    The message names the shapes it does accept (e.g. ``hold_position(m, d, viewer,
+    duration)`` or ``hold_position(m, d, viewer, cfg, duration)``). Also a ``TypeError``,
+    what Python raises for a call with the wrong arguments.
+    """
+
+
 class JointLimitError(PlanError):
     """A configuration is outside the joint limits (the model's or the arm's calibration)."""
 
@@ -41,10 +50,11 @@ class UnreachableError(PlanError):
     """No configuration within the joint limits puts the object frame at the target.
 
     Attributes:
-        reason: "below_table", "too_far", "too_close", "joint_limit" or
-            "no_convergence".
+        reason: "below_table", "too_far", "too_close", "joint_limit",
+            "no_convergence" or "orientation".
         distance: how far off the target is: [m] for the reach reasons, [deg]
-            beyond the limit for "joint_limit".
+            beyond the limit for "joint_limit", [deg] from the asked
+            orientation for "orientation".
         joint: the joint at its limit for "joint_limit", else None.
     """
 

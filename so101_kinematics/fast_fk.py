@@ -39,10 +39,10 @@ from so101_kinematics.frames import (
 #      fixed rotations of g23 and g34 are Rz(+90) and Rz(-90), so
 #      Rz(th2) Rz(90) Rz(th3) Rz(-90) Rz(th4) = Rz(phi), phi = th2 + th3 + th4.
 #   2. the other fixed rotations are signed permutations:
-#      R_w1 = diag(-1, 1, -1), R_12 = P (rows e_y, e_z, e_x), R_5t = diag(-1, 1, -1),
+#      R_w1 = diag(-1, 1, -1), R_12 = P (rows e_y, e_z, e_x), R_5t = I,
 #      and R_45 = D Rz(tilt) with D = Rz(180) Rx(90); the tilt adds to wrist_roll:
 #      psi = th5 + GRIPPER_MOUNT_TILT_DEG.
-# Then R_wt = diag(-1, 1, -1) Rz(th1) P Rz(phi) D Rz(psi) diag(-1, 1, -1), whose
+# Then R_wt = diag(-1, 1, -1) Rz(th1) P Rz(phi) D Rz(psi), whose
 # entries are the short products written out in get_forward_kinematics, and
 #   p_wt = p_w1 + diag(-1, 1, -1) Rz(th1) (p_12 + P r), with
 #   r = Rz(th2) p_23 + Rz(th2 + th3 + 90) p_34 + Rz(phi) (p_45 + D Rz(psi) p_5t).
@@ -67,7 +67,7 @@ def _closed_form_assumptions() -> None:
         "23": Rz(90.0),
         "34": Rz(-90.0),
         "45": Rz(180.0) @ Rx(90.0) @ Rz(_TILT_DEG),
-        "5t": flip,
+        "5t": np.eye(3),
     }
     for name, rotation in expected.items():
         if not np.allclose(FIXED_ROTATION[name], rotation, rtol=0.0, atol=1e-15):
@@ -120,9 +120,9 @@ def forward_kinematics(position_dict: Mapping[str, float]) -> tuple[np.ndarray, 
     position = np.array((_P_W1[0] - c1 * h_0 + s1 * h_1,
                          _P_W1[1] + s1 * h_0 + c1 * h_1,
                          _P_W1[2] - _P_12[2] - r_x))
-    rotation = np.array(((-c1 * spc5 - s1 * s5, s1 * c5 - c1 * sps5, c1 * cp),
-                         (s1 * spc5 - c1 * s5, s1 * sps5 + c1 * c5, -s1 * cp),
-                         (-cp * c5, -cp * s5, -sp)))
+    rotation = np.array(((c1 * spc5 + s1 * s5, s1 * c5 - c1 * sps5, -c1 * cp),
+                         (c1 * s5 - s1 * spc5, s1 * sps5 + c1 * c5, s1 * cp),
+                         (cp * c5, -cp * s5, sp)))
     return position, rotation
 
 
@@ -273,23 +273,21 @@ def forward_kinematics_batch(angles_deg, chunk: int = 8192) -> tuple[np.ndarray,
         mul(sp, s5, out=y)
         mul(c1, x, out=tmp)
         mul(s1, s5, out=w)
-        w += tmp
-        neg(w, out=R[:, 0, 0])
+        add(w, tmp, out=R[:, 0, 0])
         mul(s1, c5, out=tmp)
         mul(c1, y, out=w)
         sub(tmp, w, out=R[:, 0, 1])
-        mul(c1, cp, out=R[:, 0, 2])
+        mul(c1, cp, out=tmp)
+        neg(tmp, out=R[:, 0, 2])
         mul(s1, x, out=tmp)
         mul(c1, s5, out=w)
-        sub(tmp, w, out=R[:, 1, 0])
+        sub(w, tmp, out=R[:, 1, 0])
         mul(s1, y, out=tmp)
         mul(c1, c5, out=w)
         add(tmp, w, out=R[:, 1, 1])
-        mul(s1, cp, out=tmp)
-        neg(tmp, out=R[:, 1, 2])
-        mul(cp, c5, out=tmp)
-        neg(tmp, out=R[:, 2, 0])
+        mul(s1, cp, out=R[:, 1, 2])
+        mul(cp, c5, out=R[:, 2, 0])
         mul(cp, s5, out=tmp)
         neg(tmp, out=R[:, 2, 1])
-        neg(sp, out=R[:, 2, 2])
+        R[:, 2, 2] = sp
     return positions, rotations

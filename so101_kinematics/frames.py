@@ -81,8 +81,9 @@ FIXED_TRANSFORMS = {
     "23": ((-0.11257, -0.028, 0.0), (("z", 90.0),)),
     "34": ((-0.1349, 0.0052, 0.0), (("z", -90.0),)),
     "45": ((0.0, -0.0611, 0.0181), (("z", 180.0), ("x", 90.0), ("z", GRIPPER_MOUNT_TILT_DEG))),
-    # Tool: centre of the held cube (derivation in model/so101.xml), 180 deg about y.
-    "5t": ((0.0051, -0.000218, -0.1075), (("y", 180.0),)),
+    # Tool: centre of the held cube (derivation in model/so101.xml), axes those of
+    # frame 5: at a top-down grasp z points up and the frame is Rz(yaw) (the course's).
+    "5t": ((0.0051, -0.000218, -0.1075), ()),
 }
 
 

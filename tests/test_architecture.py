@@ -9,8 +9,8 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parent.parent / "so101_kinematics"
 COURSE_FILES = {"so101_forward_kinematics", "so101_mujoco_utils", "so101_inverse_kinematics",
-                "test_fk_mujoco", "pick_place_sim", "pick_place_hw", "read_position",
-                "virtual_so101"}
+                "test_fk_mujoco", "test_ik_mujoco", "pick_place_sim", "pick_place_hw",
+                "read_position", "virtual_so101"}
 MAY_IMPORT = {
     "core": {"core", "ik"},
     "ik": {"core", "ik"},

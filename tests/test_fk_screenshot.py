@@ -53,7 +53,7 @@ def test_cylinder_is_drawn_where_fk_puts_the_object(model, screenshot):
     position, rotation = get_forward_kinematics(script.TEST_CONFIGURATION)
     size = script.SCREENSHOT_SIZE
     # The centre and a point up the axis (toward the wrist; the part below the table is hidden).
-    for point in (position, position - 0.03 * rotation[:, 2]):
+    for point in (position, position + 0.03 * rotation[:, 2]):
         column, row = project(model, script.SCREENSHOT_CAMERA, size, point)
         assert red_fraction(screenshot, column, row) > 0.9, (point, column, row)
 
@@ -62,7 +62,7 @@ def test_a_wrong_pose_would_not_pass(model, screenshot):
     size = script.SCREENSHOT_SIZE
     position, rotation = get_forward_kinematics(script.TEST_CONFIGURATION)
     # 6 cm sideways (across the view) of the object, beyond the 2.45 cm radius ...
-    aside = position + 0.06 * rotation[:, 0] - 0.02 * rotation[:, 2]
+    aside = position + 0.06 * rotation[:, 0] + 0.02 * rotation[:, 2]
     # ... and the object of a configuration 10 deg off in shoulder_pan.
     wrong, _ = get_forward_kinematics(dict(script.TEST_CONFIGURATION, shoulder_pan=-30.0))
     for point in (aside, wrong):

@@ -199,8 +199,19 @@ def test_gripper_mount_tilt_is_the_upstream_quaternion(model):
 def test_starting_configuration_holds_the_cube_just_above_the_table(model):
     position, rotation = fk.get_forward_kinematics(STARTING_CONFIGURATION)
     assert 0.010 <= position[2] <= 0.025, f"object height {position[2]:.4f} m"
-    # Approach straight down: the object z axis is -z of the world ...
-    np.testing.assert_allclose(rotation[:, 2], [0.0, 0.0, -1.0], atol=1e-12)
+    # Top-down grasp in the course's convention: the object frame is Rz(yaw), z up, with
+    # yaw = wrist_roll - shoulder_pan + the gripper mount's tilt (upstream quaternion).
+    np.testing.assert_allclose(rotation[:, 2], [0.0, 0.0, 1.0], atol=1e-12)
+    tilt = math.degrees(2.0 * math.atan2(-0.0172091, 0.706897))
+    yaw = math.radians(STARTING_CONFIGURATION["wrist_roll"]
+                       - STARTING_CONFIGURATION["shoulder_pan"] + tilt)
+    c, s = math.cos(yaw), math.sin(yaw)
+    np.testing.assert_allclose(rotation, [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]], atol=1e-12)
+    # The acceptance: within 3 deg of Rz(roll - pan), the course's diagram (no tilt).
+    course = math.radians(STARTING_CONFIGURATION["wrist_roll"]
+                          - STARTING_CONFIGURATION["shoulder_pan"])
+    off = math.degrees(abs(math.atan2(rotation[1, 0], rotation[0, 0]) - course))
+    assert 2.7 < off < 3.0
     # ... and so is the gripper body's (wrist_roll) axis: the gripper is vertical.
     g_w5 = fk.get_frame_chain(STARTING_CONFIGURATION)["5"]
     assert abs(abs(g_w5[2, 2]) - 1.0) < 1e-12
@@ -220,7 +231,7 @@ def posed(model):
     return data, angles
 
 
-def test_object_z_axis_is_the_approach_direction_wrist_to_fingertips(model, posed):
+def test_object_z_axis_points_from_the_fingertips_to_the_wrist(model, posed):
     data, angles = posed
     for a in angles:
         set_arm(model, data, a)
@@ -229,12 +240,12 @@ def test_object_z_axis_is_the_approach_direction_wrist_to_fingertips(model, pose
         # Parallel to the wrist_roll axis (the gripper's long axis) ...
         roll_axis = data.joint("wrist_roll").xaxis
         assert abs(abs(z @ roll_axis) - 1.0) < 1e-9
-        # ... and pointing from the wrist toward the fixed jaw's tip.
-        toward_tip = data.site("gripperframe").xpos - data.body("wrist").xpos
-        assert z @ toward_tip / np.linalg.norm(toward_tip) > 0.9
+        # ... and pointing from the fixed jaw's tip back toward the wrist (up when top-down).
+        toward_wrist = data.body("wrist").xpos - data.site("gripperframe").xpos
+        assert z @ toward_wrist / np.linalg.norm(toward_wrist) > 0.9
 
 
-def test_object_x_axis_is_the_moving_jaws_closing_direction(model, posed):
+def test_object_x_axis_points_from_the_fixed_jaw_to_the_moving_one(model, posed):
     data, angles = posed
     lower, upper = model.joint("gripper").range
     adr = model.joint("gripper").qposadr[0]
@@ -243,7 +254,7 @@ def test_object_x_axis_is_the_moving_jaws_closing_direction(model, posed):
         position, rotation = fk.get_forward_kinematics(as_dict(a))
         x = rotation[:, 0]
         # Close the jaw from fully open to fully closed: the pad moves in the x-z plane of the
-        # object frame, always toward +x, and near the grasp (the last 30 %) along x.
+        # object frame, always toward -x (the fixed jaw), near the grasp (the last 30 %) along x.
         previous = None
         for percent in np.linspace(100.0, 0.0, 11):
             data.qpos[adr] = lower + (upper - lower) * percent / 100.0
@@ -251,15 +262,15 @@ def test_object_x_axis_is_the_moving_jaws_closing_direction(model, posed):
             current = data.geom_xpos[pad].copy()
             if previous is not None:
                 step = (current - previous) / np.linalg.norm(current - previous)
-                assert step @ x > 0.0
+                assert step @ x < 0.0
                 assert abs(step @ rotation[:, 1]) < 1e-9
                 if percent < 30.0:
-                    assert step @ x > 0.9, f"closing at {percent:.0f} % is not along x"
+                    assert step @ x < -0.9, f"closing at {percent:.0f} % is not along -x"
             previous = current
-        # The fixed jaw's pad face holds the cube's far side: half a cube along +x.
+        # The fixed jaw's pad face holds the cube's near side: half a cube along -x.
         fixed = model.geom("fixed_jaw_pad")
         centre = data.geom_xpos[fixed.id]
-        inner_face = (centre - position) @ x - fixed.size[0]
+        inner_face = (position - centre) @ x - fixed.size[0]
         assert inner_face == pytest.approx(0.013, abs=1e-4)
 
 

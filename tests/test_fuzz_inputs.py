@@ -346,7 +346,8 @@ def test_fk_then_position_ik_round_trips(cfg):
 def test_ik_gives_a_configuration_or_a_project_error(call):
     position, approach, yaw, pitch, gripper = call
     try:
-        cfg = ik.get_inverse_kinematics(position, approach, yaw, pitch, gripper=gripper)
+        cfg = ik.get_inverse_kinematics(position, approach=approach, yaw_deg=yaw, pitch_deg=pitch,
+                                        gripper=gripper)
     except (fk.KinematicsInputError, PlanError) as error:  # PlanError: UnreachableError
         event(type(error).__name__)
         assert "\n" not in str(error)
@@ -378,3 +379,73 @@ def test_batch_fk_gives_poses_or_a_project_error(angles, chunk):
         for row, position in zip(angles, positions, strict=True):
             single, _ = fk.get_forward_kinematics(dict(zip(ARM_JOINTS, row, strict=True)))
             np.testing.assert_allclose(position, single, atol=1e-13)
+
+
+# --- hold_position's call shapes ---------------------------------------------------------
+hold_arguments = st.lists(st.one_of(valid_configuration, any_configuration,
+                                    st.floats(0.0, 0.05), nasty_values), max_size=3)
+
+
+@settings(FUZZ, max_examples=200)
+@given(args=hold_arguments)
+def test_hold_position_holds_or_names_the_shapes(model, args):
+    import mujoco
+
+    import so101_mujoco_utils as utils
+
+    d = mujoco.MjData(model)
+    try:
+        utils.hold_position(model, d, None, *args)
+    except PlanError as error:
+        event(type(error).__name__)
+        assert "\n" not in str(error) and "Fix:" in str(error), str(error)
+        assert d.time == 0.0  # refused before any step
+    else:
+        event("held")
+        assert 1 <= len(args) <= 2 and not isinstance(args[-1], dict)
+        assert d.time == pytest.approx(float(args[-1]), abs=model.opt.timestep)
+
+
+# --- test_ik_mujoco.py -------------------------------------------------------------------
+ik_option_values = {
+    "--targets": st.lists(number_text, min_size=1, max_size=1),
+    "--seed": st.lists(number_text, min_size=1, max_size=1),
+    "--target": st.one_of(st.lists(number_text, min_size=2, max_size=3),
+                          st.tuples(st.floats(-0.4, 0.4), st.floats(-0.4, 0.4),
+                                    st.floats(-400, 400)).map(lambda t: [repr(v) for v in t])),
+    "--move-duration": st.lists(number_text, min_size=1, max_size=1),
+    "--hold": st.lists(number_text, min_size=1, max_size=1),
+    "--json": st.sampled_from([["OUT/report.json"], ["OUT"], ["OUT/v.mp4"], ["OUT/a\0b"]]),
+    "--record": st.sampled_from([["OUT/v.mp4"], ["OUT/v.avi"], ["OUT"]]),
+    "--bogus": st.just([]),
+}
+ik_arguments = st.lists(
+    st.sampled_from(sorted(ik_option_values)).flatmap(
+        lambda option: ik_option_values[option].map(lambda values: [option, *values])),
+    max_size=4).map(lambda groups: [token for group in groups for token in group])
+
+
+@settings(FUZZ, max_examples=150)
+@given(argv=ik_arguments)
+def test_ik_script_command_lines_run_or_name_the_problem(argv):
+    import test_ik_mujoco
+
+    def fake_scene(mode, video, *, total_time, progress, show_ui):
+        # Reached only with checked outputs and durations, and reachable targets.
+        assert mode in ("headless", "record") and (video is None or video.suffix == ".mp4")
+        assert 0.0 <= total_time <= 100 * 2 * MAX_DURATION
+        raise Ran
+
+    with tempfile.TemporaryDirectory() as folder:
+        argv = ["--headless", "--no-progress"] + [token.replace("OUT", f"{folder}/out")
+                                                  for token in argv]
+        with mock.patch.object(test_ik_mujoco, "open_scene", fake_scene):
+            try:
+                code, _, err = run_main(test_ik_mujoco.main, argv)
+            except Ran:
+                event("ran")
+            else:
+                event(f"exit {code}")
+                if code != 0:
+                    check_refusal(code, err, argv)
+        assert not (Path(folder) / "out" / "report.json").exists()

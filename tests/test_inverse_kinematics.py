@@ -18,7 +18,7 @@ from so101_kinematics.errors import PlanError
 
 POSITION_TOL = 1e-6   # [m], the issue's acceptance
 ANGLE_TOL = 1e-6      # [rad]
-DOWN = np.array([0.0, 0.0, -1.0])
+UP = np.array([0.0, 0.0, 1.0])  # the object frame's z at a top-down grasp (the course's)
 
 
 def cfg_from(angles_deg) -> dict[str, float]:
@@ -36,8 +36,8 @@ def yaw_error(rotation, yaw_deg: float) -> float:
     return abs((delta + math.pi / 4) % (math.pi / 2) - math.pi / 4)
 
 
-def tilt(rotation, wanted=DOWN) -> float:
-    """Angle [rad] between the approach axis and ``wanted``."""
+def tilt(rotation, wanted=UP) -> float:
+    """Angle [rad] between the object frame's z axis and ``wanted``."""
     z_t = rotation[:, 2]
     return math.atan2(np.linalg.norm(np.cross(z_t, wanted)), float(z_t @ wanted))
 
@@ -68,7 +68,7 @@ def test_joint_limits_are_the_models(model):
 def test_solving_does_not_import_mujoco():
     code = ("import sys; import so101_inverse_kinematics as ik; "
             "ik.get_inverse_kinematics((0.25, 0.0, 0.013)); "
-            "ik.get_inverse_kinematics((0.25, 0.0, 0.1), None); "
+            "ik.get_inverse_kinematics((0.25, 0.0, 0.1), approach=None); "
             "assert 'mujoco' not in sys.modules, 'mujoco was imported'")
     subprocess.run([sys.executable, "-c", code], cwd=REPO, check=True)
 
@@ -79,7 +79,7 @@ def test_solving_does_not_import_mujoco():
 def test_assignment_configurations_come_back(configuration):
     position, rotation = get_forward_kinematics(configuration)
     for yaw in (None, math.degrees(yaw_of(rotation))):
-        cfg = ik.get_inverse_kinematics(position, "down", yaw)
+        cfg = ik.get_inverse_kinematics(position, approach="down", yaw_deg=yaw)
         for joint in ARM_JOINTS:
             assert cfg[joint] == pytest.approx(configuration[joint], abs=1e-9), joint
     assert cfg["gripper"] == ik.GRIPPER_OPEN
@@ -97,7 +97,7 @@ def test_closed_form_is_exact_without_refinement(monkeypatch):
     _, positions, yaws = ik.sample_top_down_targets(3000, seed=11)
     assert len(positions) > 100
     for position, yaw in zip(positions[:200], yaws[:200], strict=True):
-        cfg = ik.get_inverse_kinematics(position, "down", float(yaw))
+        cfg = ik.get_inverse_kinematics(position, approach="down", yaw_deg=float(yaw))
         got, rotation = get_forward_kinematics(cfg)
         assert np.abs(got - position).max() < 1e-12
         assert tilt(rotation) < 1e-12
@@ -119,7 +119,7 @@ def test_top_down_round_trip_over_the_table(height):
     for point in table_grid(height):
         yaw = float(rng.uniform(-180.0, 180.0))
         try:
-            cfg = ik.get_inverse_kinematics(point, "down", yaw)
+            cfg = ik.get_inverse_kinematics(point, approach="down", yaw_deg=yaw)
         except ik.UnreachableError:
             # On the table, the course's working area (the ring below) is all reachable.
             assert height > ik.CUBE_HALF_SIZE or not in_working_ring(point), point
@@ -150,7 +150,7 @@ def test_a_ring_around_the_base_is_reachable_top_down():
         radius, azimuth = rng.uniform(0.14, 0.26), math.radians(rng.uniform(-100.0, 100.0))
         point = (*(centre + radius * np.array([math.cos(azimuth), math.sin(azimuth)])),
                  ik.CUBE_HALF_SIZE)
-        cfg = ik.get_inverse_kinematics(point, "down", yaw_deg=None)
+        cfg = ik.get_inverse_kinematics(point, approach="down", yaw_deg=None)
         position, rotation = get_forward_kinematics(cfg)
         assert np.abs(position - point).max() < POSITION_TOL
         assert tilt(rotation) < ANGLE_TOL
@@ -162,7 +162,8 @@ def test_every_reachable_top_down_target_is_solved():
     assert len(positions) > 400
     for angle, position, yaw in zip(angles, positions, yaws, strict=True):
         for wanted_yaw in (float(yaw), None):
-            cfg = ik.get_inverse_kinematics(position, "down", wanted_yaw, initial=None)
+            cfg = ik.get_inverse_kinematics(position, approach="down", yaw_deg=wanted_yaw,
+                                            initial=None)
             assert_in_limits(cfg)
             got, rotation = get_forward_kinematics(cfg)
             assert np.abs(got - position).max() < POSITION_TOL, angle
@@ -194,7 +195,8 @@ def test_every_reachable_pitched_target_is_solved():
         heading = np.array([math.cos(math.radians(angles[0])), -math.sin(math.radians(angles[0]))])
         pitch = arm_pitch if heading @ (position[:2] - centre) >= 0.0 else 180.0 - arm_pitch
         pitch = (pitch + 180.0) % 360.0 - 180.0  # the same approach, within ANGLE_RANGE_DEG
-        solved = ik.get_inverse_kinematics(position, "pitch", None, pitch_deg=pitch)
+        solved = ik.get_inverse_kinematics(position, approach="pitch", yaw_deg=None,
+                                           pitch_deg=pitch)
         assert_in_limits(solved)
         got, got_rotation = get_forward_kinematics(solved)
         assert np.abs(got - position).max() < POSITION_TOL, angles
@@ -205,8 +207,8 @@ def test_every_reachable_pitched_target_is_solved():
 def test_pitch_90_is_the_top_down_grasp():
     point = (0.25, -0.05, 0.03)
     for yaw in (None, 30.0):
-        down = ik.get_inverse_kinematics(point, "down", yaw)
-        pitched = ik.get_inverse_kinematics(point, "pitch", yaw, pitch_deg=90.0)
+        down = ik.get_inverse_kinematics(point, approach="down", yaw_deg=yaw)
+        pitched = ik.get_inverse_kinematics(point, approach="pitch", yaw_deg=yaw, pitch_deg=90.0)
         assert down == pytest.approx(pitched, abs=1e-9)
 
 
@@ -217,13 +219,14 @@ def test_initial_picks_the_nearest_solution():
     for lift, elbow, wrist in ((55.0, -60.0, 80.0), (70.0, -88.0, 93.0)):
         hint = {"shoulder_pan": 0.0, "shoulder_lift": lift, "elbow_flex": elbow,
                 "wrist_flex": wrist, "wrist_roll": 0.0, "gripper": 20.0}
-        cfg = ik.get_inverse_kinematics(point, "pitch", None, pitch_deg=75.0, initial=hint)
+        cfg = ik.get_inverse_kinematics(point, approach="pitch", yaw_deg=None, pitch_deg=75.0,
+                                        initial=hint)
         assert cfg["shoulder_lift"] == pytest.approx(lift, abs=1.0)
         assert cfg["elbow_flex"] == pytest.approx(elbow, abs=1.0)
         assert cfg["gripper"] == 20.0
         got, rotation = get_forward_kinematics(cfg)
         assert np.abs(got - point).max() < POSITION_TOL
-        assert rotation[2, 2] == pytest.approx(-math.sin(math.radians(75.0)), abs=ANGLE_TOL)
+        assert rotation[2, 2] == pytest.approx(math.sin(math.radians(75.0)), abs=ANGLE_TOL)
         lifts.append(cfg["shoulder_lift"])
     assert lifts[1] - lifts[0] > 10.0
 
@@ -263,7 +266,7 @@ def test_too_close_to_the_pan_axis():
     # the rolls a cube yaw of 45 deg asks for (about 3.6 mm off the axis).
     point = (PAN_AXIS_XY[0] + 1e-4, PAN_AXIS_XY[1], 0.25)
     with pytest.raises(ik.UnreachableError, match="too close to the shoulder_pan axis") as error:
-        ik.get_inverse_kinematics(point, "down", 45.0)
+        ik.get_inverse_kinematics(point, approach="down", yaw_deg=45.0)
     assert error.value.reason == "too_close"
     assert error.value.distance == pytest.approx(0.0035, abs=0.0005)
 

@@ -154,3 +154,83 @@ def test_headless_runs_are_deterministic(model):
         utils.move_to_pose(model, data, None, dict(START, shoulder_pan=30.0), 0.4)
         finals.append(data.qpos.copy())
     np.testing.assert_array_equal(finals[0], finals[1])
+
+
+# --- hold_position: the course's two call shapes --------------------------------------------
+
+
+def test_hold_position_with_a_configuration_commands_it_then_holds(model, data):
+    """Assignment 7's shape: hold_position(m, d, viewer, cfg, duration)."""
+    utils.set_initial_pose(data, START)
+    goal = dict(START, shoulder_pan=-30.0, elbow_flex=-40.0, gripper=30.0)
+    utils.hold_position(model, data, None, goal, 1.5)
+    assert data.time == pytest.approx(1.5, abs=model.opt.timestep)
+    command, measured = utils.get_command(model, data), utils.get_configuration(model, data)
+    for joint in JOINTS:
+        assert command[joint] == pytest.approx(goal[joint], abs=1e-9)
+    for joint in ARM_JOINTS:  # the servos got there: 5 deg and 15 deg steps, 1.5 s to settle
+        assert measured[joint] == pytest.approx(goal[joint], abs=1.0)
+
+
+def test_hold_position_without_a_configuration_keeps_the_command(model, data):
+    """Assignment 6's shape: hold_position(m, d, viewer, duration); keywords work too."""
+    utils.set_initial_pose(data, START)
+    utils.send_position_command(data, {"shoulder_pan": -40.0})
+    utils.hold_position(model, data, None, 0.5)
+    utils.hold_position(model, data, None, duration=0.5)
+    assert data.time == pytest.approx(1.0, abs=model.opt.timestep)
+    assert utils.get_command(model, data)["shoulder_pan"] == pytest.approx(-40.0, abs=1e-9)
+    assert utils.get_configuration(model, data)["shoulder_pan"] == pytest.approx(-40.0, abs=1.0)
+
+
+def test_hold_position_shapes_give_the_same_physics(model):
+    """cfg then duration = send_position_command(cfg) then hold(duration), step for step."""
+    goal = dict(START, wrist_flex=60.0)
+    finals = []
+    for call in (lambda m, d: utils.hold_position(m, d, None, goal, 0.6),
+                 lambda m, d: utils.hold_position(m, d, None, cfg=goal, duration=0.6),
+                 lambda m, d: (utils.send_position_command(d, goal),
+                               utils.hold_position(m, d, None, 0.6))):
+        data = mujoco.MjData(model)
+        utils.set_initial_pose(data, START)
+        call(model, data)
+        finals.append(data.qpos.copy())
+    np.testing.assert_array_equal(finals[0], finals[1])
+    np.testing.assert_array_equal(finals[0], finals[2])
+
+
+@pytest.mark.parametrize("args, kwargs, message", [
+    ((START, START), {}, r"got a configuration \(.*\) where the duration \[s\] belongs"),
+    ((2.0, START), {}, r"got the duration \(2\) before the configuration"),
+    ((START, 2.0, 3.0), {}, r"takes at most 5 arguments, got 6"),
+    ((START,), {}, r"needs a duration \[s\] after the configuration"),
+    ((), {}, r"needs a duration \[s\] \(how long"),
+    (([0.0] * 6, 2.0), {}, r"configuration must be a dict .*got \[0\.0, 0\.0"),
+    ((2.0,), {"duration": 2.0}, "got duration both by position and by keyword"),
+])
+def test_hold_position_refuses_other_shapes_naming_both(model, data, args, kwargs, message):
+    utils.set_initial_pose(data, START)
+    with pytest.raises(utils.CallShapeError, match=message) as caught:
+        utils.hold_position(model, data, None, *args, **kwargs)
+    text = str(caught.value)
+    assert "\n" not in text
+    if "before the configuration" not in text:
+        assert utils.HOLD_SHAPES in text
+    assert isinstance(caught.value, PlanError) and isinstance(caught.value, TypeError)
+    assert data.time == 0.0  # nothing ran
+
+
+@pytest.mark.parametrize("viewer", [2.0, START])
+def test_hold_position_names_a_missing_viewer(model, data, viewer):
+    with pytest.raises(utils.CallShapeError, match="third argument is the viewer"):
+        utils.hold_position(model, data, viewer, 2.0)
+
+
+def test_hold_position_checks_its_configuration_before_any_step(model, data):
+    utils.set_initial_pose(data, START)
+    with pytest.raises(JointLimitError, match="hold_position configuration: elbow_flex = 500"):
+        utils.hold_position(model, data, None, dict(START, elbow_flex=500.0), 1.0)
+    with pytest.raises(PlanError, match="unknown joint 'elbow'"):
+        utils.hold_position(model, data, None, {"elbow": 0.0}, 1.0)
+    assert data.time == 0.0
+    assert utils.get_command(model, data) == pytest.approx(START)

@@ -135,7 +135,7 @@ def test_fk_viewer_shows_the_cylinder_in_the_gripper_and_exits_cleanly(display, 
     position, rotation = get_forward_kinematics(fk_script.TEST_CONFIGURATION)
     red = is_red(image)
     # The cylinder's upper half (its lower half is under the table) where the FK pose projects ...
-    for point in (position - 0.02 * rotation[:, 2], position - 0.04 * rotation[:, 2]):
+    for point in (position + 0.02 * rotation[:, 2], position + 0.04 * rotation[:, 2]):
         assert share_around(red, *project(model, "pick_place", size, point)) > 0.9, point
     # ... and not at the other cube position (shoulder_pan +45 deg instead of -45 deg).
     other, _ = get_forward_kinematics(dict(fk_script.TEST_CONFIGURATION, shoulder_pan=45.0))
@@ -195,3 +195,37 @@ def test_fk_script_without_display_or_mujoco_gl_falls_back_to_the_screenshot(tmp
                             capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert "running headless" in result.stderr and shot.stat().st_size > 0
+
+
+def is_translucent_red(image: np.ndarray) -> np.ndarray:
+    """The IK test's target cube: red at 20 % over the grey table (not the arm's yellow)."""
+    pixels = image[..., :3].astype(int)
+    r, g, b = pixels[..., 0], pixels[..., 1], pixels[..., 2]
+    return (r - g > 25) & (np.abs(g - b) < 25)
+
+
+@pytest.mark.slow
+def test_ik_viewer_shows_the_last_target_cube_and_exits_when_closed(display, model):
+    first, last = (0.2, -0.15), (0.2, 0.15)  # [m], apart: the arm at the last hides not the first
+    process = start(display, "--target", *map(str, first), "0", "--target", *map(str, last),
+                    "30", "--move-duration", "0.5", "--hold", "0.5",
+                    script=REPO / "test_ik_mujoco.py")
+    window = display.find_window(WINDOW_NAME)
+    wait_for_picture(display, window)
+    deadline = time.monotonic() + 90
+    for line in process.stderr:  # the targets run in real time, then the window waits
+        if "close the viewer window" in line or time.monotonic() > deadline:
+            break
+    time.sleep(0.5)
+    image = display.geometry(window).crop(display.screenshot())
+    display.close_window(window)
+    code, output = finish(process)
+    assert code == 0, output
+    assert "2 of 2 targets reached" in output
+    size = (image.shape[1], image.shape[0])
+    red = is_translucent_red(image)
+    # The last cube, between the jaws holding it; the first one is gone (the cube is replaced).
+    at_last = project(model, "pick_place", size, (*last, 0.014))
+    at_first = project(model, "pick_place", size, (*first, 0.014))
+    assert share_around(red, *at_last, half=12) > 0.5  # 1.0 measured
+    assert share_around(red, *at_first, half=12) < 0.05  # 0.0 measured

@@ -5,6 +5,11 @@ imported in a separate, time-bounded process (:mod:`.sandbox`, :mod:`.probe`), i
 factors and its FK are compared with this package (:mod:`.compare`), known mistakes are
 named (:mod:`.diagnose`), and the result is written for the student, as JSON, as
 Gradescope's ``results.json`` or as one CSV row per student (:mod:`.report`).
+
+``so101-check-ik PATH`` (or ``python -m so101_kinematics.checker.ik PATH``) is its
+sibling for a student's ``so101_inverse_kinematics.py``: the same sandbox, FK(IK(p))
+at reachable targets with this package's FK (:mod:`.ik`, :mod:`.ik_targets`,
+:mod:`.ik_compare`).
 """
 
 from so101_kinematics.checker.cli import check_file, main

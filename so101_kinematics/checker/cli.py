@@ -34,17 +34,9 @@ def check_file(path: str | Path, tolerance=(1.0, 1.0), timeout: float = sandbox.
         A JSON-ready dict: file, student, verdict ("pass", "fail", "error"), reason,
         tests (see :func:`compare.compare_all`), note, the module's output, seconds.
     """
-    path = Path(path)
-    check = {"file": str(path), "student": path.resolve().parent.name, "verdict": "error",
-             "reason": "", "tests": [], "note": "", "output": "", "output_size": 0,
-             "seconds": 0.0, "tolerance": list(tolerance)}
-    if not path.is_file():
-        check["reason"] = f"no such file {path}" if not path.exists() else f"{path} is a folder"
+    check, run = run_check(path, compare.build_request(count), tolerance, timeout)
+    if run is None:
         return check
-    run = sandbox.run_probe(path, compare.build_request(count), timeout)
-    check["seconds"] = run.seconds
-    check["output"] = run.results.get("output", "")
-    check["output_size"] = run.results.get("output_size", 0)
     if run.status in ("import_error", "timeout") or not run.results.get("names"):
         check["reason"] = run.reason or "the module could not be imported"
         return check
@@ -55,6 +47,79 @@ def check_file(path: str | Path, tolerance=(1.0, 1.0), timeout: float = sandbox.
     passed = all(t["status"] in report.PASSING for t in check["tests"])
     check["verdict"] = "pass" if passed and run.status == "ok" else "fail"
     return check
+
+
+def run_check(path: str | Path, request: dict, tolerance, timeout: float):
+    """Run the probe on one file: ``(check, run)``, ``run`` None when there is no file.
+
+    ``check`` is the JSON-ready dict both checkers fill in: file, student (the folder's
+    name), verdict ("error" until judged), reason, tests, note, the module's output,
+    seconds, tolerance.
+    """
+    path = Path(path)
+    check = {"file": str(path), "student": path.resolve().parent.name, "verdict": "error",
+             "reason": "", "tests": [], "note": "", "output": "", "output_size": 0,
+             "seconds": 0.0, "tolerance": list(tolerance)}
+    if not path.is_file():
+        check["reason"] = f"no such file {path}" if not path.exists() else f"{path} is a folder"
+        return check, None
+    run = sandbox.run_probe(path, request, timeout)
+    check["seconds"] = run.seconds
+    check["output"] = run.results.get("output", "")
+    check["output_size"] = run.results.get("output_size", 0)
+    return check, run
+
+
+def add_tolerance_options(parser: ArgumentParser) -> None:
+    """``--tolerance-mm``, ``--tolerance-deg``, ``--timeout``: shared by both checkers."""
+    parser.add_argument("--tolerance-mm", type=number(0, 1000, "mm", low_open=True), default=1.0,
+                        help=f"position tolerance, {range_help(0, 1000, 'mm', True)} (1)")
+    parser.add_argument("--tolerance-deg", type=number(0, 180, "deg", low_open=True),
+                        default=1.0, help=f"rotation tolerance, {range_help(0, 180, 'deg', True)}")
+    parser.add_argument("--timeout", type=number(0.5, 600, "s"), default=sandbox.DEFAULT_TIMEOUT_S,
+                        help=f"time per file, {range_help(0.5, 600, 's')} (10)")
+
+
+def add_class_options(parser: ArgumentParser) -> None:
+    """``--jobs`` and ``--quiet``: shared by both checkers."""
+    parser.add_argument("--jobs", type=number(1, 256, integer=True), default=os.cpu_count() or 1,
+                        help="files checked at once (the number of cores)")
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="one line per file, even for a single file")
+
+
+def check_outputs(args, options: tuple[str, ...], prog: str) -> dict | None:
+    """The output paths asked for, checked before anything runs; None after a one-line error."""
+    outputs = {}
+    try:
+        for option in options:
+            if getattr(args, option):
+                outputs[option] = check_output_path(getattr(args, option), f"--{option}",
+                                                    inputs=args.files)
+    except OutputPathError as error:
+        print(f"{prog}: error: {error}", file=sys.stderr)
+        return None
+    return outputs
+
+
+def run_and_print(files, check, text_report, jobs: int, quiet: bool) -> list[dict]:
+    """Check ``files`` ``jobs`` at a time; print one report, or one line per file."""
+    with ThreadPoolExecutor(max_workers=min(jobs, len(files))) as pool:
+        checks = list(pool.map(check, files))
+    for one in checks:
+        if len(checks) == 1 and not quiet:
+            print(text_report(one))
+        else:
+            print(text_report(one).splitlines()[-1].replace("Verdict", f"{one['file']}", 1)
+                  + (f" {one['reason']}" if one["reason"] else ""))
+    return checks
+
+
+def exit_status(checks: list[dict]) -> int:
+    """The worst of the files: 2 if one was not checked, 1 if one is outside the tolerance."""
+    verdicts = {check["verdict"] for check in checks}
+    return EXIT_UNCHECKED if "error" in verdicts else EXIT_OUTSIDE if "fail" in verdicts \
+        else EXIT_PASS
 
 
 def _points(items: list[str]) -> dict[str, float]:
@@ -79,12 +144,7 @@ def build_parser() -> ArgumentParser:
         "factor is wrong, by how much, and why."))
     parser.add_argument("files", nargs="+", type=Path, metavar="FILE",
                         help="one or more so101_forward_kinematics.py files")
-    parser.add_argument("--tolerance-mm", type=number(0, 1000, "mm", low_open=True), default=1.0,
-                        help=f"position tolerance, {range_help(0, 1000, 'mm', True)} (1)")
-    parser.add_argument("--tolerance-deg", type=number(0, 180, "deg", low_open=True),
-                        default=1.0, help=f"rotation tolerance, {range_help(0, 180, 'deg', True)}")
-    parser.add_argument("--timeout", type=number(0.5, 600, "s"), default=sandbox.DEFAULT_TIMEOUT_S,
-                        help=f"time per file, {range_help(0.5, 600, 's')} (10)")
+    add_tolerance_options(parser)
     parser.add_argument("--random", type=number(1, 100000, integer=True),
                         default=compare.RANDOM_COUNT, help="random configurations (1000)")
     parser.add_argument("--json", type=Path, help="write the full comparison (JSON)")
@@ -95,10 +155,7 @@ def build_parser() -> ArgumentParser:
                         help="points of a test, e.g. get_forward_kinematics=40 (repeatable; "
                         "defaults: " + ", ".join(f"{k}={v:g}" for k, v in
                                                  report.DEFAULT_POINTS.items()) + ")")
-    parser.add_argument("--jobs", type=number(1, 256, integer=True), default=os.cpu_count() or 1,
-                        help="files checked at once (the number of cores)")
-    parser.add_argument("-q", "--quiet", action="store_true",
-                        help="one line per file, even for a single file")
+    add_class_options(parser)
     return parser
 
 
@@ -113,26 +170,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.gradescope and len(args.files) > 1:
         parser.error("--gradescope writes one submission's results.json; got "
                      f"{len(args.files)} files. Fix: run once per submission, or use --csv")
-    outputs = {}
-    try:
-        for option in ("json", "gradescope", "csv"):
-            if getattr(args, option):
-                outputs[option] = check_output_path(getattr(args, option), f"--{option}",
-                                                    inputs=args.files)
-    except OutputPathError as error:
-        print(f"so101-check-fk: error: {error}", file=sys.stderr)
+    outputs = check_outputs(args, ("json", "gradescope", "csv"), "so101-check-fk")
+    if outputs is None:
         return EXIT_BAD_INPUT
     tolerance = (args.tolerance_mm, args.tolerance_deg)
-    with ThreadPoolExecutor(max_workers=min(args.jobs, len(args.files))) as pool:
-        checks = list(pool.map(lambda f: check_file(f, tolerance, args.timeout, args.random),
-                               args.files))
-    for check in checks:
-        if len(checks) == 1 and not args.quiet:
-            print(report.text_report(check, points))
-        else:
-            print(report.text_report(check, points).splitlines()[-1].replace(
-                "Verdict", f"{check['file']}", 1) + (f" {check['reason']}" if check["reason"]
-                                                     else ""))
+    checks = run_and_print(
+        args.files, lambda path: check_file(path, tolerance, args.timeout, args.random),
+        lambda check: report.text_report(check, points), args.jobs, args.quiet)
     if "json" in outputs:
         write_text_atomic(outputs["json"], report.json_report(checks))
     if "gradescope" in outputs:
@@ -142,6 +186,4 @@ def main(argv: list[str] | None = None) -> int:
                           json.dumps(report.gradescope_results(checks[0], points), indent=1))
     if "csv" in outputs:
         write_text_atomic(outputs["csv"], report.csv_report(checks, points))
-    verdicts = {check["verdict"] for check in checks}
-    return EXIT_UNCHECKED if "error" in verdicts else EXIT_OUTSIDE if "fail" in verdicts \
-        else EXIT_PASS
+    return exit_status(checks)

@@ -278,8 +278,8 @@ def tool_convention(matrix: np.ndarray) -> dict:
         turn, turn_ok = "the axes are this package's", True
     elif abs(angle - 180.0) <= MATCH_DEG and principal:
         turn, turn_ok = (f"the axes differ by a half turn {axis_text} of the tool frame: a "
-                         "different object-frame convention (this package: z along the "
-                         "approach, x along the jaw's closing direction)"), True
+                         "different object-frame convention (this package, as the course's "
+                         "IK assignment draws it: z up at a top-down grasp, Rz(yaw))"), True
     elif abs(angle - 90.0) <= MATCH_DEG and principal:
         turn, turn_ok = f"the axes differ by a quarter turn {axis_text}: another convention", True
     else:

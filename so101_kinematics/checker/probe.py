@@ -1,12 +1,18 @@
-"""Runs in a child process: imports one student's FK module and calls its functions.
+"""Runs in a child process: imports one student's FK or IK module and calls its functions.
 
 Started by :mod:`so101_kinematics.checker.sandbox` as ``python -I -B probe.py
 REQUEST RESULT`` in a temporary working folder. It uses only the standard
 library and numpy (never ``so101_kinematics``), so the student's module is
 the only code of interest in this process. The student's prints are kept up
-to ``OUTPUT_LIMIT`` characters; the results are rewritten after each function,
-so a submission that hangs in ``get_forward_kinematics`` still has its factors
-checked. The current stage is written to ``RESULT.stage`` for the time-out message.
+to ``OUTPUT_LIMIT`` characters; the results are rewritten after each function
+(for an IK, every ``IK_SAVE_EVERY`` targets), so a submission that hangs in
+``get_forward_kinematics`` still has its factors checked. The current stage is
+written to ``RESULT.stage`` for the time-out message.
+
+The student's folder comes first on ``sys.path`` (an IK imports its own
+``so101_forward_kinematics`` from beside it); the request's ``fallback_modules``
+are written to a folder at the end of ``sys.path``, found only when the
+student's folder has no module of that name.
 """
 
 from __future__ import annotations
@@ -26,6 +32,9 @@ FILE_SIZE_LIMIT = 32 * 1024 * 1024
 """Largest file this process may write [bytes] (a module printing without end)."""
 
 FACTORS = ("get_gw1", "get_g12", "get_g23", "get_g34", "get_g45")
+
+IK_SAVE_EVERY = 25
+"""IK targets between two writes of the results (a hang keeps the answers before it)."""
 
 
 class BoundedOutput(io.TextIOBase):
@@ -135,10 +144,17 @@ def main() -> None:
 
     save("import")
     sys.path.insert(0, os.path.dirname(MODULE_PATH))
+    fallback = os.path.join(os.path.dirname(result_path), "fallback")
+    os.makedirs(fallback, exist_ok=True)
+    for name, source in request.get("fallback_modules", {}).items():
+        with open(os.path.join(fallback, name + ".py"), "w", encoding="utf-8") as handle:
+            handle.write(source)
+    sys.path.append(fallback)
     sys.stdout = sys.stderr = captured
-    spec = importlib.util.spec_from_file_location("so101_forward_kinematics", MODULE_PATH)
+    module_name = request.get("module_name", "so101_forward_kinematics")
+    spec = importlib.util.spec_from_file_location(module_name, MODULE_PATH)
     module = importlib.util.module_from_spec(spec)
-    sys.modules["so101_forward_kinematics"] = module
+    sys.modules[module_name] = module
     try:
         spec.loader.exec_module(module)
     except BaseException as error:
@@ -147,6 +163,15 @@ def main() -> None:
         return
     results["names"] = sorted(name for name in dir(module)
                               if not name.startswith("__") and callable(getattr(module, name)))
+    if request.get("kind") == "ik":
+        probe_ik(module, request, results, save, fallback)
+    else:
+        probe_fk(module, request, results, save)
+    save("done")
+
+
+def probe_fk(module, request: dict, results: dict, save) -> None:
+    """Call the FK's factors and ``get_forward_kinematics`` as the request asks."""
     for name in FACTORS:
         save(f"calling {name}", keep=False)
         function = getattr(module, name, None)
@@ -174,7 +199,53 @@ def main() -> None:
                     if callable(function) else {"error": "missing"}
             products.append(row)
         results["products"] = products
-    save("done")
+
+
+def _rotation_z(yaw: float):
+    """Rz(yaw) as the course builds it (a numpy array) [rad]."""
+    import numpy as np
+
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def config_result(value) -> dict:
+    """An IK's return value as JSON: ``{"value": {joint: number}}`` or what it was instead."""
+    if isinstance(value, dict) and set(value) == {"error"}:
+        return value
+    if not isinstance(value, dict):
+        numbers, shape = as_matrix(value)
+        return {"error": f"returns a {type(value).__name__}" + (
+            f" of shape {tuple(shape)}" if numbers is not None else "") + "; expected a dict"}
+    config, odd = {}, []
+    for key, number in value.items():
+        try:
+            config[str(key)] = float(number)
+        except Exception:  # a value that is not a number
+            odd.append(str(key))
+    return {"value": config, **({"not_numbers": odd} if odd else {})}
+
+
+def probe_ik(module, request: dict, results: dict, save, fallback: str) -> None:
+    """Call ``get_inverse_kinematics(position, Rz(yaw))`` at each target, then the own FK."""
+    ik = getattr(module, "get_inverse_kinematics", None)
+    fk_module = sys.modules.get("so101_forward_kinematics")
+    fk_file = getattr(fk_module, "__file__", None) or ""
+    results["fk_module"] = ("" if fk_module is None else "fallback"
+                            if os.path.dirname(os.path.abspath(fk_file)) == fallback else fk_file)
+    if not callable(ik):
+        return
+    answers = results["functions"]["get_inverse_kinematics"] = []
+    for index, (x, y, z, yaw) in enumerate(request["targets"]):
+        save(f"calling get_inverse_kinematics at target {index} ({x:.3f}, {y:.3f}, {z:.3f}) m, "
+             f"yaw {yaw:.3f} rad", keep=index % IK_SAVE_EVERY == 0)
+        answers.append(config_result(call(ik, [x, y, z], _rotation_z(yaw))))
+    own_fk = getattr(fk_module, "get_forward_kinematics", None)
+    if callable(own_fk) and results["fk_module"] not in ("", "fallback"):
+        save("calling your own get_forward_kinematics on the answers")
+        results["own_fk"] = [
+            fk_result(call(own_fk, dict(answer["value"]))) if "value" in answer else None
+            for answer in answers]
 
 
 MODULE_PATH = ""

@@ -1,4 +1,4 @@
-"""Run a student's FK module in a separate, time-bounded process (see ``probe.py``).
+"""Run a student's FK or IK module in a separate, time-bounded process (see ``probe.py``).
 
 The student's module is never imported by the checker itself: a child Python
 (``-I``: isolated from the caller's environment variables and folder; ``-B``:
@@ -63,8 +63,8 @@ def run_probe(module_path: str | Path, request: dict, timeout: float = DEFAULT_T
     """Import ``module_path`` in a child process and evaluate ``request`` there.
 
     Args:
-        module_path: the student's ``so101_forward_kinematics.py``.
-        request: angles and configurations to evaluate (see ``compare.build_request``).
+        module_path: the student's ``so101_forward_kinematics.py`` (or IK module).
+        request: what to evaluate (see ``compare.build_request``, ``ik_compare.build_request``).
         timeout: limit for the whole child [s].
         python: the interpreter for the child.
 
@@ -72,7 +72,7 @@ def run_probe(module_path: str | Path, request: dict, timeout: float = DEFAULT_T
         A :class:`ProbeRun`.
     """
     module_path = Path(module_path).resolve()
-    with tempfile.TemporaryDirectory(prefix="so101-check-fk-") as folder:
+    with tempfile.TemporaryDirectory(prefix="so101-check-") as folder:
         request_path = Path(folder) / "request.json"
         result_path = Path(folder) / "result.json"
         request_path.write_text(json.dumps({**request, "module": str(module_path)}),

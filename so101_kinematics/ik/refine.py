@@ -38,7 +38,7 @@ def _describe(p, psi) -> str:
 
 
 def _approach_direction(theta1: float, p: tuple, psi: float) -> np.ndarray:
-    """Wanted approach (tool z) direction, unit (3,), for shoulder_pan ``theta1`` [rad]."""
+    """Wanted approach direction (tool -z), unit (3,), for shoulder_pan ``theta1`` [rad]."""
     # The arm's plane points along Rz(-pan) x; the approach's horizontal part
     # points away from the base, flipped when the arm reaches backwards.
     cx, sy = math.cos(theta1), -math.sin(theta1)
@@ -63,7 +63,7 @@ def _task(chain: np.ndarray, p: np.ndarray, psi: float | None, yaw: float | None
     errors = [p - g_wt[:3, 3]]
     rows = [jac[:3]]
     if psi is not None:
-        z_t = g_wt[:3, 2]
+        z_t = -g_wt[:3, 2]  # the approach axis: wrist to fingertips, the tool's -z
         if abs(math.cos(psi)) < 1e-9:
             wanted = np.array([0.0, 0.0, -math.copysign(1.0, math.sin(psi))])
             errors.append(np.cross(z_t, wanted))
@@ -129,7 +129,7 @@ def _check(theta: list[float], p: tuple, psi: float | None, yaw: float | None) -
     x, y, z = position.tolist()
     error = max(abs(x - p[0]), abs(y - p[1]), abs(z - p[2]))
     if psi is not None:
-        (xx, _, zx), (xy, _, zy), (xz, _, zz) = rotation.tolist()
+        (xx, _, zx), (xy, _, zy), (xz, _, zz) = (-rotation).tolist()  # approach = -z
         approach_dir = _approach_direction(theta[_PAN], p, psi)
         ax, ay, az = approach_dir.tolist()
         # Angle between the approach axis and the wanted one (from the cross product).

@@ -93,7 +93,7 @@ def _check_gripper(value) -> float:
                         fix=f"give an opening in [{low:g}, {high:g}] (0 closed, 100 open).")
 
 
-def get_inverse_kinematics(
+def solve_keywords(
     position,
     approach: str | None = "down",
     yaw_deg: float | None = 0.0,
@@ -102,8 +102,12 @@ def get_inverse_kinematics(
     *,
     gripper: float | None = None,
     min_height: float = MIN_HEIGHT,
+    exact_yaw: bool = False,
 ) -> dict[str, float]:
-    """Joint configuration that puts the object frame at ``position``.
+    """Joint configuration that puts the object frame at ``position`` (the keyword form).
+
+    ``so101_inverse_kinematics.get_inverse_kinematics`` takes the course's
+    positional shapes and these keywords, and calls this.
 
     The solutions within the joint limits differ in shoulder_pan (facing the
     target, or reaching back over the base), elbow (up or down), the grasp
@@ -121,6 +125,8 @@ def get_inverse_kinematics(
             of its face normals; the jaws close along one (every 90 deg is the
             same cube). None: any yaw, the wrist_roll nearest the reference's
             first. Ignored when ``approach`` is None.
+            At a top-down grasp the object frame is ``Rz(yaw)`` for one of the
+            four grasps: ``yaw = wrist_roll - shoulder_pan + GRIPPER_MOUNT_TILT_DEG``.
         pitch_deg: approach pitch [deg] for ``approach="pitch"``: 90 is
             top-down, 0 horizontal pointing away from the base; the jaw axis
             is the top-down grasp's for ``yaw_deg``, tilted about the arm's
@@ -132,6 +138,9 @@ def get_inverse_kinematics(
             else ``GRIPPER_OPEN``).
         min_height: lowest accepted target z [m] (default: a cube resting on
             the table, 1 mm of tolerance).
+        exact_yaw: the object frame's yaw itself (``Rz(yaw_deg)`` first, the
+            cube's other three grasps only if it is out of reach); default: the
+            grasp whose wrist_roll is nearest the reference's first.
 
     Returns:
         Configuration: the five arm joints [deg] and ``gripper`` [0, 100].
@@ -177,14 +186,15 @@ def get_inverse_kinematics(
             initial.get("gripper", GRIPPER_OPEN))
     psi = None if approach is None else math.radians(90.0 if approach == "down" else pitch_deg)
     yaw = None if yaw_deg is None or approach is None else math.radians(yaw_deg)
-    theta = _solve(p, psi, yaw, reference)
+    theta = _solve(p, psi, yaw, reference, exact_yaw)
     cfg = {joint: math.degrees(value) for joint, value in zip(ARM_JOINTS, theta, strict=True)}
     cfg["gripper"] = float(gripper)
     return cfg
 
 
-def _solve(p: tuple, psi: float | None, yaw: float | None, reference: list[float]) -> list[float]:
-    """Arm angles [rad] for a checked target (see :func:`get_inverse_kinematics`)."""
+def _solve(p: tuple, psi: float | None, yaw: float | None, reference: list[float],
+           exact_yaw: bool = False) -> list[float]:
+    """Arm angles [rad] for a checked target (see :func:`solve_keywords`)."""
     rel = (p[0] - _C[0], p[1] - _C[1], p[2] - _C[2])
     search = _Search(reference)
     if psi is None:
@@ -202,12 +212,13 @@ def _solve(p: tuple, psi: float | None, yaw: float | None, reference: list[float
             if search.best is not None:
                 break
     else:
-        # Cube yaw = pi - pan + alpha: alpha = (yaw - pi + k pi/2) + pan for the
-        # four grasps k. Try them by how near their roll is to the reference's
-        # (the pan is about -azimuth), stopping at the first that fits.
+        # Object-frame yaw = alpha - pan (alpha = roll + tilt): alpha = (yaw + k pi/2)
+        # + pan for the cube's four grasps k. Try them from the exact yaw (k = 0)
+        # or by how near their roll is to the reference's (the pan is about
+        # -azimuth), stopping at the first that fits.
         azimuth = math.atan2(rel[1], rel[0])
-        base = yaw - math.pi
-        k0 = round((reference[_ROLL] + _TILT + azimuth - base) / _QUARTER)
+        base = yaw
+        k0 = 0 if exact_yaw else round((reference[_ROLL] + _TILT + azimuth - base) / _QUARTER)
         for backwards in (False, True):
             for k in (k0, k0 + 1, k0 - 1, k0 + 2):
                 if search.try_approach(rel, _wrap(base + k * _QUARTER), True, psi, backwards):

@@ -22,7 +22,7 @@ from so101_kinematics.cartesian_plan import (
 from so101_kinematics.constants import CUBE_SIZE
 from so101_kinematics.fast_fk import forward_kinematics as get_forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINT_LIMITS, TOOL_SITE
-from so101_kinematics.ik.solver import get_inverse_kinematics
+from so101_kinematics.ik.course import get_inverse_kinematics
 from so101_kinematics.motion import Plan, PlanError, check_number
 from so101_kinematics.plans import default_plan, pick_and_place_steps
 from so101_kinematics.sim import scene

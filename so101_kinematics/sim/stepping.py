@@ -1,5 +1,10 @@
 """Moving the simulated arm: the course's ``move_to_pose`` and ``hold_position``.
 
+``hold_position`` takes both of the course's shapes: ``(m, d, viewer,
+duration)`` (assignment 6) and ``(m, d, viewer, cfg, duration)`` (assignment 7,
+the configuration before the duration); any other shape is a one-line
+``CallShapeError`` naming both.
+
 Motion is timed on simulation time (``d.time``): a headless run
 (``viewer=None``) is deterministic and runs as fast as the CPU allows; with a
 viewer it is paced to real time and stops with ``ViewerClosed`` when the
@@ -24,9 +29,16 @@ import mujoco
 import numpy as np
 
 from so101_kinematics import display
-from so101_kinematics.errors import ViewerClosed
+from so101_kinematics.checks import check_configuration, describe_value, is_finite_number
+from so101_kinematics.errors import CallShapeError, ViewerClosed
 from so101_kinematics.motion import Trajectory, check_duration
-from so101_kinematics.sim.scene import get_command, joint_table, to_radians, validate
+from so101_kinematics.sim.scene import (
+    get_command,
+    joint_limits,
+    joint_table,
+    to_radians,
+    validate,
+)
 
 VIEWER_SYNC_PERIOD = 1.0 / 60.0  # [s] of simulation time between viewer updates
 # Physics steps whose commands are computed at once (one numpy evaluation of
@@ -145,20 +157,84 @@ def move_to_pose(
     _advance(m, d, viewer, t0 + path.duration, path, t0)
 
 
-def hold_position(m: mujoco.MjModel, d: mujoco.MjData, viewer, duration: float) -> None:
-    """Keep the current command for ``duration`` [s] of simulation time.
+HOLD_SHAPES = ("hold_position(m, d, viewer, duration) (assignment 6) or "
+               "hold_position(m, d, viewer, cfg, duration) (assignment 7)")
+"""The call shapes :func:`hold_position` accepts, as its error messages name them."""
+
+_MISSING = object()  # an argument not given at all (None is a value: a bad duration)
+
+
+def _hold_arguments(args: tuple, cfg, duration) -> tuple[Mapping[str, float] | None, object]:
+    """(cfg or None, duration) from either course shape; :class:`CallShapeError` for the rest."""
+    fix = f"Fix: call {HOLD_SHAPES}."
+    if len(args) > 2:
+        raise CallShapeError(f"hold_position takes at most 5 arguments, got {3 + len(args)} "
+                             f"(m, d, viewer and {describe_value(list(args))}). {fix}")
+    names = ("cfg", "duration") if len(args) == 2 else (
+        ("cfg",) if args and isinstance(args[0], Mapping) else ("duration",) if args else ())
+    keywords = {"cfg": cfg, "duration": duration}
+    for name, value in zip(names, args, strict=True):
+        if keywords[name] is not _MISSING:
+            raise CallShapeError(f"hold_position got {name} both by position and by keyword. "
+                                 f"{fix}")
+        keywords[name] = value
+    cfg, duration = keywords["cfg"], keywords["duration"]
+    if isinstance(duration, Mapping):
+        if cfg is not _MISSING and not isinstance(cfg, Mapping):
+            raise CallShapeError(f"hold_position got the duration ({describe_value(cfg)}) "
+                                 "before the configuration; the configuration comes first. "
+                                 "Fix: call hold_position(m, d, viewer, cfg, duration).")
+        raise CallShapeError(f"hold_position got a configuration ({describe_value(duration)}) "
+                             f"where the duration [s] belongs. {fix}")
+    if duration is _MISSING:
+        what = "after the configuration " if cfg is not _MISSING else ""
+        raise CallShapeError(f"hold_position needs a duration [s] {what}(how long to hold). "
+                             f"{fix}")
+    if cfg is not _MISSING and not isinstance(cfg, Mapping):
+        raise CallShapeError(f"hold_position's configuration must be a dict joint name -> value "
+                             f"([deg], gripper [0, 100]), got {describe_value(cfg)}. {fix}")
+    return (None if cfg is _MISSING else cfg), duration
+
+
+def hold_position(m: mujoco.MjModel, d: mujoco.MjData, viewer, *args,
+                  cfg: Mapping[str, float] = _MISSING, duration: float = _MISSING) -> None:
+    """Hold for ``duration`` [s] of simulation time, commanding ``cfg`` first if it is given.
+
+    Both of the course's shapes: ``hold_position(m, d, viewer, duration)``
+    (assignment 6: keep the current command) and ``hold_position(m, d,
+    viewer, cfg, duration)`` (assignment 7: command ``cfg``, then step for
+    ``duration``); ``cfg`` and ``duration`` may also be given by keyword.
+    Commanding ``cfg`` is a step command, as the course's is: after
+    ``move_to_pose(..., cfg, ...)`` it is the command already there; joints
+    missing from ``cfg`` keep their command.
 
     Args:
         m: the model.
         d: the simulation data.
         viewer: as for :func:`move_to_pose`.
+        *args: ``duration`` or ``cfg, duration``.
+        cfg: configuration to command ([deg], gripper [0, 100]), checked before any step.
         duration: [s], in [0, ``MAX_DURATION``].
 
     Raises:
-        PlanError: a duration that is not a number in [0, MAX_DURATION] s.
+        CallShapeError: any other shape (too many arguments, a dict where the
+            duration belongs, no duration); the message names both shapes.
+        JointLimitError: ``cfg`` is outside the limits.
+        PlanError: a duration that is not a number in [0, MAX_DURATION] s, an
+            unknown joint or a value that is not a number in ``cfg``.
         ViewerClosed: the viewer window was closed.
     """
+    if isinstance(viewer, Mapping) or is_finite_number(viewer):
+        raise CallShapeError(f"hold_position's third argument is the viewer (None when "
+                             f"headless), got {describe_value(viewer)}. Fix: call "
+                             f"{HOLD_SHAPES}.")
+    cfg, duration = _hold_arguments(args, cfg, duration)
     duration = check_duration(duration, "hold_position duration")
+    if cfg is not None:
+        limits = joint_limits(m)
+        angles = to_radians(m, check_configuration(
+            cfg, {j: limits[j] for j in cfg if j in limits}, "hold_position configuration"))
+        for name, _, act, *_ in joint_table(m):
+            if name in angles:
+                d.ctrl[act] = angles[name]
     _advance(m, d, viewer, d.time + duration, None, d.time)
-
-

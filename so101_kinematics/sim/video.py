@@ -116,6 +116,10 @@ class VideoRecorder:
             self.close(complete=False)
             raise
 
+    def set_overlays(self, overlays: Iterable[Overlay]) -> None:
+        """Draw these boxes (instead of the ones before) into the frames from now on."""
+        self._frames.overlays = tuple(overlays)
+
     def is_running(self) -> bool:
         """Always true: an offscreen recorder has no window to close."""
         return True

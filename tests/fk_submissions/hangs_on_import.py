@@ -50,7 +50,7 @@ def get_g45(theta5_deg):
 
 
 def get_g5t():
-    return make_pose(Ry(180), [0.0051, -0.000218, -0.1075])
+    return make_pose(np.eye(3), [0.0051, -0.000218, -0.1075])
 
 
 def get_forward_kinematics(position_dict):

@@ -1,4 +1,4 @@
-# A student's FK, written for the checker's tests: an object frame turned half a turn (z up at a top-down grasp).
+# A student's FK, written for the checker's tests: an object frame turned half a turn (z down at a top-down grasp, the approach direction: assignment 6's frame before assignment 7 redraws it).
 import numpy as np
 
 
@@ -48,7 +48,7 @@ def get_g45(theta5_deg):
 
 
 def get_g5t():
-    return make_pose(np.eye(3), [0.0051, -0.000218, -0.1075])
+    return make_pose(Ry(180), [0.0051, -0.000218, -0.1075])
 
 
 def get_forward_kinematics(position_dict):
