@@ -7,6 +7,7 @@ import logging
 import sys
 from pathlib import Path
 
+from so101_kinematics import stacking
 from so101_kinematics.calibration import (
     CalibrationError,
     HardwareError,
@@ -42,13 +43,7 @@ from so101_kinematics.hw.run import (
     run_on_arm,
     validate_plan_for_arm,
 )
-from so101_kinematics.hw.teach import (
-    cube_outcome,
-    format_configuration,
-    format_plan,
-    grasp_outcome,
-    teach,
-)
+from so101_kinematics.hw.teach import format_configuration, format_plan, outcome_lines, teach
 from so101_kinematics.lab.sheet import PAPER_MM, write_sheet
 from so101_kinematics.motion import PROFILES, PlanError, check_number
 from so101_kinematics.outputs import check_output_path
@@ -144,6 +139,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="paper of the --sheet (default a4)")
     parser.add_argument("--verbose", "-v", action="store_true", help="debug logging")
     add_cartesian_arguments(parser)
+    stacking.add_stack_arguments(parser)
     return parser
 
 
@@ -167,7 +163,7 @@ def _dry_run(args, plan, calibration) -> int:
     return 0
 
 
-def _run(args, plan, calibration, source, release: str) -> int:
+def _run(args, plan, calibration, source, release: str, stack=None) -> int:
     print(format_plan(plan, rate_hz=args.rate, profile=args.profile,
                       max_speed=speed_caps(args.max_speed)))
 
@@ -201,18 +197,8 @@ def _run(args, plan, calibration, source, release: str) -> int:
         print(f"Log: {log.close()} ({log.rows} cycles)")
     if args.plot and result.cycles:
         print(f"Plot: {plot_log(result.cycles, args.plot)}")
-    for start, length in result.outages:
-        print(f"The arm did not answer for {length:.2f} s at t = {start:.2f} s; the plan paused "
-              "and resumed.")
-    for line in (grasp_outcome(plan, result.cycles), cube_outcome(plan, result.cube)):
-        if line:
-            print(line)
-    if status == 0:
-        timing = result.timing
-        print(f"Loop {timing.get('achieved_hz', 0):.1f} Hz, period p50 "
-              f"{timing.get('period_p50_ms', 0):.2f} ms, p99 error "
-              f"{timing.get('period_p99_error_ms', 0):.2f} ms, {timing.get('overruns', 0)} "
-              "overruns.")
+    for line in outcome_lines(plan, result, stack):
+        print(line)
     print(ending(result, release), file=sys.stderr if status else sys.stdout)
     return status
 
@@ -243,13 +229,15 @@ def _main(args) -> int:
     check_number(args.move_duration, "--move-duration", 0.0, MAX_MOVE_DURATION_S, "s")
     check_number(args.hold, "--hold", 0.0, MAX_MOVE_DURATION_S, "s")
     check_run_settings(args.rate, args.max_speed, args.tracking_tolerance)
-    plan = plan_from_arguments(args) or (
+    stack = stacking.stack_from_arguments(args)
+    plan = stack.plan if stack else plan_from_arguments(args) or (
         load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold))
     if args.sheet is not None:
         validate_plan_for_arm(plan, None)
         path = check_output_path(args.sheet, "--sheet", inputs=(args.plan,), suffixes=(".pdf",))
         origin = args.plan or ("--pick/--place" if args.pick else "the course's plan")
-        print(write_sheet(plan, path, args.paper, source=str(origin)).summary())
+        print(write_sheet(plan, path, args.paper, source=str(origin), stack=stack,
+                          base_height=args.base_height).summary())
         return 0
     source = args.calibration or (find_calibration(args.robot_id, args.port)
                                   if args.robot_id else None)
@@ -260,6 +248,8 @@ def _main(args) -> int:
     if source is not None:
         logger.info("Calibration: %s", source)
     validate_plan_for_arm(plan, calibration, str(source))
+    if stack is not None:
+        print(stack.describe())
     for option, path in (("--log", args.log), ("--plot", args.plot)):
         if path is not None:
             check_output_path(path, option, inputs=(source, args.plan))
@@ -287,7 +277,7 @@ def _main(args) -> int:
         return 0
     if args.home_check:
         return home_check(args, calibration, source, release, lambda q: ask(q, args.yes))
-    return _run(args, plan, calibration, source, release)
+    return _run(args, plan, calibration, source, release, stack)
 
 
 if __name__ == "__main__":

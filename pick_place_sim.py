@@ -66,6 +66,8 @@ from so101_kinematics.sim.render import (
     check_frame_size,
     max_fps,
 )
+from so101_kinematics.sim.stack import run_stack
+from so101_kinematics.stacking import add_stack_arguments, stack_from_arguments
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -139,6 +141,7 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
                         help="built-in plan: seconds held at each course configuration, "
                         f"{range_help(*duration)} (default %(default)g)")
     add_cartesian_arguments(parser)
+    add_stack_arguments(parser)
     parser.add_argument("--json", type=Path, metavar="PATH", help="write the run report as JSON")
     parser.add_argument("--compare", type=Path, metavar="LOG.csv", help="replay a hardware log "
                         "(pick_place_hw.py --log) in the simulator and compare; needs --report")
@@ -181,18 +184,25 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
                                       "give the report its own name, e.g. report.json.")
         if mode == "record" and args.record is None:
             print(f"No display: running headless and recording {video}", file=sys.stderr)
-        plan = plan_from_arguments(args)
-        if plan is None:
+        stack = stack_from_arguments(args)
+        plan = None if stack else plan_from_arguments(args)
+        if stack is None and plan is None:
             if args.cube_yaw is not None:
                 raise PlanError("--cube-yaw sets the cube's yaw for a Cartesian plan: give "
                                 "--pick and --place too (--cube-turn perturbs any plan's cube).")
             plan = load_plan(args.plan, scene_limits()) if args.plan else default_plan(
                 args.move_duration, args.hold)
-        cube = CubeStart((args.cube_offset[0] / 1000.0, args.cube_offset[1] / 1000.0),
-                         args.cube_turn) if args.cube else None
-        report = run_pick_place(plan, cube=cube, mode=mode, video=video, fps=args.fps,
-                                size=args.size, camera=args.camera, quality=args.quality,
-                                progress=not args.no_progress, show_ui=args.ui)
+        if stack is not None:
+            report = run_stack(stack, mode=mode, video=video, fps=args.fps, size=args.size,
+                               camera=args.camera, quality=args.quality,
+                               progress=not args.no_progress, show_ui=args.ui)
+        else:
+            cube = CubeStart((args.cube_offset[0] / 1000.0, args.cube_offset[1] / 1000.0),
+                             args.cube_turn) if args.cube else None
+            report = run_pick_place(plan, cube=cube, mode=mode, video=video, fps=args.fps,
+                                    size=args.size, camera=args.camera, quality=args.quality,
+                                    progress=not args.no_progress, show_ui=args.ui,
+                                    base_height=args.base_height)
     except (PlanError, RenderError, OutputPathError, KinematicsInputError) as error:
         print(f"error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT

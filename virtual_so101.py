@@ -78,11 +78,17 @@ def main(argv: list[str] | None = None) -> int:
                         help="delay replies by their byte time at the host's baud rate")
     parser.add_argument("--faults", default=None,
                         help="faults from power-up, e.g. 'drop:3:5,stall:elbow_flex'")
-    parser.add_argument("--cube", nargs=2, type=float, metavar=("X", "Y"),
-                        help="put the simulator's free 26 mm cube on the table, its centre at "
-                             f"(X, Y) [m] in the base frame (each within +-{CUBE_REACH_M:g} m)")
+    parser.add_argument("--cube", nargs="+", type=float, action="append", metavar="X Y [YAW]",
+                        help="put one of the simulator's free 26 mm cubes on the table, its "
+                             f"centre at (X, Y) [m] in the base frame (each within "
+                             f"+-{CUBE_REACH_M:g} m), turned YAW [deg]; repeat it for more cubes "
+                             "(the cube sensor reports them in this order)")
     parser.add_argument("--cube-yaw", type=float, default=0.0, metavar="DEG",
-                        help="the cube's turn about the vertical [deg] (default 0)")
+                        help="the turn about the vertical [deg] of each cube given without "
+                             "its own YAW (default 0)")
+    parser.add_argument("--base-height", type=float, default=0.0, metavar="M",
+                        help="the table is M [m] below the robot's base frame, 0 to 0.05 "
+                             "(default 0; the lab's mount: 0.015)")
     parser.add_argument("--write-default-calibration", metavar="PATH",
                         help="write the calibration derived from the model to PATH and exit")
     parser.add_argument("--force", action="store_true",
@@ -115,7 +121,9 @@ def main(argv: list[str] | None = None) -> int:
         arm = VirtualSO101(calibration=args.calibration, wire_timing=args.wire_timing,
                            faults=args.faults, viewer=args.viewer, log_level=level,
                            factory=args.factory, leader=args.leader, supply=args.supply,
-                           cube=(*args.cube, args.cube_yaw) if args.cube else None)
+                           cube=[c if len(c) != 2 else (*c, args.cube_yaw)
+                                 for c in args.cube or []],
+                           base_height=args.base_height)
     except (CalibrationError, CubePositionError, FaultSpecError, VirtualSO101Error) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

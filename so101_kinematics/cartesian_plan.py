@@ -19,7 +19,7 @@ from so101_kinematics.cli import number, range_help
 from so101_kinematics.errors import UnreachableError
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.ik.course import get_inverse_kinematics
-from so101_kinematics.ik.geometry import GRIPPER_OPEN, POSITION_LIMIT
+from so101_kinematics.ik.geometry import GRIPPER_OPEN, MIN_HEIGHT, POSITION_LIMIT
 from so101_kinematics.ik.solver import as_position
 from so101_kinematics.motion import Plan, PlanError, check_number
 from so101_kinematics.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION, pick_and_place_plan
@@ -63,6 +63,7 @@ def cartesian_plan(
     *,
     approach_height: float = APPROACH_HEIGHT,
     slide: float = PRE_GRASP_SLIDE,
+    min_height: float = MIN_HEIGHT,
 ) -> Plan:
     """The course's pick-and-place plan from the Cartesian pick and place positions.
 
@@ -94,6 +95,8 @@ def cartesian_plan(
         place_yaw_deg: the cube's yaw at the place [deg]; default ``cube_yaw_deg``.
         approach_height: height of approach and depart above pre_grasp and retreat [m].
         slide: horizontal offset of pre_grasp and retreat from the grasps [m].
+        min_height: the IK's lowest accepted target [m] (lower it by the mount's
+            height when the table is below the base frame: ``stacking.min_target_height``).
 
     Returns:
         The plan; configurations [deg], gripper [0, 100].
@@ -132,12 +135,12 @@ def cartesian_plan(
         try:
             try:
                 return get_inverse_kinematics(target, approach="down", yaw_deg=yaw, initial=initial,
-                                              gripper=GRIPPER_OPEN)
+                                              gripper=GRIPPER_OPEN, min_height=min_height)
             except UnreachableError:
                 if top_down_only:
                     raise
                 return get_inverse_kinematics(target, approach=None, initial=initial,
-                                              gripper=GRIPPER_OPEN)
+                                              gripper=GRIPPER_OPEN, min_height=min_height)
         except UnreachableError as error:
             raise UnreachableError(f"Waypoint '{name}': {error}", error.reason, error.distance,
                                    error.joint) from None
@@ -191,8 +194,9 @@ def add_cartesian_arguments(parser: argparse.ArgumentParser, cube_yaw: bool = Tr
 def plan_from_arguments(args: argparse.Namespace) -> Plan | None:
     """The Cartesian plan if ``--pick`` and ``--place`` were given, else None.
 
-    Reads ``pick``, ``place``, ``cube_yaw``, ``lift_height``, ``move_duration``
-    and ``hold`` from ``args`` (see :func:`add_cartesian_arguments`).
+    Reads ``pick``, ``place``, ``cube_yaw``, ``lift_height``, ``move_duration``,
+    ``hold`` and ``base_height`` (the table below the base frame [m]: the IK's lowest
+    target follows it) from ``args`` (see :func:`add_cartesian_arguments`).
 
     Raises:
         PlanError: only one of --pick/--place, or together with --plan.
@@ -209,4 +213,5 @@ def plan_from_arguments(args: argparse.Namespace) -> Plan | None:
     return cartesian_plan(pick, place, cube_yaw_deg=getattr(args, "cube_yaw", None),
                           lift_height=getattr(args, "lift_height", DEFAULT_LIFT_HEIGHT),
                           move_duration=getattr(args, "move_duration", 2.0),
-                          hold_duration=getattr(args, "hold", 0.5))
+                          hold_duration=getattr(args, "hold", 0.5),
+                          min_height=MIN_HEIGHT - getattr(args, "base_height", 0.0))

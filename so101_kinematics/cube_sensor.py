@@ -5,9 +5,11 @@ protocol-0 READ addressed to :data:`SENSOR_ID` (never a PING, so lerobot's
 scans and motor checks do not see it) with :data:`SIZE` bytes: the cube's
 centre in the base frame [0.1 mm] as three signed 16-bit values, its tilt from
 upright [0.1 deg], and flags (bit 0: there is a cube, bit 1: it is in the
-jaws). On a real arm nothing answers, and the hardware script says nothing
-about the cube. The layout lives here, in the core, because both backends
-speak it.
+jaws). A virtual arm with several cubes answers for its cube ``k`` (0, 1, ...,
+in the order they were given) at address :func:`address` ``(k)`` = ``k * SIZE``,
+and with "no cube" past the last one. On a real arm nothing answers, and the
+hardware script says nothing about the cube. The layout lives here, in the
+core, because both backends speak it.
 
 Example:
     >>> decode(encode((0.2291, -0.1912, 0.013), 1.5, held=False))
@@ -23,6 +25,8 @@ SENSOR_ID = 100
 """Bus ID of the cube sensor (no SO-101 servo uses it)."""
 ADDRESS = 0
 SIZE = 9
+MAX_CUBES = 8
+"""The most cubes the sensor reports (addresses 0 to ``(MAX_CUBES - 1) * SIZE``)."""
 _FORMAT = "<hhhHB"
 _PRESENT, _HELD = 0x01, 0x02
 
@@ -53,3 +57,14 @@ def decode(data: bytes) -> CubeReading | None:
     if not flags & _PRESENT:
         return None
     return CubeReading((x / 1e4, y / 1e4, z / 1e4), tilt / 10, bool(flags & _HELD))
+
+
+def address(index: int) -> int:
+    """The sensor address of cube ``index`` (0 = the first cube)."""
+    return ADDRESS + index * SIZE
+
+
+def index_of(address_: int, size: int) -> int | None:
+    """Which cube a READ of ``size`` bytes at ``address_`` asks for, or None (not a cube read)."""
+    index, rest = divmod(address_ - ADDRESS, SIZE)
+    return index if size == SIZE and rest == 0 and 0 <= index < MAX_CUBES else None

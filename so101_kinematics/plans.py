@@ -152,10 +152,16 @@ def pick_and_place_steps(plan: Plan) -> tuple[Step, Step]:
 
     Returns:
         (pick, place): the steps named ``PICK_STEP`` and ``PLACE_STEP`` if the
-        plan has them, else its first and last steps.
+        plan has them; else the first step whose name ends in ``_PICK_STEP`` and
+        the last ending in ``_PLACE_STEP`` (a stacking plan's first pick and top
+        placement, ``block1_start_open`` ... ``blockN_final_open``); else its
+        first and last steps.
     """
     by_name = {step.name: step for step in plan.steps}
-    return by_name.get(PICK_STEP, plan.steps[0]), by_name.get(PLACE_STEP, plan.steps[-1])
+    picks = [s for s in plan.steps if s.name.endswith("_" + PICK_STEP)]
+    places = [s for s in plan.steps if s.name.endswith("_" + PLACE_STEP)]
+    return (by_name.get(PICK_STEP, picks[0] if picks else plan.steps[0]),
+            by_name.get(PLACE_STEP, places[-1] if places else plan.steps[-1]))
 
 
 def validate_plan(plan: Plan, limits: Limits, source: str = "") -> Plan:

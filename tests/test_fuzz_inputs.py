@@ -148,6 +148,11 @@ option_values = {
     "--place": st.lists(number_text, min_size=3, max_size=3),
     "--cube-yaw": st.lists(number_text, min_size=1, max_size=1),
     "--lift-height": st.lists(number_text, min_size=1, max_size=1),
+    "--stack": st.lists(number_text, min_size=1, max_size=2),
+    "--blocks": st.lists(st.sampled_from(["0", "1", "2", "3", "5", "-1", "x", "2.5"]),
+                         min_size=1, max_size=1),
+    "--block": st.lists(number_text, min_size=1, max_size=4),
+    "--base-height": st.lists(number_text, min_size=1, max_size=1),
     "--camera": st.sampled_from([["pick_place"], ["nope"], [""]]),
     "--quality": st.sampled_from([["fast"], ["best"]]),
     "--json": st.sampled_from([["OUT/report.json"], ["OUT"], ["PLAN"], ["OUT/a\0b"]]),
@@ -165,10 +170,18 @@ class Ran(BaseException):
     """The stub runner was reached with checked values."""
 
 
+def fake_stack(stack, *, mode, video, fps, size, camera, quality, progress, show_ui=False):
+    # A stack reaches the runner only checked: 1 to 4 blocks, each level reachable, the table
+    # 0 to 5 cm below the base.
+    assert 1 <= len(stack.blocks) <= 4 and 0.0 <= stack.base_height <= 0.05
+    raise Ran
+
+
 def fake_run(plan, *, cube, mode, video, fps, size, camera, quality, progress, timestep=None,
-             show_ui=False):
+             show_ui=False, base_height=0.0):
     # Reached only with values inside their documented ranges.
     assert 1.0 <= fps <= 250.0 and all(16 <= v <= 4096 and v % 2 == 0 for v in size)
+    assert 0.0 <= base_height <= 0.05
     for step in plan.steps:
         assert 0.0 <= step.duration <= MAX_DURATION
     if cube is not None:
@@ -189,7 +202,8 @@ def test_simulator_command_lines_run_or_name_the_problem(argv):
         plan.write_text(SHORT_PLAN)
         argv = ["--headless", "--no-progress"] + [
             token.replace("OUT", f"{folder}/out").replace("PLAN", str(plan)) for token in argv]
-        with mock.patch.object(pick_place_sim, "run_pick_place", fake_run):
+        with mock.patch.object(pick_place_sim, "run_pick_place", fake_run), \
+                mock.patch.object(pick_place_sim, "run_stack", fake_stack):
             try:
                 code, _, err = run_main(pick_place_sim.main, argv)
             except Ran:

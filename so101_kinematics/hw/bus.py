@@ -39,6 +39,7 @@ from so101_kinematics.errors import (  # noqa: F401 - the family, re-exported
 )
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.port import FIND_PORT_HINT, claim_port, port_users  # noqa: F401
+from so101_kinematics.motion import Configuration, Limits, unit
 
 logger = logging.getLogger(__name__)
 
@@ -191,6 +192,16 @@ def calibration_mismatch(bus, calibration: Mapping[str, ServoCalibration]) -> li
     return differences
 
 
+def format_pose(cfg: Mapping[str, float]) -> str:
+    """A pose in one short line: name=value pairs, 1 decimal."""
+    return ", ".join(f"{j} {cfg[j]:.1f} {unit(j)}" for j in JOINTS if j in cfg)
+
+
+def clamp_to_limits(cfg: Mapping[str, float], limits: Limits) -> Configuration:
+    """``cfg`` with each joint clamped into its limits."""
+    return {j: min(limits[j][1], max(limits[j][0], cfg[j])) for j in JOINTS}
+
+
 def read_pose(bus, retries: int = 0) -> dict[str, float]:
     """Present_Position of every joint ([deg]; gripper [0, 100]), in joint order.
 
@@ -205,16 +216,16 @@ def read_pose(bus, retries: int = 0) -> dict[str, float]:
     return {joint: float(raw[joint]) for joint in JOINTS}
 
 
-def read_cube_sensor(bus) -> cube_sensor.CubeReading | None:
+def read_cube_sensor(bus, index: int = 0) -> cube_sensor.CubeReading | None:
     """The virtual lab's cube sensor (``so101_kinematics.cube_sensor``); None on a real arm.
 
     One READ to the sensor's bus ID: a real arm has no device there, so the read
-    times out (50 ms) and the answer is None.
+    times out (50 ms) and the answer is None. ``index``: which cube (0 = the first).
     """
     try:
         discard_stale_input(bus)
         data, comm, _ = bus.packet_handler.readTxRx(bus.port_handler, cube_sensor.SENSOR_ID,
-                                                    cube_sensor.ADDRESS, cube_sensor.SIZE)
+                                                    cube_sensor.address(index), cube_sensor.SIZE)
     except Exception:  # noqa: BLE001 - no sensor, or a failing port: nothing to report
         return None
     finally:
@@ -222,6 +233,17 @@ def read_cube_sensor(bus) -> cube_sensor.CubeReading | None:
     if comm != 0 or len(data) != cube_sensor.SIZE:
         return None
     return cube_sensor.decode(bytes(data))
+
+
+def read_cube_sensors(bus) -> list[cube_sensor.CubeReading]:
+    """Every cube the virtual lab's sensor reports, in order; empty on a real arm (one read)."""
+    cubes: list[cube_sensor.CubeReading] = []
+    while len(cubes) < cube_sensor.MAX_CUBES:
+        reading = read_cube_sensor(bus, len(cubes))
+        if reading is None:
+            break
+        cubes.append(reading)
+    return cubes
 
 
 def configure(bus) -> None:

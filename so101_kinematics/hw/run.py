@@ -31,11 +31,13 @@ from so101_kinematics.hw.bus import (
     SETUP_ATTEMPTS,
     PortLost,
     bus_errors,
+    clamp_to_limits,
     configure,
     connect,
     disconnect,
     enable_torque_in_place,
-    read_cube_sensor,
+    format_pose,
+    read_cube_sensors,
     read_pose,
     recover_port,
     release_torque,
@@ -64,7 +66,6 @@ from so101_kinematics.hw.control import (
 from so101_kinematics.motion import (
     Configuration,
     JointLimitError,
-    Limits,
     Plan,
     Step,
     check_number,
@@ -140,6 +141,7 @@ class RunResult:
     timing: dict[str, float] = field(default_factory=dict)
     stale_bytes: int = 0  # late-reply bytes dropped before reads (see discard_stale_input)
     cube: CubeReading | None = None  # the virtual lab's cube sensor at the end; None on a real arm
+    cubes: list[CubeReading] = field(default_factory=list)  # every cube it reports (stacking)
 
 
 def _describe(error: BaseException, step: str) -> str:
@@ -240,7 +242,8 @@ def finish(session: ArmSession, result: RunResult) -> None:
             result.final_pose = session.read_pose()  # where it holds, or is released
         except (Exception, KeyboardInterrupt):
             result.final_pose = None
-        result.cube = read_cube_sensor(session.bus)
+        result.cubes = read_cube_sensors(session.bus)
+        result.cube = result.cubes[0] if result.cubes else None
         if result.returned_to_start:
             result.unreleased = release_torque(session.bus)
             result.torque_released = not result.unreleased
@@ -271,16 +274,6 @@ def ending(result: RunResult, release: str) -> str:
         return (f"Done: holding the final pose '{result.final_step}'{pose}, torque ON (the plan "
                 f"has return_to_start: false). {hold}")
     return f"The arm is holding where it stopped{pose}, torque ON. {hold}"
-
-
-def format_pose(cfg: Mapping[str, float]) -> str:
-    """A pose in one short line: name=value pairs, 1 decimal."""
-    return ", ".join(f"{j} {cfg[j]:.1f} {unit(j)}" for j in JOINTS if j in cfg)
-
-
-def clamp_to_limits(cfg: Mapping[str, float], limits: Limits) -> Configuration:
-    """``cfg`` with each joint clamped into its limits."""
-    return {j: min(limits[j][1], max(limits[j][0], cfg[j])) for j in JOINTS}
 
 
 def starting_pose(bus, calibration, port: str, robot_id: str | None) -> Configuration:

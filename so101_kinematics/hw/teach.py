@@ -8,6 +8,7 @@ import sys
 import time
 from collections.abc import Mapping
 
+from so101_kinematics import stack_report
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.bus import PortLost, port_lost, read_pose, recover_port
@@ -161,3 +162,25 @@ def cube_outcome(plan: Plan, cube) -> str | None:
     return (f"Cube (the virtual arm's sensor): at x = {100 * x:.1f} cm, y = {100 * y:.1f} cm, "
             f"z = {100 * z:.1f} cm, {where}; {miss:.1f} mm from the FK place position "
             f"({100 * target[0]:.1f}, {100 * target[1]:.1f}) cm.")
+
+
+def outcome_lines(plan: Plan, result, stack=None) -> list[str]:
+    """What a run tells the student after it, before its last line (outages, grasp, cubes, loop).
+
+    Args:
+        plan: the plan that ran.
+        result: its ``so101_kinematics.hw.run.RunResult``.
+        stack: the ``StackPlan`` when the plan stacks blocks, else None.
+    """
+    lines = [f"The arm did not answer for {length:.2f} s at t = {start:.2f} s; the plan paused "
+             "and resumed." for start, length in result.outages]
+    lines += [grasp_outcome(plan, result.cycles),
+              stack_report.stack_outcome(stack, result.cubes) if stack
+              else cube_outcome(plan, result.cube)]
+    if result.aborted is None and result.timing:
+        timing = result.timing
+        lines.append(f"Loop {timing.get('achieved_hz', 0):.1f} Hz, period p50 "
+                     f"{timing.get('period_p50_ms', 0):.2f} ms, p99 error "
+                     f"{timing.get('period_p99_error_ms', 0):.2f} ms, "
+                     f"{timing.get('overruns', 0)} overruns.")
+    return [line for line in lines if line]

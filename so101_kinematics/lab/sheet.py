@@ -13,6 +13,12 @@ does not fit one page it is tiled over several, overlapping by
 
 On the paper the robot's x axis points up the page (away from the student
 standing at the bottom edge) and its y axis to the left, as seen from above.
+
+A stacking plan (``so101_kinematics.stacking``) draws each block's start and
+the stack's spot instead. With the arm on a mount (``base_height``, the lab's
+15 mm) the sheet lies on the table, that far below the base frame: the x, y
+positions are the same, the header says how high the base frame is and where
+the cubes' centres are (``-base_height`` + 13 mm).
 """
 
 from __future__ import annotations
@@ -76,6 +82,7 @@ class SheetInfo:
     page_mm: tuple[float, float]      # (width, height) of each page [mm]
     tiles: tuple[int, int]            # (rows, columns)
     cubes: list[CubeMark] = field(default_factory=list)
+    base_height: float = 0.0          # the table below the base frame [m]
 
     @property
     def pages(self) -> int:
@@ -86,6 +93,8 @@ class SheetInfo:
         """What to tell the student."""
         lines = [f"Placement sheet: {self.path} ({self.pages} page(s), {self.paper} "
                  f"{self.orientation}). {RULER_LINE}"]
+        if self.base_height:
+            lines.append(f"  {mount_line(self.base_height)}")
         lines += [f"  {cube.label}" for cube in self.cubes]
         return "\n".join(lines)
 
@@ -99,6 +108,25 @@ def cube_marks(plan: Plan) -> list[CubeMark]:
         marks.append(CubeMark(role, step.name, float(position[0]) * 100.0,
                               float(position[1]) * 100.0, yaw))
     return marks
+
+
+def stack_marks(stack) -> list[CubeMark]:
+    """A stacking plan's blocks at their starts, then the stack's spot (turned as its bottom)."""
+    marks = [CubeMark(f"block {i + 1}", "start", b.start[0] * 100.0, b.start[1] * 100.0,
+                      b.start_yaw_deg) for i, b in enumerate(stack.blocks)]
+    _, place = pick_and_place_steps(stack.plan)  # the top block's release: the stack's yaw
+    _, rotation = forward_kinematics({j: place.configuration[j] for j in ARM_JOINTS})
+    x, y, _ = stack.blocks[0].target
+    marks.append(CubeMark("stack", f"{len(stack.blocks)} blocks", x * 100.0, y * 100.0,
+                          math.degrees(math.atan2(rotation[1, 0], rotation[0, 0]))))
+    return marks
+
+
+def mount_line(base_height: float) -> str:
+    """The header's line for an arm on a mount ``base_height`` [m] above the sheet."""
+    return (f"The arm stands on a {base_height * 1e3:.0f} mm mount: its base frame is "
+            f"{base_height * 100:.1f} cm above this sheet; a cube resting here has its centre "
+            f"at z = {(CUBE_EDGE_MM / 2000.0 - base_height) * 100:.1f} cm in the base frame.")
 
 
 def cube_corners_cm(cube: CubeMark) -> np.ndarray:
@@ -213,7 +241,8 @@ def _letters(k: int) -> str:
 
 
 def write_sheet(plan: Plan, path: str | Path, paper: str = "a4",
-                source: str = "the course's plan") -> SheetInfo:
+                source: str = "the course's plan", *, stack=None,
+                base_height: float = 0.0) -> SheetInfo:
     """Write the placement sheet of ``plan`` as a PDF (checked path; written atomically).
 
     Args:
@@ -221,6 +250,9 @@ def write_sheet(plan: Plan, path: str | Path, paper: str = "a4",
         path: the PDF to write (``outputs.check_output_path`` it first).
         paper: "a4" or "letter".
         source: where the plan came from, printed in the title.
+        stack: a ``so101_kinematics.stacking.StackPlan``: draw its blocks' starts and
+            the stack's spot (its ``plan`` is then the plan).
+        base_height: the table (the sheet) below the base frame [m] (the lab's mount).
 
     Returns:
         What was drawn (pages, tiles, the cubes' positions).
@@ -231,7 +263,9 @@ def write_sheet(plan: Plan, path: str | Path, paper: str = "a4",
     import matplotlib.pyplot as plt
     from matplotlib.backends.backend_pdf import PdfPages
 
-    cubes = cube_marks(plan)
+    cubes = stack_marks(stack) if stack is not None else cube_marks(plan)
+    if stack is not None:
+        source = f"stacking {len(stack.blocks)} blocks"
     orientation, page, (rows, cols), us, vs = layout(cubes, paper)
     window = tuple(v / 10.0 for v in _window_mm(page))
     marks = alignment_marks(us, vs, window)
@@ -239,13 +273,13 @@ def write_sheet(plan: Plan, path: str | Path, paper: str = "a4",
         for r, v0 in enumerate(vs):
             for c, u0 in enumerate(us):
                 fig = _page(page, (u0, v0), window, cubes, marks, source,
-                            (r * cols + c + 1, rows * cols, r + 1, c + 1))
+                            (r * cols + c + 1, rows * cols, r + 1, c + 1), base_height)
                 pdf.savefig(fig)
                 plt.close(fig)
-    return SheetInfo(Path(path), paper, orientation, page, (rows, cols), cubes)
+    return SheetInfo(Path(path), paper, orientation, page, (rows, cols), cubes, base_height)
 
 
-def _page(page, origin, window, cubes, marks, source, numbering):
+def _page(page, origin, window, cubes, marks, source, numbering, base_height=0.0):
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle, Polygon, Rectangle
 
@@ -302,7 +336,8 @@ def _page(page, origin, window, cubes, marks, source, numbering):
     fig.text(MARGIN_MM / width, top - 5.0 / height, RULER_LINE, fontsize=7, va="top")
     fig.text(MARGIN_MM / width, top - 9.5 / height, "Base frame: x up the page, y to the left; "
              "1 cm grid, every 5th line darker. Put each cube on its square, edges on the "
-             "lines.", fontsize=7, va="top")
+             "lines." + (f" {mount_line(base_height)}" if base_height else ""), fontsize=7,
+             va="top")
     bar = Rectangle((MARGIN_MM / width, (MARGIN_MM + 3.0) / height), SCALE_BAR_MM / width,
                     2.5 / height, transform=fig.transFigure, color=SCALE_BAR_COLOR, lw=0)
     fig.patches.append(bar)

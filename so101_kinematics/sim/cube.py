@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import mujoco
@@ -74,7 +75,9 @@ class CubeStart:
 def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
                 render_meshes: bool = False, physics_only: bool = False,
                 explicit_pairs: bool = True,
-                cube_at: tuple[float, float, float] | None = None) -> mujoco.MjModel:
+                cube_at: tuple[float, float, float] | None = None, *,
+                cubes_at: Sequence[Sequence[float]] = (),
+                base_height: float = 0.0) -> mujoco.MjModel:
     """Compile the course scene, optionally with a free cube at the plan's pick position.
 
     Args:
@@ -90,6 +93,11 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
         explicit_pairs: list the geom pairs that can touch instead of finding
             them every step (``so101_kinematics.sim.contact_pairs``; the same contacts, 6 %
             less work per step).
+        cubes_at: instead of ``cube``: several cubes resting on the table, each
+            (x [m], y [m][, yaw [deg]]); the first is body "cube", the others
+            "cube_2", "cube_3", ... (the stacking run, the virtual arm's ``--cube``).
+        base_height: the table top is this far below the base frame [m] (the
+            lab's 15 mm mount); the arm stays where it is, the table moves.
 
     Returns:
         The model. Sleeping is enabled: a cube at rest on the table costs no
@@ -101,48 +109,71 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
         _remove_visuals(spec)
     elif render_meshes:
         use_render_meshes(spec)
+    if base_height:
+        spec.geom("table").pos[2] = -check_number(base_height, "base_height", 0.0, 0.05, "m")
     if cube is not None:
         pick, _ = pick_and_place_steps(plan or default_plan())
-        add_cube(spec, *cube.pose(pick.configuration))
-    elif cube_at is not None:
-        add_cube(spec, *cube_on_table(*cube_at))
+        centre, quat = cube.pose(pick.configuration)
+        add_cube(spec, centre - [0.0, 0.0, base_height], quat)
+    for index, place in enumerate([cube_at] if cube_at is not None else cubes_at):
+        add_cube(spec, *cube_on_table(*place, base_height=base_height), name=cube_name(index))
     if explicit_pairs:
         use_explicit_contact_pairs(spec)
     return spec.compile()
 
 
-def add_cube(spec: mujoco.MjSpec, centre, quat) -> None:
+def cube_name(index: int) -> str:
+    """The body, joint and geom name of the scene's cube ``index`` (0: "cube", 1: "cube_2")."""
+    return "cube" if index == 0 else f"cube_{index + 1}"
+
+
+def cube_names(m: mujoco.MjModel) -> list[str]:
+    """The names of the model's free cubes, in order ("cube", "cube_2", ...)."""
+    names = []
+    while mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, cube_name(len(names))) >= 0:
+        names.append(cube_name(len(names)))
+    return names
+
+
+def add_cube(spec: mujoco.MjSpec, centre, quat, name: str = "cube") -> None:
     """Add the course's free cube to a scene: the one definition every cube here uses.
 
     Args:
         spec: the scene being built.
         centre: the cube's centre [m] in the world.
         quat: its orientation (w, x, y, z).
+        name: its body, joint and geom name (:func:`cube_name`).
     """
-    body = spec.worldbody.add_body(name="cube", pos=list(centre), quat=list(quat))
-    body.add_freejoint(name="cube")
-    body.add_geom(name="cube", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.5 * CUBE_EDGE] * 3,
+    body = spec.worldbody.add_body(name=name, pos=list(centre), quat=list(quat))
+    body.add_freejoint(name=name)
+    body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.5 * CUBE_EDGE] * 3,
                   mass=CUBE_MASS, friction=list(CUBE_FRICTION), condim=3, rgba=list(CUBE_RGBA))
     spec.option.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP  # a cube at rest costs nothing
 
 
-def cube_on_table(x: float, y: float, yaw_deg: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """Centre [m] and quaternion (w, x, y, z) of a cube resting on the table at (x, y), turned."""
+def cube_on_table(x: float, y: float, yaw_deg: float = 0.0,
+                  base_height: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Centre [m] and quaternion (w, x, y, z) of a cube resting on the table at (x, y), turned.
+
+    The table is ``base_height`` [m] below the base frame: the centre is at
+    ``-base_height + CUBE_EDGE / 2``.
+    """
     half = math.radians(yaw_deg) / 2
-    return (np.array([x, y, 0.5 * CUBE_EDGE]),
+    return (np.array([x, y, 0.5 * CUBE_EDGE - base_height]),
             np.array([math.cos(half), 0.0, 0.0, math.sin(half)]))
 
 
-def cube_state(m: mujoco.MjModel, d: mujoco.MjData) -> tuple[np.ndarray, float, bool]:
-    """Where the cube is: centre [m], tilt of its up axis from the vertical [deg], held or not.
+def cube_state(m: mujoco.MjModel, d: mujoco.MjData,
+               name: str = "cube") -> tuple[np.ndarray, float, bool]:
+    """Where a cube is: centre [m], tilt of its up axis from the vertical [deg], held or not.
 
     Held: its centre within ``HELD_DISTANCE`` of the object frame and off the table.
     """
-    centre = d.body("cube").xpos.copy()
-    up = d.body("cube").xmat.reshape(3, 3)[:, 2]
+    centre = d.body(name).xpos.copy()
+    up = d.body(name).xmat.reshape(3, 3)[:, 2]
     tilt = math.degrees(math.acos(min(1.0, max(-1.0, float(up[2])))))
     held = (math.dist(centre, d.site(TOOL_SITE).xpos) <= HELD_DISTANCE
-            and centre[2] > 0.5 * CUBE_EDGE + 0.002)
+            and centre[2] > m.geom("table").pos[2] + 0.5 * CUBE_EDGE + 0.002)
     return centre, tilt, held
 
 

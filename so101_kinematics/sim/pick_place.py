@@ -11,7 +11,7 @@ import logging
 import math
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -141,6 +141,7 @@ def run_pick_place(
     progress: bool = True,
     timestep: float | None = None,
     show_ui: bool = False,
+    base_height: float = 0.0,
 ) -> RunReport:
     """Run a pick-and-place plan in simulation and measure what happened to the cube.
 
@@ -159,6 +160,8 @@ def run_pick_place(
         timestep: physics step [s] instead of the model's 4 ms (to check
             that a result does not depend on it).
         show_ui: mode "viewer": show MuJoCo's side panels from the start.
+        base_height: the table is this far below the base frame [m] (the cube
+            rests on it).
 
     Returns:
         The run report.
@@ -185,15 +188,60 @@ def run_pick_place(
     # faster, and without any (headless). Only the interactive viewer shows
     # the upstream meshes.
     light = mode == "record" and QUALITY[quality].light_meshes
-    m = build_model(plan, cube, render_meshes=light, physics_only=mode == "headless")
+    m = build_model(plan, cube, render_meshes=light, physics_only=mode == "headless",
+                    base_height=base_height)
     if timestep is not None:
         m.opt.timestep = timestep
+    pick, place = pick_and_place_steps(plan)
+    return execute_plan(
+        m, plan, lambda run: _report(m, run.d, plan, run.monitor, run.wall, run.frames,
+                                     run.completed, run.errors, run.video),
+        mode=mode, video=video, fps=fps, size=size, camera=camera, quality=quality,
+        progress=progress, show_ui=show_ui,
+        overlays=target_cubes(pick.configuration, place.configuration))
+
+
+@dataclass
+class Execution:
+    """A plan run on a scene, as the report needs it (see :func:`execute_plan`)."""
+
+    d: mujoco.MjData
+    monitor: CubeMonitor
+    wall: float  # [s] wall time of the plan
+    frames: int  # video frames written
+    completed: bool  # False: the viewer was closed before the end
+    errors: dict[str, float]  # step name -> largest joint error when it ended [deg]
+    video: str | None  # the video written, in mode "record"
+
+
+def execute_plan(m: mujoco.MjModel, plan: Plan, report: Callable[[Execution], object], *,
+                 mode: str, video, fps: float, size, camera: str, quality: str, progress: bool,
+                 show_ui: bool, overlays=()):
+    """Run a checked plan on the model ``m`` from its initial keyframe; return ``report(run)``.
+
+    The one run loop of the pick-and-place and the stacking: headless, in the
+    viewer (which then keeps holding the pose until it is closed; the report is
+    taken before) or into a video (renamed over its target only when complete).
+
+    Args:
+        m: the scene (its cubes are watched by a :class:`CubeMonitor` on "cube").
+        plan: the validated plan.
+        report: makes the report from the finished run.
+        mode: "headless", "viewer" or "record".
+        video: MP4 path for mode "record".
+        fps: video frames per second of simulated time.
+        size: video (width, height) [px].
+        camera: camera name for the video.
+        quality: a ``so101_kinematics.sim.render.QUALITY`` preset name.
+        progress: progress bar while recording.
+        show_ui: mode "viewer": show MuJoCo's side panels from the start.
+        overlays: translucent target cubes drawn into the video or viewer.
+    """
     d = mujoco.MjData(m)
     mujoco.mj_resetDataKeyframe(m, d, m.key(INITIAL_KEYFRAME).id)
     mujoco.mj_forward(m, d)
     initial = scene.get_configuration(m, d)
-    pick, place = pick_and_place_steps(plan)
-    overlays = target_cubes(pick.configuration, place.configuration)
+    overlays = list(overlays)
 
     errors: dict[str, float] = {}
     current: list[Step] = []
@@ -233,8 +281,8 @@ def run_pick_place(
         wall = time.perf_counter() - wall0
         if monitor.has_cube:
             monitor.check()
-        report = _report(m, d, plan, monitor, wall, frames, completed, errors,
-                         str(video or DEFAULT_VIDEO) if mode == "record" else None)
+        result = report(Execution(d, monitor, wall, frames, completed, errors,
+                                  str(video or DEFAULT_VIDEO) if mode == "record" else None))
         if mode == "viewer" and completed:
             print("Done: close the viewer window to see the report.", file=sys.stderr)
             try:
@@ -250,7 +298,7 @@ def run_pick_place(
             inner.close(complete=finished)  # renamed over the target only when complete
         elif inner is not None:
             inner.close()
-    return report
+    return result
 
 
 def _report(m, d, plan, monitor, wall, frames, completed, errors, video) -> RunReport:

@@ -108,30 +108,16 @@ from so101_kinematics.virtual.calibration import (
     DEFAULT_CALIBRATION_PATH,
     load_calibration,
 )
+from so101_kinematics.virtual.cubes import (  # noqa: F401 - re-exported
+    CUBE_REACH_M,
+    check_base_height,
+    check_cube_position,
+    check_cubes,
+)
 from so101_kinematics.virtual.electrical import SUPPLY_V, THERMAL_TIME_S
 from so101_kinematics.virtual.faults import FAULT_KINDS, MAX_FAULT_MS, parse_faults  # noqa: F401
 
 logger = logging.getLogger("virtual_so101")
-
-
-CUBE_REACH_M = 0.5  # a cube is placed within this of the base, on the table [m]
-
-
-def check_cube_position(cube) -> tuple[float, float, float]:
-    """(x, y[, yaw]) of a cube on the table, checked: on the table top, finite numbers.
-
-    Raises:
-        CubePositionError: naming the value, the allowed range and the fix.
-    """
-    from so101_kinematics.checks import check_number
-
-    if len(cube) not in (2, 3):
-        raise CubePositionError(f"A cube position is X Y [YAW], got {cube!r}.")
-    x = check_number(cube[0], "cube x", -CUBE_REACH_M, CUBE_REACH_M, "m", error=CubePositionError)
-    y = check_number(cube[1], "cube y", -CUBE_REACH_M, CUBE_REACH_M, "m", error=CubePositionError)
-    yaw = check_number(cube[2] if len(cube) == 3 else 0.0, "cube yaw", -180.0, 180.0, "deg",
-                       error=CubePositionError)
-    return x, y, yaw
 
 
 # =============================================================================================
@@ -155,8 +141,11 @@ class VirtualSO101:
             a real STS3215 starts limp).
         log_level: logging level of the emulator process.
         cube: (x [m], y [m][, yaw [deg]]): the simulator's free cube resting on the
-            table there, in the base frame; its pose is readable through the bus's
-            cube sensor (``so101_kinematics.cube_sensor``) and :meth:`cube`.
+            table there, in the base frame, or a list of them (stacking); each pose is
+            readable through the bus's cube sensor (``so101_kinematics.cube_sensor``)
+            and :meth:`cube`.
+        base_height: the table is this far below the base frame [m] (the lab's
+            15 mm mount), in [0, 0.05].
         startup_timeout: [s] to wait for the emulator to come up.
         factory: six factory-fresh servos (ID 1, 1 Mbit/s, no calibration),
             plugged in one at a time, gripper first (``lerobot-setup-motors``).
@@ -178,10 +167,9 @@ class VirtualSO101:
                  log_level: int = logging.WARNING, startup_timeout: float = 60.0,
                  factory: bool = False, leader: bool = False, supply: float = SUPPLY_V,
                  thermal_time_s: float = THERMAL_TIME_S,
-                 cube: tuple[float, float] | tuple[float, float, float] | None = None):
+                 cube=None, base_height: float = 0.0):
         self.calibration = load_calibration(calibration)
-        if cube is not None:
-            cube = check_cube_position(cube)
+        cubes, base_height = check_cubes(cube), check_base_height(base_height)
         self._ids = {name: entry["id"] for name, entry in self.calibration.items()}
         parsed = parse_faults(faults, self.calibration)
         if viewer and not has_display():
@@ -193,7 +181,7 @@ class VirtualSO101:
                    "torque_on_start": torque_on_start and not (factory or leader),
                    "log_level": log_level, "factory": factory, "hand_holds": factory or leader,
                    "supply": float(supply), "thermal_time_s": float(thermal_time_s),
-                   "cube": cube}
+                   "cubes": cubes, "base_height": base_height}
         # A fresh interpreter (as multiprocessing's "spawn", but without re-running
         # the caller's __main__, so scripts without a __main__ guard work too).
         parent_sock, child_sock = socket.socketpair()
@@ -294,22 +282,22 @@ class VirtualSO101:
         """Joint name -> whether its servo's Torque_Enable is set."""
         return self._call("torque_enabled")
 
-    def cube(self) -> CubeReading | None:
-        """Where the cube is (centre [m], tilt [deg], held), or None without a cube."""
-        return self._call("cube")
+    def cube(self, index: int = 0) -> CubeReading | None:
+        """Where cube ``index`` is (centre [m], tilt [deg], held), or None without it."""
+        return self._call("cube", index)
 
-    def place_cube(self, x: float, y: float, yaw_deg: float = 0.0) -> None:
-        """Put the cube on the table at (x, y) [m] in the base frame, turned ``yaw_deg`` [deg].
+    def place_cube(self, x: float, y: float, yaw_deg: float = 0.0, index: int = 0) -> None:
+        """Put cube ``index`` on the table at (x, y) [m] in the base frame, turned ``yaw_deg``.
 
         Raises:
-            ValueError: no cube (start with ``cube=``), or the jaws hold it.
+            ValueError: no such cube (start with ``cube=``), or the jaws hold it.
         """
         x, y, yaw_deg = check_cube_position((x, y, yaw_deg))
-        self._call("place_cube", x, y, yaw_deg)
+        self._call("place_cube", x, y, yaw_deg, index)
 
-    def remove_cube(self) -> None:
-        """Take the cube off the table (the sensor then reports none)."""
-        self._call("remove_cube")
+    def remove_cube(self, index: int = 0) -> None:
+        """Take cube ``index`` off the table (the sensor then reports none there)."""
+        self._call("remove_cube", index)
 
     def inject(self, spec: str) -> None:
         """Inject faults (grammar in the module docstring), e.g. ``"drop:3:5,corrupt:2"``."""

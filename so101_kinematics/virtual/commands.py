@@ -109,56 +109,61 @@ class ParentCommands:
             servo.regs[0], servo.regs[1] = FIRMWARE
         self.update_listening()
 
-    # --- the cube (when the arm was started with one) ------------------------------------
-    def cube_reading(self) -> bytes:
-        """The cube sensor's reply data (see ``so101_kinematics.cube_sensor``)."""
-        if not self._has_cube():
+    # --- the cubes (when the arm was started with them) -----------------------------------
+    def cube_reading(self, index: int = 0) -> bytes:
+        """The cube sensor's reply data for cube ``index`` (``so101_kinematics.cube_sensor``)."""
+        if not self._has_cube(index):
             return cube_sensor.encode_absent()
-        from so101_kinematics.sim.cube import cube_state
+        from so101_kinematics.sim.cube import cube_name, cube_state
 
-        centre, tilt, held = cube_state(self.m, self.d)
+        centre, tilt, held = cube_state(self.m, self.d, cube_name(index))
         return cube_sensor.encode(centre, tilt, held)
 
-    def _has_cube(self) -> bool:
-        return (self.mujoco.mj_name2id(self.m, self.mujoco.mjtObj.mjOBJ_BODY, "cube") >= 0
-                and not getattr(self, "cube_removed", False))
+    def _cube_body(self, index: int) -> int:
+        from so101_kinematics.sim.cube import cube_name
 
-    def place_cube(self, x: float, y: float, yaw_deg: float = 0.0) -> None:
-        """Put the cube on the table at (x, y) [m], turned ``yaw_deg``, as a hand would."""
-        from so101_kinematics.sim.cube import cube_on_table, cube_state
+        return self.mujoco.mj_name2id(self.m, self.mujoco.mjtObj.mjOBJ_BODY, cube_name(index))
 
-        if self.mujoco.mj_name2id(self.m, self.mujoco.mjtObj.mjOBJ_BODY, "cube") < 0:
-            raise ValueError("This virtual arm has no cube. Fix: start it with --cube X Y.")
-        if self._has_cube() and cube_state(self.m, self.d)[2]:
+    def _has_cube(self, index: int = 0) -> bool:
+        return self._cube_body(index) >= 0 and index not in getattr(self, "cubes_removed", ())
+
+    def place_cube(self, x: float, y: float, yaw_deg: float = 0.0, index: int = 0) -> None:
+        """Put cube ``index`` on the table at (x, y) [m], turned ``yaw_deg``, as a hand would."""
+        from so101_kinematics.sim.cube import cube_name, cube_on_table, cube_state
+
+        if self._cube_body(index) < 0:
+            raise ValueError(f"This virtual arm has no cube {index + 1}. Fix: start it with "
+                             "--cube X Y (once per cube).")
+        if self._has_cube(index) and cube_state(self.m, self.d, cube_name(index))[2]:
             raise ValueError("The cube is in the jaws: open the gripper first.")
-        joint = self.m.joint("cube")
-        centre, quat = cube_on_table(x, y, yaw_deg)
+        joint = self.m.joint(cube_name(index))
+        centre, quat = cube_on_table(x, y, yaw_deg, base_height=self.base_height)
         self.d.qpos[joint.qposadr[0]:joint.qposadr[0] + 7] = [*centre, *quat]
         self.d.qvel[joint.dofadr[0]:joint.dofadr[0] + 6] = 0.0
-        self.m.body_gravcomp[self.m.body("cube").id] = 0.0
-        self.cube_removed = False
+        self.m.body_gravcomp[self._cube_body(index)] = 0.0
+        self.cubes_removed = set(getattr(self, "cubes_removed", ())) - {index}
         self.mujoco.mj_forward(self.m, self.d)
 
-    def remove_cube(self) -> None:
-        """Take the cube away: it floats 5 m from the arm, out of every contact."""
-        if self.mujoco.mj_name2id(self.m, self.mujoco.mjtObj.mjOBJ_BODY, "cube") < 0:
+    def remove_cube(self, index: int = 0) -> None:
+        """Take cube ``index`` away: it floats 5 m from the arm, out of every contact."""
+        if self._cube_body(index) < 0:
             return
-        joint = self.m.joint("cube")
-        self.d.qpos[joint.qposadr[0]:joint.qposadr[0] + 3] = (5.0, 5.0, 1.0)
+        joint = self.m.joint(self.m.body(self._cube_body(index)).name)
+        self.d.qpos[joint.qposadr[0]:joint.qposadr[0] + 3] = (5.0, 5.0 + 0.1 * index, 1.0)
         self.d.qvel[joint.dofadr[0]:joint.dofadr[0] + 6] = 0.0
-        self.m.body_gravcomp[self.m.body("cube").id] = 1.0
-        self.cube_removed = True
+        self.m.body_gravcomp[self._cube_body(index)] = 1.0
+        self.cubes_removed = set(getattr(self, "cubes_removed", ())) | {index}
         self.mujoco.mj_forward(self.m, self.d)
 
     def command(self, name: str, args: tuple):
         """Answer one command of the parent process (``VirtualSO101``'s methods)."""
         smu = self.smu
         if name == "cube":
-            return cube_sensor.decode(self.cube_reading())
+            return cube_sensor.decode(self.cube_reading(*args))
         if name == "place_cube":
             return self.place_cube(*args)
         if name == "remove_cube":
-            return self.remove_cube()
+            return self.remove_cube(*args)
         if name == "joint_positions":
             return smu.get_configuration(self.m, self.d)
         if name == "commanded_positions":

@@ -64,10 +64,11 @@ class _Emulator(ServoRegisters, ParentCommands, Hand):
 
         self.mujoco, self.smu = mujoco, smu
         self.conn = conn
-        if options.get("cube") is not None:  # the simulator's cube, on the virtual table
+        self.base_height = options.get("base_height", 0.0)  # the table below the base [m]
+        if options.get("cubes") or self.base_height:  # the simulator's cubes, on its table
             from so101_kinematics.sim.cube import build_model
 
-            self.m = build_model(cube_at=tuple(options["cube"]))
+            self.m = build_model(cubes_at=options.get("cubes", ()), base_height=self.base_height)
         else:
             self.m = smu.load_model()
         self.d = mujoco.MjData(self.m)
@@ -164,8 +165,10 @@ class _Emulator(ServoRegisters, ParentCommands, Hand):
         listening = self.listening
         replies: list[tuple[VirtualServo, bytes]] = []
         if target == cube_sensor.SENSOR_ID:  # the lab's cube sensor: READ only, never PING
-            if inst == INST_READ and tuple(params) == (cube_sensor.ADDRESS, cube_sensor.SIZE):
-                self.send_sensor(self.cube_reading(), t_end, tpb)
+            index = cube_sensor.index_of(*params) if inst == INST_READ and len(params) == 2 \
+                else None
+            if index is not None:
+                self.send_sensor(self.cube_reading(index), t_end, tpb)
             return
         reply_id = None  # the id a reply comes from, when it is not the servo's (a new ID)
         if inst == INST_PING:

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from typing import TextIO
 
 from so101_kinematics.calibration import ServoCalibration, ticks_to_user
+from so101_kinematics.cube_sensor import MAX_CUBES
 from so101_kinematics.frames import JOINT_LIMITS, JOINTS
 
 QUIT = "quit"
@@ -237,8 +238,8 @@ def _help(arm, args):
 
 
 @command("cube", "cube [X Y [YAW]]",
-         "where the cube is (centre [m], tilt [deg], held or free); with X Y [m] and YAW [deg], "
-         "put it there on the table first, as a hand would")
+         "where the cube is (centre [m], tilt [deg], held or free; then any other cubes); with "
+         "X Y [m] and YAW [deg], put it there on the table first, as a hand would")
 def _cube(arm, args):
     if args:
         if len(args) not in (2, 3):
@@ -251,9 +252,13 @@ def _cube(arm, args):
     reading = arm.cube()
     if reading is None:
         return "nocube"
-    x, y, z = reading.position_m
-    return (f"cube {x:.4f} {y:.4f} {z:.4f} tilt {reading.tilt_deg:.1f} "
-            + ("held" if reading.held else "free"))
+    readings = [reading]
+    while len(readings) < MAX_CUBES and (more := arm.cube(len(readings))) is not None:
+        readings.append(more)  # the others of a stacking table, on the same line
+    return " | ".join(
+        f"{'cube' if i == 0 else f'cube_{i + 1}'} {r.position_m[0]:.4f} {r.position_m[1]:.4f} "
+        f"{r.position_m[2]:.4f} tilt {r.tilt_deg:.1f} " + ("held" if r.held else "free")
+        for i, r in enumerate(readings))
 
 
 @command("nocube", "nocube", "take the cube off the table")

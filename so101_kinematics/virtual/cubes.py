@@ -1,0 +1,46 @@
+"""The virtual arm's cubes, checked on the parent's side: where each rests, how low the table is."""
+
+from __future__ import annotations
+
+from so101_kinematics.checks import check_number
+from so101_kinematics.cube_sensor import MAX_CUBES
+from so101_kinematics.errors import CubePositionError
+
+CUBE_REACH_M = 0.5  # a cube is placed within this of the base, on the table [m]
+BASE_HEIGHT_RANGE_M = (0.0, 0.05)  # the table below the base frame [m] (the lab's mount: 0.015)
+
+
+def check_cube_position(cube) -> tuple[float, float, float]:
+    """(x, y[, yaw]) of a cube on the table, checked: on the table top, finite numbers.
+
+    Raises:
+        CubePositionError: naming the value, the allowed range and the fix.
+    """
+    if len(cube) not in (2, 3):
+        raise CubePositionError(f"A cube position is X Y [YAW], got {cube!r}.")
+    x = check_number(cube[0], "cube x", -CUBE_REACH_M, CUBE_REACH_M, "m", error=CubePositionError)
+    y = check_number(cube[1], "cube y", -CUBE_REACH_M, CUBE_REACH_M, "m", error=CubePositionError)
+    yaw = check_number(cube[2] if len(cube) == 3 else 0.0, "cube yaw", -180.0, 180.0, "deg",
+                       error=CubePositionError)
+    return x, y, yaw
+
+
+def check_cubes(cube) -> list[tuple[float, float, float]]:
+    """One cube (x, y[, yaw]) or a list of them, each checked; at most ``MAX_CUBES``.
+
+    Raises:
+        CubePositionError: a bad position, or too many cubes.
+    """
+    if cube is None:
+        return []
+    cubes = [cube] if len(cube) and not hasattr(cube[0], "__len__") else list(cube)
+    if len(cubes) > MAX_CUBES:
+        raise CubePositionError(f"{len(cubes)} cubes: the virtual table takes at most "
+                                f"{MAX_CUBES}. Fix: give fewer --cube options.")
+    return [check_cube_position(c) for c in cubes]
+
+
+def check_base_height(value) -> float:
+    """The table's depth below the base frame [m], checked (``BASE_HEIGHT_RANGE_M``)."""
+    return check_number(value, "--base-height", *BASE_HEIGHT_RANGE_M, "m",
+                        error=CubePositionError)
