@@ -48,8 +48,12 @@ fi
 root="${SO101_VENV_ROOT:-${XDG_CACHE_HOME:-$HOME/.cache}/so101-kinematics}"
 # Keyed by what the environment contains: the dependency lists (comments and
 # blank lines dropped), the extras and the interpreter; not the rest of
-# pyproject.toml, so moving modules or editing tool settings rebuilds nothing.
-deps="$(awk '/^dependencies = \[/,/^\[tool/' pyproject.toml | grep -v -e '^\[tool' -e '^ *#' -e '^ *$')"
+# pyproject.toml, so moving modules, adding a console script (the editable
+# install below refreshes those on every run) or editing tool settings
+# rebuilds nothing.
+deps="$(awk '/^dependencies = \[/ { on = 1 }
+             on && /^\[/ && $0 != "[project.optional-dependencies]" { exit }
+             on' pyproject.toml | grep -v -e '^ *#' -e '^ *$')"
 key="$( (echo "$deps"; echo "$extras"; "$python" -V) | sha256sum | cut -c1-16)"
 venv="$root/venv-$key-${extras:-base}"
 

@@ -112,3 +112,42 @@ def test_dev_sh_says_when_the_interpreter_cannot_run(tmp_path):
     assert run.stderr.splitlines() == [
         f"error: cannot run the Python interpreter '{tmp_path}/python3.10'; this project needs "
         "Python >=3.10,<3.14. Fix: install one and set PYTHON=python3.x"]
+
+
+def environment_key(tmp_path: Path, pyproject: str) -> str:
+    """The environment dev.sh would set up for ``pyproject`` (a copy of dev.sh beside it).
+
+    A stand-in Python answers ``-V`` and the version check, then cannot build the
+    environment: dev.sh names it ("Setting up ...") and stops there.
+    """
+    folder = tmp_path / f"clone{len(list(tmp_path.iterdir()))}"
+    folder.mkdir()
+    (folder / "dev.sh").write_text((REPO / "dev.sh").read_text())
+    (folder / "dev.sh").chmod(0o755)
+    (folder / "pyproject.toml").write_text(pyproject)
+    python = folder / "python3.11"
+    python.write_text('#!/bin/sh\n[ "$1" = "-V" ] && { echo "Python 3.11.7"; exit 0; }\n'
+                      f'[ "$1" = "-c" ] && exec {sys.executable} "$@"\nexit 3\n')
+    python.chmod(0o755)
+    run = subprocess.run([str(folder / "dev.sh"), "sim"], capture_output=True, text=True,
+                         timeout=60, env={"PATH": "/usr/bin:/bin", "HOME": str(tmp_path),
+                                          "PYTHON": str(python),
+                                          "SO101_VENV_ROOT": str(tmp_path / "venvs")})
+    (name,) = re.findall(r"Setting up \S*/(venv-[0-9a-f]{16}-base) ", run.stderr)
+    return name
+
+
+def test_the_environment_is_keyed_by_the_dependencies_only(tmp_path):
+    pyproject = (REPO / "pyproject.toml").read_text()
+    key = environment_key(tmp_path, pyproject)
+    # A console script or a tool setting rebuilds nothing (a hw environment is ~9 GB) ...
+    scripts = pyproject.replace("[project.scripts]\n", '[project.scripts]\nx-y = "a.b:main"\n')
+    tools = pyproject.replace("line-length = 100", "line-length = 99")
+    assert scripts != pyproject and tools != pyproject
+    assert environment_key(tmp_path, scripts) == key
+    assert environment_key(tmp_path, tools) == key
+    # ... a dependency does, in the main list or in an extra.
+    added = pyproject.replace('    "numpy>=1.24",\n', '    "numpy>=1.24",\n    "scipy",\n')
+    extra = pyproject.replace('    "pytest>=8",\n', '    "pytest>=8",\n    "pytest-xdist",\n')
+    assert added != pyproject and extra != pyproject
+    assert len({key, environment_key(tmp_path, added), environment_key(tmp_path, extra)}) == 3
