@@ -164,7 +164,8 @@ def check_configuration(cfg: Mapping[str, float], limits: Limits, where: str = "
         name = unknown[0]
         close = difflib.get_close_matches(name, JOINTS, n=1)
         hint = f" Did you mean '{close[0]}'?" if close else ""
-        raise PlanError(f"{prefix}unknown joint '{name}'.{hint} Joints are: {', '.join(JOINTS)}.")
+        raise PlanError(f"{prefix}unknown joint '{name}'.{hint} Joints are: {', '.join(JOINTS)}. "
+                        "Fix: use those names (as lerobot and the model spell them).")
     out = {}
     for joint in (j for j in JOINTS if j in limits):
         if joint not in cfg:
