@@ -90,8 +90,14 @@ class Tool:
         return self.process.poll()
 
     def type(self, text: str) -> None:
-        self.process.stdin.write(text)
-        self.process.stdin.flush()
+        try:
+            self.process.stdin.write(text)
+            self.process.stdin.flush()
+        except BrokenPipeError:  # the tool ended early: say how, with everything it printed
+            self.reader.join(timeout=10)
+            raise AssertionError(f"the tool exited ({self.process.wait(timeout=10)}) before "
+                                 f"reading {text!r}; its output:\n{''.join(self.output)}"
+                                 ) from None
 
     def communicate(self, text: str = "", timeout: float = 120) -> tuple[str, None]:
         if text:

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import math
+import threading
 import time
 
 import pytest
 
+from so101_kinematics.frames import JOINT_LIMITS
 from so101_kinematics.virtual import electrical, shell
 from so101_kinematics.virtual.arm import VirtualSO101
-from so101_kinematics.virtual.protocol import INST_PING, INST_WRITE, instruction_packet
+from so101_kinematics.virtual.protocol import INST_PING, INST_READ, INST_WRITE, instruction_packet
 
 
 def test_current_temperature_voltage_model_by_hand():
@@ -80,3 +82,43 @@ def test_shell_dispatch_table_and_errors(arm):
     time.sleep(0.5)  # a limp arm stays limp, the hand holds it there
     assert not any(arm.torque_enabled().values())
     assert arm.joint_positions()["elbow_flex"] == pytest.approx(60, abs=1.0)
+
+
+def test_the_bus_is_answered_while_the_hand_checks_a_long_path():
+    """A full sweep's table check takes tens of ms; the servos go on answering meanwhile.
+
+    lerobot-calibrate reads with one try and a ~34 ms deadline while the hand sweeps;
+    a check that held the bus that long ended it ("There is no status packet").
+    """
+    waypoints = [shell.UPRIGHT]  # the shell's `sweep` of the calibration test
+    for joint in ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "gripper"):
+        base = dict(shell.UPRIGHT, **shell.SWEEP_BASES.get(joint, {}))
+        lo, hi = JOINT_LIMITS[joint]
+        waypoints += [base, {joint: lo}, {joint: hi}, {joint: base.get(joint, (lo + hi) / 2)}]
+    waypoints.append(shell.UPRIGHT)
+    read = instruction_packet(1, INST_READ, bytes((56, 2)))  # Present_Position of servo 1
+    worst, running = [0.0], [True]
+    with VirtualSO101(torque_on_start=False) as virtual, open_link(virtual.port,
+                                                                   1_000_000) as link:
+        def poll():
+            while running[0]:
+                start = time.perf_counter()
+                link.write(read)
+                assert len(link.read(8)) == 8
+                worst[0] = max(worst[0], time.perf_counter() - start)
+
+        reader = threading.Thread(target=poll)
+        reader.start()
+        try:
+            time.sleep(0.3)
+            worst[0] = 0.0
+            start = time.perf_counter()
+            virtual.hand_move(waypoints)  # returns once the path is checked and set
+            check = time.perf_counter() - start
+            time.sleep(0.2)
+        finally:
+            running[0] = False
+            reader.join(timeout=5)
+    assert check > 0.010, f"the check took {1e3 * check:.1f} ms: too short to tell"
+    assert worst[0] < 0.5 * check, (f"a read waited {1e3 * worst[0]:.1f} ms during a "
+                                    f"{1e3 * check:.1f} ms check")

@@ -129,6 +129,11 @@ class _Emulator(ServoRegisters, ParentCommands, Hand):
         self.steps = 0
 
     # --- protocol -------------------------------------------------------------------------
+    def serve_serial(self) -> None:
+        """Answer any request already on the bus (called from long parent commands)."""
+        if not self.unplugged:
+            self.on_serial()
+
     def on_serial(self) -> None:
         try:
             chunk = os.read(self.master, 4096)

@@ -32,6 +32,7 @@ HAND_SPEED = math.radians(90.0)  # [rad/s] average speed of the joint that moves
 MIN_SEGMENT_S = 0.3  # [s] shortest hand move
 TABLE_MARGIN = 0.002  # [m] new penetration of the table that refuses a path
 CHECK_STEP = math.radians(1.0)  # [rad] path sampling for the table check
+SERVE_EVERY_S = 0.002  # the table check pauses this often to answer the bus [s]
 
 
 class HandError(ValueError):
@@ -137,10 +138,18 @@ class Hand:
             on_table = (c.geom1[:n] == table) | (c.geom2[:n] == table)
             return float(max(0.0, -c.dist[:n][on_table].min())) if on_table.any() else 0.0
 
+        # A long path takes tens of ms to check (a full sweep: ~20 ms on an idle host, twice
+        # that beside a busy lerobot tool): answer the bus meanwhile, as the servos would,
+        # or lerobot's 1-try reads time out (its deadline is ~34 ms).
+        serve = getattr(self, "serve_serial", None)
+        served = time.perf_counter()
         allowed = penetration(points[0]) + TABLE_MARGIN
         for a, b in zip(points, points[1:], strict=False):
             n = max(1, math.ceil(max(abs(b[j] - a[j]) for j in a) / CHECK_STEP))
             for s in np.linspace(0.0, 1.0, n + 1)[1:]:
+                if serve is not None and time.perf_counter() - served > SERVE_EVERY_S:
+                    serve()
+                    served = time.perf_counter()
                 q = {j: a[j] + s * (b[j] - a[j]) for j in a}
                 if penetration(q) > allowed:
                     pose = ", ".join(f"{j}={math.degrees(v):.0f}" for j, v in q.items())
