@@ -92,7 +92,7 @@ def get_inverse_kinematics(position, orientation=None, pitch=None, *, approach=_
         90.0
         >>> cfg = get_inverse_kinematics([0.2, 0.1, 0.014], np.pi / 4, 0.0)  # yaw [rad], pitch
         >>> _, rotation = forward_kinematics(cfg)  # Rz(45 deg), z up
-        >>> (rotation).round(4) + 0.0
+        >>> rotation.round(4) + 0.0
         array([[ 0.7071, -0.7071,  0.    ],
                [ 0.7071,  0.7071,  0.    ],
                [ 0.    ,  0.    ,  1.    ]])
