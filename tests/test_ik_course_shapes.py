@@ -73,8 +73,8 @@ def test_random_workspace_targets_reach_their_yaw_or_an_equal_grasp_of_the_cube(
     # In front of the base (azimuth within 60 deg) the roll for the exact yaw, pan + yaw
     # + 2.79 deg, stays within its limits (-157, 163 deg), so the frame itself is reached
     # unless that grasp's 5 mm tool offset pushes another joint past its limit (wrist_flex
-    # at the workspace's edge): another grasp of the cube then. Without the exact-yaw
-    # preference about a quarter of these would be exact.
+    # at the workspace's edge): another grasp of the cube then. The nearest-roll choice of
+    # the keyword form gets 31 of these 60 exact.
     front = [p for p in positions if p[0] > 0.1 and abs(math.atan2(p[1], p[0])) < math.pi / 3]
     assert len(front) >= 60
     for position in front[:60]:
