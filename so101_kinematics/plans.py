@@ -235,6 +235,27 @@ PLAN_KEYS = ("steps", "return_to_start", "return_duration")
 """Top-level keys of a plan file."""
 
 
+def data_kind(path: Path) -> str:
+    """"TOML" for a ``.toml`` file, else "JSON": how waypoint and trim files are read."""
+    return "TOML" if path.suffix.lower() == ".toml" else "JSON"
+
+
+def parse_data(text: str, kind: str):
+    """``text`` parsed as ``kind`` ("JSON" or "TOML").
+
+    Raises:
+        ValueError: not valid (JSONDecodeError and TOMLDecodeError are ValueErrors).
+        RecursionError: nested too deeply.
+    """
+    if kind == "JSON":
+        return json.loads(text)
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover - Python 3.10
+        import tomli as tomllib
+    return tomllib.loads(text)
+
+
 def read_text_file(path: str | Path, what: str, error: type[Exception] = PlanError) -> str:
     """The text of a UTF-8 file (a byte-order mark is tolerated).
 
@@ -287,16 +308,9 @@ def load_plan(path: str | Path, limits: Limits | None = None) -> Plan:
     """
     path = Path(path)
     text = read_text_file(path, "Waypoint file")
-    kind = "TOML" if path.suffix.lower() == ".toml" else "JSON"
+    kind = data_kind(path)
     try:
-        if kind == "TOML":
-            if sys.version_info >= (3, 11):
-                import tomllib
-            else:  # pragma: no cover - Python 3.10
-                import tomli as tomllib
-            data = tomllib.loads(text)
-        else:
-            data = json.loads(text)
+        data = parse_data(text, kind)
     except RecursionError:
         raise PlanError(f"Waypoint file '{path}' is nested too deeply to be a plan. Fix: see "
                         "waypoints/example.json for the layout.") from None

@@ -25,16 +25,14 @@ recalibrate rather than trim it.
 
 from __future__ import annotations
 
-import json
 import math
-import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from so101_kinematics.checks import Configuration, Limits, describe_value, is_finite_number, unit
 from so101_kinematics.errors import TrimError
 from so101_kinematics.frames import JOINTS
-from so101_kinematics.plans import read_text_file
+from so101_kinematics.plans import data_kind, parse_data, read_text_file
 
 TRIM_LIMIT_DEG = 5.0  # the largest trim accepted [deg] (gripper [%]); beyond it, recalibrate
 RECALIBRATE_FIX = ("Fix: an error this big is a calibration problem: recalibrate with "
@@ -123,16 +121,9 @@ def load_trims(path: str | Path) -> Trims:
     """
     path = Path(path)
     text = read_text_file(path, "Trim file", TrimError)
-    kind = "TOML" if path.suffix.lower() == ".toml" else "JSON"
+    kind = data_kind(path)
     try:
-        if kind == "TOML":
-            if sys.version_info >= (3, 11):
-                import tomllib
-            else:  # pragma: no cover - Python 3.10
-                import tomli as tomllib
-            data = tomllib.loads(text)
-        else:
-            data = json.loads(text)
+        data = parse_data(text, kind)
     except (ValueError, RecursionError) as error:
         message = " ".join(str(error).split())
         raise TrimError(f"Trim file '{path}' is not valid {kind}: {message}. Fix: write it as "

@@ -85,3 +85,20 @@ def clock():
     from hw_fakes import FakeClock
 
     return FakeClock()
+
+
+@pytest.fixture
+def course_arm():
+    """A virtual arm for so101_utils' helpers; a run a failed test left going is ended on it.
+
+    (Ended while the arm is still alive: otherwise the helpers' exit hook would try
+    to end it later on a closed virtual arm.)
+    """
+    pytest.importorskip("lerobot")
+    import so101_kinematics.hw.course as course
+    from so101_kinematics.virtual.arm import VirtualSO101
+
+    with VirtualSO101(calibration=REPO / "calibration" / "virtual_so101.json") as virtual:
+        yield virtual
+        for run in list(course._RUNS.values()):
+            course.end_at_start(run, "test teardown")

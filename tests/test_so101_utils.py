@@ -38,14 +38,9 @@ hw = [pytest.mark.hw]
 
 
 @pytest.fixture
-def arm():
-    pytest.importorskip("lerobot")
-    from so101_kinematics.virtual.arm import VirtualSO101
-
-    with VirtualSO101(calibration=CALIBRATION_PATH) as virtual:
-        yield virtual
-        for run in list(course._RUNS.values()):  # a test that failed mid-run: end it here
-            course.end_at_start(run, "test teardown")
+def arm(course_arm):
+    """The virtual arm (tests/conftest.py's course_arm)."""
+    return course_arm
 
 
 @pytest.fixture

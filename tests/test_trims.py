@@ -102,15 +102,9 @@ def test_pick_place_hw_refuses_a_big_trim_before_the_port_in_one_line(tmp_path, 
 
 # --- on the (virtual) arm -----------------------------------------------------------------
 @pytest.fixture
-def arm():
-    pytest.importorskip("lerobot")
-    import so101_kinematics.hw.course as course
-    from so101_kinematics.virtual.arm import VirtualSO101
-
-    with VirtualSO101(calibration=CALIBRATION_PATH) as virtual:
-        yield virtual
-        for run in list(course._RUNS.values()):  # a test that failed mid-run: end it here
-            course.end_at_start(run, "test teardown")
+def arm(course_arm):
+    """The virtual arm (tests/conftest.py's course_arm)."""
+    return course_arm
 
 
 class Sampler(threading.Thread):
