@@ -20,11 +20,8 @@ from so101_kinematics.hw.control import (
     ServoFault,
     TrackingError,
     capped_duration,
-    hold_position,
     loop_timing_stats,
-    move_to_pose,
     peak_speed_factor,
-    session_for,
     speed_caps,
 )
 from so101_kinematics.motion import JointLimitError
@@ -129,13 +126,13 @@ def test_move_runs_on_the_rate_grid(calibration, clock):
     assert all(c.measured is not None for c in session.cycles)
 
 
-def test_course_call_shape_with_a_plain_bus(calibration, clock):
+def test_a_move_then_a_hold_with_a_plain_bus(calibration, clock):
     bus = FakeBus(calibration, HOME)
-    ArmSession(bus, clock=clock.clock, sleep=clock.sleep)  # registered for this bus
-    move_to_pose(bus, dict(HOME, gripper=50.0), 1.0)
-    hold_position(bus, 0.2)
+    session = ArmSession(bus, clock=clock.clock, sleep=clock.sleep)
+    session.move(dict(HOME, gripper=50.0), 1.0)
+    session.hold(0.2)
     assert bus.pose["gripper"] == pytest.approx(50.0)
-    assert session_for(bus).segments[-1].kind == "hold"
+    assert session.segments[-1].kind == "hold"
 
 
 def test_command_outside_the_calibrated_range_is_never_sent(calibration, clock):

@@ -1,14 +1,14 @@
-"""The deadline-scheduled control loop of the real arm and the course's move_to_pose/hold_position.
+"""The deadline-scheduled control loop of the real arm.
 
 The motion side of the hardware backend of the shared motion code
 (``motion.py``), on a lerobot bus opened with ``hw/bus.py``:
   - the speed cap and the deadline scheduler are ``hw/timing.py``'s, the stop
     signals and the frozen garbage collector ``hw/signals.py``'s;
-  - the control loop (:class:`ArmSession`) behind the course's interface
-    ``move_to_pose(bus, cfg, duration)`` and ``hold_position(bus, duration)``,
-    with every stop signal (Ctrl-C, SIGTERM, SIGHUP) turned into a stop at a
-    cycle boundary (:func:`stop_on_signals`) and the garbage collector frozen
-    during motion (:func:`gc_frozen`).
+  - the control loop (:class:`ArmSession`) behind ``pick_place_hw.py`` and the
+    course's helpers (``so101_utils.py``, ``hw/course.py``), with every stop
+    signal (Ctrl-C, SIGTERM, SIGHUP) turned into a stop at a cycle boundary
+    (:func:`stop_on_signals`) and the garbage collector frozen during motion
+    (:func:`gc_frozen`).
 
 The fault policy (docs/hardware_safety.md): a position-controlled servo holds
 its last goal by itself, so holding is always safer than letting go. A failed
@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import logging
 import time
-import weakref
 from collections.abc import Callable, Mapping
 
 from so101_kinematics.calibration import calibrated_limits
@@ -96,14 +95,12 @@ STATUS_EVERY = 10                  # read the servos' Status (error bits) every 
 
 
 # --- The control loop ------------------------------------------------------------
-_SESSIONS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
 class ArmSession:
     """A connected arm plus the state of its control loop.
 
-    Created for a bus, it is found again by :func:`move_to_pose` and
-    :func:`hold_position`, so the course's ``move_to_pose(bus, cfg, 2.0)`` works.
+    The course's ``move_to_pose(bus, cfg, duration)`` and ``hold_position(bus,
+    duration)`` on the real arm are ``so101_utils.py``'s (``hw/course.py``):
+    this loop with the fault policy's endings around each call.
 
     Args:
         bus: a connected lerobot ``FeetechMotorsBus`` (calibration set).
@@ -158,7 +155,6 @@ class ArmSession:
         self.known_faults: dict[str, int] = {}  # joint -> status bits already reported
         self._status_seen: dict[str, int] = {}  # joint -> bits of the last status read
         self.stale_bytes = 0  # late-reply bytes dropped before reads
-        _SESSIONS[bus] = self
 
     # measurement and command
     def _read(self) -> Configuration:
@@ -335,11 +331,23 @@ class ArmSession:
         try:
             pose = self._read()
         except Exception:  # noqa: BLE001 - unobserved: the servos hold their last goals
-            return None
-        goal = {j: min(self.limits[j][1], max(self.limits[j][0], pose[j])) for j in JOINTS}
-        self._send(goal)
-        self.command = goal
+            pose = None
+        if pose is not None:
+            goal = {j: min(self.limits[j][1], max(self.limits[j][0], pose[j])) for j in JOINTS}
+            self._send(goal)
+            self.command = goal
+        self._record("stop", pose)
         return pose
+
+    def _record(self, step: str, measured: Configuration | None) -> None:
+        """A cycle outside the rate loop (a stop, a poll while the arm is silent): logged too."""
+        if self._t0 is None or self.command is None:
+            return  # nothing commanded yet: no run to log
+        now = self.loop.clock() - self._t0
+        cycle = Cycle(now, now, step, dict(self.command), measured)
+        self.cycles.append(cycle)
+        if self.on_cycle is not None:
+            self.on_cycle(self, cycle)
 
     def wait_for_arm(self, timeout: float = RECOVERY_TIMEOUT_S) -> Configuration | None:
         """Poll the arm until every servo answers (then stop there), for up to ``timeout`` [s]."""
@@ -363,37 +371,3 @@ class ArmSession:
         stats.update(overruns=self.loop.overruns, skipped=self.loop.skipped,
                      plan_lag_s=self.plan_lag_s)
         return stats
-
-
-def session_for(bus) -> ArmSession:
-    """The :class:`ArmSession` of a bus (created with default settings the first time)."""
-    if isinstance(bus, ArmSession):
-        return bus
-    session = _SESSIONS.get(bus)
-    return session if session is not None else ArmSession(bus)
-
-
-def move_to_pose(bus, cfg: Mapping[str, float], duration: float) -> None:
-    """Move the arm to ``cfg`` ([deg], gripper [0, 100]) in ``duration`` [s], as in the simulator.
-
-    Deadline-scheduled at the session's rate, Present_Position read each
-    cycle; the first call ramps from the measured pose.
-
-    Args:
-        bus: a connected lerobot FeetechMotorsBus (or its :class:`ArmSession`).
-        cfg: target configuration.
-        duration: [s]; stretched if too fast for the speed cap.
-    """
-    session_for(bus).move(cfg, duration)
-
-
-def hold_position(bus, duration: float) -> None:
-    """Hold the last commanded pose for ``duration`` [s], reading and checking the arm each cycle.
-
-    Args:
-        bus: a connected lerobot FeetechMotorsBus (or its :class:`ArmSession`).
-        duration: [s].
-    """
-    session_for(bus).hold(duration)
-
-
