@@ -23,7 +23,7 @@ import so101_kinematics.hw.run as hw  # noqa: E402
 from so101_forward_kinematics import ARM_JOINTS  # noqa: E402
 from so101_kinematics.calibration import load_calibration  # noqa: E402
 from so101_kinematics.constants import HOME_POSE  # noqa: E402
-from so101_kinematics.hw.bus import connect, disconnect  # noqa: E402
+from so101_kinematics.hw.bus import connect, disconnect, silent_servos  # noqa: E402
 from so101_kinematics.motion import Plan, Step  # noqa: E402
 from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
 
@@ -183,3 +183,14 @@ def test_read_position_rides_through_a_lost_reply(arm, capsys):
         dropper.join()
     assert rc == 0
     assert "Last pose" in capsys.readouterr().out
+
+
+def test_a_servo_reporting_an_error_bit_is_not_called_silent(arm):
+    """The last line names the servos that do not answer; one that answers with its overload
+    bit set (a gripper squeezing a cube for long) is not one of them."""
+    bus = connect(arm.port, load_calibration(DEFAULT_CALIBRATION_PATH))
+    try:
+        arm.inject("overload:gripper,remove:wrist_flex")
+        assert silent_servos(bus) == ["wrist_flex"]
+    finally:
+        disconnect(bus)

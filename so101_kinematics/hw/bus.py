@@ -372,15 +372,15 @@ def release_torque(bus) -> list[str]:
 
 
 def silent_servos(bus) -> list[str]:
-    """The joints whose servo does not answer a ping now."""
+    """The joints whose servo does not answer a ping now (one with an error bit set answers)."""
     recover_port(bus)
     silent = []
     for joint in bus.motors:
         try:
-            if bus.ping(joint, num_retry=1) is None:
+            bus.ping(joint, num_retry=1, raise_on_error=True)
+        except Exception as error:  # noqa: BLE001 - RuntimeError: it answered, an error bit set
+            if not isinstance(error, RuntimeError):  # (e.g. overload); else no reply
                 silent.append(joint)
-        except Exception:  # noqa: BLE001
-            silent.append(joint)
     return silent
 
 
