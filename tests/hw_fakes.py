@@ -81,8 +81,14 @@ class FakeBus:
         if name == "Torque_Enable":
             self.torque[motor] = bool(value)
 
-    def ping(self, motor, num_retry=0):
-        return None if motor in self.silent else 777
+    def ping(self, motor, num_retry=0, raise_on_error=False):
+        """lerobot's contract: no reply -> ConnectionError, an error bit in the reply ->
+        RuntimeError (both None unless ``raise_on_error``); else the model number."""
+        if motor in self.silent or self.status[motor]:
+            if raise_on_error:
+                raise (ConnectionError if motor in self.silent else RuntimeError)(motor)
+            return None
+        return 777
 
 
 def make_session(calibration, clock, pose=HOME, stalled=(), **kwargs):

@@ -115,6 +115,17 @@ def test_a_servo_that_never_answers_leaves_the_others_holding(calibration, clock
     assert line.endswith(RELEASE) and "power" in line
 
 
+def test_a_servo_answering_with_an_error_bit_is_not_named_silent(calibration, clock):
+    def silence_wrist_overload_gripper(session):
+        session.bus.silent.add("wrist_flex")
+        session.bus.status["gripper"] = 0x20  # overload: it answers, with the bit set
+        session.bus.fail_until = clock.now + 1e6
+
+    result, bus, error = run(calibration, clock, at_step("carry", silence_wrist_overload_gripper))
+    assert result.silent == ["wrist_flex"] and all(bus.torque.values())
+    assert "Not answering: wrist_flex (id 4)" in hw.ending(result, RELEASE)
+
+
 def test_an_outage_that_recovers_after_the_tolerance_returns_and_releases(calibration, clock):
     down = at_step("carry", lambda s: setattr(s.bus, "fail_until", clock.now + 2.5))
     result, bus, error = run(calibration, clock, down)
