@@ -45,6 +45,8 @@ from __future__ import annotations
 
 from so101_kinematics.hw.course import (  # noqa: F401 - the course's helpers and their settings
     AT_START_TOLERANCE_DEG,
+    MISSING,
+    START_MISMATCH,
     ScriptEnded,
     course_hold_position,
     course_load_calibration,
@@ -86,15 +88,27 @@ def setup_motors(calibration, port, offset_config=None):
     return _setup_motors(calibration, port, offset_config)
 
 
-def move_to_pose(bus, desired_position, duration):
+def move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING):
     """Move the arm smoothly to ``desired_position`` in ``duration`` seconds.
+
+    ``move_to_pose(bus, desired_position, duration)``, or assignment 8's
+    suggested improvement ``move_to_pose(bus, starting_position,
+    desired_position, duration)``. Each move starts from the previous move's
+    target (the goal the servos hold), which is what that improvement is for;
+    a ``starting_position`` more than 3 deg (``START_MISMATCH``) from it is
+    named in a warning and never jumped to.
 
     Args:
         bus: from :func:`setup_motors`.
-        desired_position: joint name -> [deg] (gripper 0-100); joints left out keep their goal.
-        duration: [s]; stretched (with a warning) if a joint would exceed its speed cap.
+        *args: ``desired_position, duration`` or ``starting_position,
+            desired_position, duration`` (``starting_position``: where the move
+            is meant to start, joint name -> [deg]).
+        desired_position: joint name -> [deg] (gripper 0-100); joints left out
+            keep their goal.
+        duration: [s]; stretched (with a warning) if a joint would exceed its
+            speed cap.
     """
-    course_move_to_pose(bus, desired_position, duration)
+    course_move_to_pose(bus, *args, desired_position=desired_position, duration=duration)
 
 
 def hold_position(bus, duration):

@@ -14,6 +14,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from so101_kinematics.errors import CallShapeError
 from so101_kinematics.errors import JointLimitError as JointLimitError
 from so101_kinematics.errors import PlanError as PlanError
 from so101_kinematics.frames import JOINTS
@@ -189,3 +190,67 @@ def check_configuration(cfg: Mapping[str, float], limits: Limits, where: str = "
         out[joint] = float(value)
     return out
 
+
+
+START_MISMATCH = 3.0
+"""[deg] (gripper [%]): a starting configuration given to ``move_to_pose`` farther than this
+from the last command is named in a warning (a servo's steady-state error under load is a
+degree or two). The move starts from the last command either way: no jump."""
+
+MISSING = object()
+"""An argument not given at all (None is a value: a bad one)."""
+
+
+def move_arguments(args: tuple, keywords: Mapping[str, object], shapes: str,
+                   first: str) -> tuple[Configuration | None, object, object]:
+    """(starting configuration or None, target, duration) from a course ``move_to_pose`` call.
+
+    The course's shapes: ``(cfg, duration)``, and assignment 8's suggested
+    improvement ``(starting_cfg, cfg, duration)``; keywords (given as
+    ``MISSING`` when absent) follow the positional arguments in that order.
+
+    Args:
+        args: the positional arguments after ``first``.
+        keywords: name -> value of the keyword-or-positional parameters, in order.
+        shapes: the accepted shapes, as the messages name them.
+        first: what comes before ``args`` in a call, e.g. "m, d, viewer" or "bus".
+
+    Raises:
+        CallShapeError: any other shape, or a starting configuration that is not
+            a dict joint -> finite number.
+    """
+    values = list(args) + [v for v in keywords.values() if v is not MISSING]
+    fix = f"Fix: call {shapes}."
+    if len(values) not in (2, 3):
+        got = (f"one argument ({describe_value(values[0])})" if len(values) == 1 else
+               f"{len(values)} arguments" if values else "no argument")
+        raise CallShapeError(f"move_to_pose got {got} after {first}: it needs the target "
+                             f"configuration and the duration [s]. {fix}")
+    start, cfg, duration = ([None] + values) if len(values) == 2 else values
+    if isinstance(duration, Mapping):
+        raise CallShapeError(f"move_to_pose got a configuration ({describe_value(duration)}) "
+                             f"where the duration [s] belongs. {fix}")
+    if start is not None:
+        if not isinstance(start, Mapping):
+            raise CallShapeError(f"move_to_pose's starting configuration must be a dict joint "
+                                 f"name -> value, got {describe_value(start)}. {fix}")
+        try:
+            start = check_configuration(start, {j: (-math.inf, math.inf) for j in start},
+                                        "move_to_pose starting configuration")
+        except PlanError as error:
+            raise CallShapeError(str(error)) from None
+    return start, cfg, duration
+
+
+def start_mismatch(start: Mapping[str, float] | None, command: Mapping[str, float]) -> str | None:
+    """A warning when ``start`` is more than :data:`START_MISMATCH` from ``command``, else None."""
+    if not start:
+        return None
+    joint = max(start, key=lambda j: abs(start[j] - command[j]))
+    gap = abs(start[joint] - command[joint])
+    if gap <= START_MISMATCH:
+        return None
+    return (f"move_to_pose: the starting configuration is {gap:.1f} {unit(joint)} from the last "
+            f"command ({joint}: {start[joint]:g} given, {command[joint]:g} commanded); the move "
+            f"starts from the last command (starting elsewhere would be a jump). Fix: pass the "
+            f"previous move's target as the starting configuration.")

@@ -236,3 +236,57 @@ def test_hold_position_checks_its_configuration_before_any_step(model, data):
         utils.hold_position(model, data, None, {"": 0}, 1.0)
     assert data.time == 0.0
     assert utils.get_command(model, data) == pytest.approx(START)
+
+
+# --- move_to_pose: assignment 8's starting configuration --------------------------------------
+
+
+def run_moves(model, moves) -> np.ndarray:
+    """qpos after ``moves`` (each a tuple of move_to_pose's arguments after m, d, viewer)."""
+    data = mujoco.MjData(model)
+    utils.set_initial_pose(data, START)
+    for args in moves:
+        utils.move_to_pose(model, data, None, *args)
+    return data.qpos.copy()
+
+
+def test_a_starting_configuration_at_the_last_command_moves_as_the_course_form(model, caplog):
+    """Assignment 8's ``move_to_pose(m, d, viewer, starting_cfg, cfg, duration)``: chained
+    moves pass the previous target as the start, which is where the command already is."""
+    first, second = dict(START, shoulder_pan=20.0), dict(START, elbow_flex=-20.0, gripper=10.0)
+    course = run_moves(model, [(first, 0.4), (second, 0.3)])
+    with_start = run_moves(model, [(START, first, 0.4), (first, second, 0.3)])
+    np.testing.assert_array_equal(with_start, course)
+    assert "starting configuration" not in caplog.text
+    by_keyword = mujoco.MjData(model)
+    utils.set_initial_pose(by_keyword, START)
+    utils.move_to_pose(model, by_keyword, None, cfg=first, duration=0.4)
+    np.testing.assert_array_equal(by_keyword.qpos, run_moves(model, [(first, 0.4)]))
+
+
+def test_a_starting_configuration_away_from_the_command_is_named_and_not_jumped_to(model, caplog):
+    goal = dict(START, shoulder_pan=0.0)
+    elsewhere = dict(START, shoulder_pan=-43.0, wrist_flex=60.0)  # 2 deg and 30 deg off
+    np.testing.assert_array_equal(run_moves(model, [(elsewhere, goal, 0.4)]),
+                                  run_moves(model, [(goal, 0.4)]))
+    assert "starting configuration is 30.0 deg from the last command (wrist_flex: 60 given, " \
+           "90 commanded)" in caplog.text
+
+
+@pytest.mark.parametrize("args, says", [
+    ((2.0,), "got one argument (2)"),  # assignment 8's pick_up_block: move_to_pose(bus, time)
+    ((START,), "got one argument ({'shoulder_pan'"),
+    ((START, START, START), "a configuration ({'shoulder_pan'"),
+    ((START, START, 1.0, 2.0), "got 4 arguments"),
+    ((3.0, START, 1.0), "starting configuration must be a dict joint name -> value, got 3"),
+    (({"elbow": 0.0}, START, 1.0), "unknown joint 'elbow'. Did you mean 'elbow_flex'?"),
+    (({"elbow_flex": "0"}, START, 1.0), "'elbow_flex' must be a finite number"),
+])
+def test_other_move_shapes_name_the_accepted_ones_before_any_step(model, data, args, says):
+    utils.set_initial_pose(data, START)
+    with pytest.raises(utils.CallShapeError) as error:
+        utils.move_to_pose(model, data, None, *args)
+    assert says in str(error.value)
+    assert "move_to_pose(m, d, viewer, starting_cfg, cfg, duration)" in str(error.value) \
+        or "Fix: use those names" in str(error.value) or "Fix: give" in str(error.value)
+    assert data.time == 0.0

@@ -104,6 +104,49 @@ def test_assignment_8_example_runs_as_written(arm, lerobot_calibrations, capsys)
 
 
 @pytest.mark.hw
+def test_assignment_8_starting_position_form_never_jumps(arm, capsys, caplog):
+    """The course's suggested ``move_to_pose(bus, starting_position, desired_position,
+    duration)``: chained as the course chains it, then with a start the arm is not at."""
+    from so101_utils import load_calibration, move_to_pose, setup_motors
+
+    bus = setup_motors(load_calibration(str(CALIBRATION_PATH)), arm.port)
+    session = course._RUNS[id(bus)].session
+    starting_pose = bus.sync_read("Present_Position")
+    target = dict(HOME, shoulder_pan=30.0, elbow_flex=70.0)
+    move_to_pose(bus, starting_pose, target, 1.0)
+    move_to_pose(bus, target, starting_pose, 1.0)
+    assert "starting configuration" not in caplog.text
+    assert_near(arm.joint_positions(), starting_pose, label="back")
+    elsewhere = dict(starting_pose, shoulder_pan=starting_pose["shoulder_pan"] - 25.0)
+    move_to_pose(bus, elsewhere, target, 1.0)
+    assert "starting configuration is 25.0 deg from the last command (shoulder_pan" in caplog.text
+    assert_near(session.segments[-1].start, starting_pose, tol_deg=1e-6, tol_gripper=1e-6,
+                label="the move began at the last goal")
+    assert_near(arm.joint_positions(), target, label="reached")
+    bus.disable_torque()
+    assert last_line(capsys.readouterr().out) == "Done: back at the starting pose, torque off."
+    bus.disconnect(disable_torque=False)
+
+
+@pytest.mark.hw
+def test_assignment_8_pick_up_block_call_without_a_target_ends_at_the_start(arm, capsys):
+    """The course's ``pick_up_block`` calls ``move_to_pose(bus, move_to_duration)``."""
+    from so101_utils import load_calibration, move_to_pose, setup_motors
+
+    bus = setup_motors(load_calibration(str(CALIBRATION_PATH)), arm.port)
+    move_to_pose(bus, dict(HOME, shoulder_pan=20.0), 1.0)
+    with pytest.raises(course.ScriptEnded) as ended:
+        move_to_pose(bus, 2.0)
+    assert ended.value.code == 1 and ended.value.result.returned_to_start
+    err = capsys.readouterr().err
+    assert "move_to_pose got one argument (2) after bus" in err
+    assert "move_to_pose(bus, starting_position, desired_position, duration)" in err
+    assert last_line(err) == "Back at the starting pose, torque off."
+    assert not any(arm.torque_enabled().values())
+    bus.disconnect(disable_torque=False)
+
+
+@pytest.mark.hw
 def test_disable_torque_away_from_the_start_returns_there_first(arm, capsys, caplog):
     from so101_utils import load_calibration, move_to_pose, setup_motors
 

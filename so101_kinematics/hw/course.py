@@ -35,7 +35,14 @@ from pathlib import Path
 from typing import Any
 
 from so101_kinematics.calibration import find_calibration, load_calibration
-from so101_kinematics.checks import check_number, is_finite_number
+from so101_kinematics.checks import (
+    MISSING,
+    START_MISMATCH,  # noqa: F401 - so101_utils's setting
+    check_number,
+    is_finite_number,
+    move_arguments,
+    start_mismatch,
+)
 from so101_kinematics.errors import CalibrationError, PlanError, SO101Error
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.bus import (
@@ -238,14 +245,24 @@ def _guarded(bus, what: str, action: Callable[[ArmSession], None]) -> None:
         raise ScriptEnded(1, line, result) from None
 
 
-def course_move_to_pose(bus, cfg: Mapping[str, float], duration: float) -> None:
-    """Move to ``cfg`` ([deg], gripper [0, 100]) in ``duration`` [s]; joints left out stay put.
+MOVE_SHAPES = ("move_to_pose(bus, desired_position, duration) or, with assignment 8's starting "
+               "configuration, move_to_pose(bus, starting_position, desired_position, duration)")
 
+
+def course_move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING) -> None:
+    """Move to the target ([deg], gripper [0, 100]) in ``duration`` [s]; joints left out stay put.
+
+    ``(bus, desired_position, duration)`` or assignment 8's ``(bus,
+    starting_position, desired_position, duration)``: the move starts from the
+    last goal either way (a starting position farther than
+    ``checks.START_MISMATCH`` from it is named in a warning, never jumped to).
     A target within ``LIMIT_SLACK_DEG`` outside the calibrated range (a pose
     read back with ``bus.sync_read``) is clamped into it.
     """
     def move(session: ArmSession) -> None:
-        seconds = check_number(duration, "move_to_pose duration", 0.0, MAX_MOVE_S, "s")
+        start, cfg, seconds = move_arguments(
+            args, {"desired_position": desired_position, "duration": duration}, MOVE_SHAPES, "bus")
+        seconds = check_number(seconds, "move_to_pose duration", 0.0, MAX_MOVE_S, "s")
         if not isinstance(cfg, Mapping):
             raise PlanError(f"move_to_pose needs a configuration dict joint -> [deg], got "
                             f"{type(cfg).__name__}. Fix: e.g. {{'shoulder_pan': 0.0, ...}}.")
@@ -255,6 +272,9 @@ def course_move_to_pose(bus, cfg: Mapping[str, float], duration: float) -> None:
             value = target.get(joint)
             if is_finite_number(value) and low - LIMIT_SLACK_DEG <= value <= high + LIMIT_SLACK_DEG:
                 target[joint] = min(high, max(low, float(value)))
+        warning = start_mismatch(start, session.command)
+        if warning:
+            logger.warning(warning)
         session.move(target, seconds)
 
     _guarded(bus, "move_to_pose", move)

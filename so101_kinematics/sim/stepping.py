@@ -1,9 +1,11 @@
 """Moving the simulated arm: the course's ``move_to_pose`` and ``hold_position``.
 
+``move_to_pose`` takes the course's ``(m, d, viewer, cfg, duration)`` and
+assignment 8's suggested ``(m, d, viewer, starting_cfg, cfg, duration)``;
 ``hold_position`` takes both of the course's shapes: ``(m, d, viewer,
 duration)`` (assignment 6) and ``(m, d, viewer, cfg, duration)`` (assignment 7,
 the configuration before the duration); any other shape is a one-line
-``CallShapeError`` naming both.
+``CallShapeError`` naming the accepted ones.
 
 Motion is timed on simulation time (``d.time``): a headless run
 (``viewer=None``) is deterministic and runs as fast as the CPU allows; with a
@@ -20,6 +22,7 @@ physics steps at a time).
 
 from __future__ import annotations
 
+import logging
 import math
 import sys
 import time
@@ -29,7 +32,14 @@ import mujoco
 import numpy as np
 
 from so101_kinematics import display
-from so101_kinematics.checks import check_configuration, describe_value, is_finite_number
+from so101_kinematics.checks import (
+    MISSING,
+    check_configuration,
+    describe_value,
+    is_finite_number,
+    move_arguments,
+    start_mismatch,
+)
 from so101_kinematics.errors import CallShapeError, ViewerClosed
 from so101_kinematics.motion import Trajectory, check_duration
 from so101_kinematics.sim.scene import (
@@ -39,6 +49,8 @@ from so101_kinematics.sim.scene import (
     to_radians,
     validate,
 )
+
+logger = logging.getLogger(__name__)
 
 VIEWER_SYNC_PERIOD = 1.0 / 60.0  # [s] of simulation time between viewer updates
 # Physics steps whose commands are computed at once (one numpy evaluation of
@@ -121,19 +133,24 @@ def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> 
         ctrl[actuators] = start + delta
 
 
-def move_to_pose(
-    m: mujoco.MjModel,
-    d: mujoco.MjData,
-    viewer,
-    cfg: Mapping[str, float],
-    duration: float,
-    profile: str = "minimum_jerk",
-) -> None:
+MOVE_SHAPES = ("move_to_pose(m, d, viewer, cfg, duration) or, with assignment 8's starting "
+               "configuration, move_to_pose(m, d, viewer, starting_cfg, cfg, duration)")
+"""The call shapes :func:`move_to_pose` accepts, as its error messages name them."""
+
+
+def move_to_pose(m: mujoco.MjModel, d: mujoco.MjData, viewer, *args,
+                 cfg: Mapping[str, float] = MISSING, duration: float = MISSING,
+                 profile: str = "minimum_jerk") -> None:
     """Move from the current command to ``cfg`` in ``duration`` [s] of simulation time.
 
+    ``move_to_pose(m, d, viewer, cfg, duration)``, or assignment 8's suggested
+    improvement ``move_to_pose(m, d, viewer, starting_cfg, cfg, duration)``.
     The target is validated before the first step. The path starts at the
     last command (not the measured pose), so a gripper squeezing an object
-    keeps squeezing while the arm moves.
+    keeps squeezing while the arm moves; that is what the course's starting
+    configuration is for, so a ``starting_cfg`` within ``checks.START_MISMATCH``
+    of the last command changes nothing, and one farther away is named in a
+    warning (the move still starts from the last command: no jump).
 
     Args:
         m: the model.
@@ -141,18 +158,26 @@ def move_to_pose(
         viewer: ``None`` (headless, as fast as possible), a passive viewer
             (paced to real time) or any object with ``sync()`` and
             ``is_running()`` (e.g. an offscreen recorder).
+        *args: ``cfg, duration`` or ``starting_cfg, cfg, duration``.
         cfg: target configuration ([deg], gripper [0, 100]).
         duration: time for the move [s], in [0, ``MAX_DURATION``].
         profile: "minimum_jerk" (smooth, default) or "linear" (the course's).
 
     Raises:
+        CallShapeError: any other shape of arguments.
         JointLimitError: the target is outside the limits.
         PlanError: a duration that is not a number in [0, MAX_DURATION] s.
         ViewerClosed: the viewer window was closed.
     """
+    start, cfg, duration = move_arguments(args, {"cfg": cfg, "duration": duration},
+                                          MOVE_SHAPES, "m, d, viewer")
     goal = validate(m, cfg, "move_to_pose target")
     duration = check_duration(duration, "move_to_pose duration")
-    path = Trajectory(get_command(m, d), goal, duration, profile)
+    command = get_command(m, d)
+    warning = start_mismatch(start, command)
+    if warning:
+        logger.warning(warning)
+    path = Trajectory(command, goal, duration, profile)
     t0 = d.time
     _advance(m, d, viewer, t0 + path.duration, path, t0)
 
@@ -161,7 +186,6 @@ HOLD_SHAPES = ("hold_position(m, d, viewer, duration) (assignment 6) or "
                "hold_position(m, d, viewer, cfg, duration) (assignment 7)")
 """The call shapes :func:`hold_position` accepts, as its error messages name them."""
 
-_MISSING = object()  # an argument not given at all (None is a value: a bad duration)
 
 
 def _hold_arguments(args: tuple, cfg, duration) -> tuple[Mapping[str, float] | None, object]:
@@ -174,30 +198,30 @@ def _hold_arguments(args: tuple, cfg, duration) -> tuple[Mapping[str, float] | N
         ("cfg",) if args and isinstance(args[0], Mapping) else ("duration",) if args else ())
     keywords = {"cfg": cfg, "duration": duration}
     for name, value in zip(names, args, strict=True):
-        if keywords[name] is not _MISSING:
+        if keywords[name] is not MISSING:
             raise CallShapeError(f"hold_position got {name} both by position and by keyword. "
                                  f"{fix}")
         keywords[name] = value
     cfg, duration = keywords["cfg"], keywords["duration"]
     if isinstance(duration, Mapping):
-        if cfg is not _MISSING and not isinstance(cfg, Mapping):
+        if cfg is not MISSING and not isinstance(cfg, Mapping):
             raise CallShapeError(f"hold_position got the duration ({describe_value(cfg)}) "
                                  "before the configuration; the configuration comes first. "
                                  "Fix: call hold_position(m, d, viewer, cfg, duration).")
         raise CallShapeError(f"hold_position got a configuration ({describe_value(duration)}) "
                              f"where the duration [s] belongs. {fix}")
-    if duration is _MISSING:
-        what = "after the configuration " if cfg is not _MISSING else ""
+    if duration is MISSING:
+        what = "after the configuration " if cfg is not MISSING else ""
         raise CallShapeError(f"hold_position needs a duration [s] {what}(how long to hold). "
                              f"{fix}")
-    if cfg is not _MISSING and not isinstance(cfg, Mapping):
+    if cfg is not MISSING and not isinstance(cfg, Mapping):
         raise CallShapeError(f"hold_position's configuration must be a dict joint name -> value "
                              f"([deg], gripper [0, 100]), got {describe_value(cfg)}. {fix}")
-    return (None if cfg is _MISSING else cfg), duration
+    return (None if cfg is MISSING else cfg), duration
 
 
 def hold_position(m: mujoco.MjModel, d: mujoco.MjData, viewer, *args,
-                  cfg: Mapping[str, float] = _MISSING, duration: float = _MISSING) -> None:
+                  cfg: Mapping[str, float] = MISSING, duration: float = MISSING) -> None:
     """Hold for ``duration`` [s] of simulation time, commanding ``cfg`` first if it is given.
 
     Both of the course's shapes: ``hold_position(m, d, viewer, duration)``
