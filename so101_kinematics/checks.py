@@ -191,7 +191,6 @@ def check_configuration(cfg: Mapping[str, float], limits: Limits, where: str = "
     return out
 
 
-
 START_MISMATCH = 3.0
 """[deg] (gripper [%]): a starting configuration given to ``move_to_pose`` farther than this
 from the last command is named in a warning (a servo's steady-state error under load is a
