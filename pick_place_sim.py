@@ -26,9 +26,11 @@ from so101_kinematics.cli import (
     EXIT_BAD_INPUT,
     EXIT_INTERRUPTED,
     ArgumentParser,
+    add_servo_arguments,
     number,
     range_help,
     report_unexpected,
+    servo_from_arguments,
 )
 from so101_kinematics.lab.compare import LogError, compare_run, draw_report
 from so101_kinematics.motion import MAX_DURATION, PlanError
@@ -142,6 +144,7 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
                         f"{range_help(*duration)} (default %(default)g)")
     add_cartesian_arguments(parser)
     add_stack_arguments(parser)
+    add_servo_arguments(parser)
     parser.add_argument("--json", type=Path, metavar="PATH", help="write the run report as JSON")
     parser.add_argument("--compare", type=Path, metavar="LOG.csv", help="replay a hardware log "
                         "(pick_place_hw.py --log) in the simulator and compare; needs --report")
@@ -195,14 +198,16 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         if stack is not None:
             report = run_stack(stack, mode=mode, video=video, fps=args.fps, size=args.size,
                                camera=args.camera, quality=args.quality,
-                               progress=not args.no_progress, show_ui=args.ui)
+                               progress=not args.no_progress, show_ui=args.ui,
+                               servo=servo_from_arguments(args))
         else:
             cube = CubeStart((args.cube_offset[0] / 1000.0, args.cube_offset[1] / 1000.0),
                              args.cube_turn) if args.cube else None
             report = run_pick_place(plan, cube=cube, mode=mode, video=video, fps=args.fps,
                                     size=args.size, camera=args.camera, quality=args.quality,
                                     progress=not args.no_progress, show_ui=args.ui,
-                                    base_height=args.base_height)
+                                    base_height=args.base_height,
+                                    servo=servo_from_arguments(args))
     except (PlanError, RenderError, OutputPathError, KinematicsInputError) as error:
         print(f"error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -96,3 +96,43 @@ def report_unexpected(error: BaseException, verbose: bool) -> int:
     print(f"error: unexpected {type(error).__name__}: {text} (a bug? rerun with -v for the "
           "traceback)", file=sys.stderr)
     return EXIT_FAILED
+
+
+def add_gravity_ff_argument(parser: argparse.ArgumentParser) -> None:
+    """``--gravity-ff`` / ``--no-gravity-ff`` (default on): every script that moves the arm."""
+    parser.add_argument("--gravity-ff", action=argparse.BooleanOptionalAction, default=True,
+                        help="offset each goal by the sag gravity will cause there (the "
+                        "servo's holding error at its P and supply; README, 'What the real arm "
+                        "does'); --no-gravity-ff shows the raw sag (default on)")
+
+
+SERVO_CHOICES = ("sts3215", "ideal")
+"""``--servo``: the measured STS3215, or the upstream model's stiff ideal servo."""
+
+
+def add_servo_arguments(parser: argparse.ArgumentParser) -> None:
+    """The simulated servo's options: --servo, --supply, --variant, --p-coefficient, --gravity-ff.
+
+    :func:`servo_from_arguments` turns them into ``use_servo``'s keywords.
+    """
+    group = parser.add_argument_group("servo (README, 'What the real arm does')")
+    group.add_argument("--servo", choices=SERVO_CHOICES, default="sts3215",
+                       help="sts3215: the measured servo at lerobot's settings (P 16, D 32, "
+                       "Acceleration 254); ideal: the upstream model's kp = 998 servo, about "
+                       "110x stiffer than the real one (default %(default)s)")
+    group.add_argument("--supply", type=number(0.0, 14.0, "V", low_open=True), default=5.0,
+                       metavar="VOLTS", help="the servos' supply [V], in (0, 14] (default "
+                       "%(default)g: the kit's; 7.4 for a C001 on a 7.4 V pack, 12 for C018s)")
+    group.add_argument("--variant", choices=("C001", "C001-datasheet", "C018"), default=None,
+                       help="STS3215 variant (default: C018 above 9 V, else C001 with Rhoban "
+                       "BAM's identified motor; C001-datasheet: the datasheet's, 1.75x weaker)")
+    group.add_argument("--p-coefficient", type=number(1, 255, integer=True), default=16,
+                       metavar="P",
+                       help="P_Coefficient, in [1, 255] (default %(default)g: lerobot's)")
+    add_gravity_ff_argument(group)
+
+
+def servo_from_arguments(args: argparse.Namespace) -> dict:
+    """``use_servo``'s keywords from :func:`add_servo_arguments`' options."""
+    return {"mode": args.servo, "volts": args.supply, "variant": args.variant,
+            "p": int(args.p_coefficient), "feedforward": args.gravity_ff}

@@ -112,6 +112,7 @@ def replay(t: np.ndarray, commands: dict[str, np.ndarray], start: dict[str, floa
     """Simulated joints at each time of ``t``, the commands sent as the arm got them."""
     import mujoco
 
+    from so101_kinematics.sim import actuation
     from so101_kinematics.sim.scene import (
         get_configuration,
         load_model,
@@ -127,7 +128,7 @@ def replay(t: np.ndarray, commands: dict[str, np.ndarray], start: dict[str, floa
     for k, now in enumerate(t):
         steps = round((now - d.time) / m.opt.timestep)
         if steps > 0:
-            mujoco.mj_step(m, d, steps)
+            actuation.step(m, d, steps)
         for j, value in get_configuration(m, d).items():
             out[j][k] = value
         send_position_command(d, {j: float(commands[j][k]) for j in JOINTS})

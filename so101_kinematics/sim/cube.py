@@ -25,7 +25,7 @@ from so101_kinematics.frames import ARM_JOINTS, JOINT_LIMITS, TOOL_SITE
 from so101_kinematics.ik.course import get_inverse_kinematics
 from so101_kinematics.motion import Plan, PlanError, check_number
 from so101_kinematics.plans import default_plan, pick_and_place_steps
-from so101_kinematics.sim import scene
+from so101_kinematics.sim import actuation, scene
 from so101_kinematics.sim.contact_pairs import use_explicit_contact_pairs
 from so101_kinematics.sim.meshes import ensure_meshes
 from so101_kinematics.sim.render import (
@@ -77,7 +77,7 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
                 explicit_pairs: bool = True,
                 cube_at: tuple[float, float, float] | None = None, *,
                 cubes_at: Sequence[Sequence[float]] = (),
-                base_height: float = 0.0) -> mujoco.MjModel:
+                base_height: float = 0.0, servo: dict | None = None) -> mujoco.MjModel:
     """Compile the course scene, optionally with a free cube at the plan's pick position.
 
     Args:
@@ -98,6 +98,7 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
             "cube_2", "cube_3", ... (the stacking run, the virtual arm's ``--cube``).
         base_height: the table top is this far below the base frame [m] (the
             lab's 15 mm mount); the arm stays where it is, the table moves.
+        servo: keywords of ``actuation.use_servo`` (default: its defaults).
 
     Returns:
         The model. Sleeping is enabled: a cube at rest on the table costs no
@@ -119,7 +120,9 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
         add_cube(spec, *cube_on_table(*place, base_height=base_height), name=cube_name(index))
     if explicit_pairs:
         use_explicit_contact_pairs(spec)
-    return spec.compile()
+    m = spec.compile()
+    actuation.use_servo(m, **(servo or {}))
+    return m
 
 
 def cube_name(index: int) -> str:

@@ -25,7 +25,7 @@ from so101_kinematics.frames import ARM_JOINTS
 from so101_kinematics.motion import Plan, PlanError, Step, check_number, run_plan
 from so101_kinematics.paths import REPO
 from so101_kinematics.plans import default_plan, pick_and_place_steps, validate_plan
-from so101_kinematics.sim import scene, stepping
+from so101_kinematics.sim import actuation, scene, stepping
 from so101_kinematics.sim.cube import (
     CubeMonitor,
     CubeStart,
@@ -82,6 +82,7 @@ class RunReport:
     completed: bool = True
     waypoint_errors_deg: dict[str, float] = field(default_factory=dict)
     video: str | None = None
+    servo: str = ""
 
     def summary(self) -> str:
         """Human-readable lines for stdout."""
@@ -89,6 +90,8 @@ class RunReport:
             f"{self.realtime_factor:.2f}"
         lines = [f"Simulated {self.sim_time_s:.2f} s in {self.wall_time_s:.2f} s wall time "
                  f"({factor}x real time)"]
+        if self.servo:
+            lines.append(f"Servo: {self.servo}")
         if self.video:
             lines[0] += f"; {self.frames_written} frames written to {self.video}"
         if not self.completed:
@@ -142,6 +145,7 @@ def run_pick_place(
     timestep: float | None = None,
     show_ui: bool = False,
     base_height: float = 0.0,
+    servo: dict | None = None,
 ) -> RunReport:
     """Run a pick-and-place plan in simulation and measure what happened to the cube.
 
@@ -162,6 +166,8 @@ def run_pick_place(
         show_ui: mode "viewer": show MuJoCo's side panels from the start.
         base_height: the table is this far below the base frame [m] (the cube
             rests on it).
+        servo: keywords of ``so101_kinematics.sim.actuation.use_servo`` (default:
+            the measured STS3215 at lerobot's settings, 5 V, gravity feed-forward).
 
     Returns:
         The run report.
@@ -189,7 +195,7 @@ def run_pick_place(
     # the upstream meshes.
     light = mode == "record" and QUALITY[quality].light_meshes
     m = build_model(plan, cube, render_meshes=light, physics_only=mode == "headless",
-                    base_height=base_height)
+                    base_height=base_height, servo=servo)
     if timestep is not None:
         m.opt.timestep = timestep
     pick, place = pick_and_place_steps(plan)
@@ -319,10 +325,12 @@ def _report(m, d, plan, monitor, wall, frames, completed, errors, video) -> RunR
                          max_lift_m=monitor.max_lift)
         success = (completed and not monitor.dropped and monitor.max_lift >= MIN_LIFT
                    and error <= PLACEMENT_TOLERANCE and tilt <= TILT_TOLERANCE)
+    spec = actuation.servo_spec(m)
     return RunReport(**cube_keys, sim_time_s=float(d.time), wall_time_s=wall,
                      realtime_factor=float(d.time) / wall if wall > 0 else float("inf"),
                      frames_written=frames, success=success, completed=completed,
-                     waypoint_errors_deg=errors, video=video)
+                     waypoint_errors_deg=errors, video=video,
+                     servo=spec.describe() if spec else "")
 
 
 def choose_mode(headless: bool, record: Path | None, display: bool) -> tuple[str, Path | None]:

@@ -25,11 +25,16 @@ import numpy as np
 from so101_kinematics.frames import GRIPPER_RANGE, JOINTS, TOOL_SITE
 from so101_kinematics.motion import Configuration, check_configuration
 from so101_kinematics.paths import MODEL_DIR, SCENE_PATH  # noqa: F401 - the scene's files
+from so101_kinematics.sim import actuation
 from so101_kinematics.sim.meshes import ensure_meshes
 
 
 def load_model(path: str | Path = SCENE_PATH) -> mujoco.MjModel:
     """Load an SO-101 scene, installing and verifying the meshes first.
+
+    The model's servos are the measured STS3215 at lerobot's settings on the kit's
+    supply, with the gravity feed-forward (``actuation.use_servo``'s defaults); call
+    ``actuation.use_servo(m, ...)`` to choose another.
 
     Args:
         path: MJCF file (default ``model/scene.xml``).
@@ -38,7 +43,9 @@ def load_model(path: str | Path = SCENE_PATH) -> mujoco.MjModel:
         The compiled model.
     """
     ensure_meshes()
-    return mujoco.MjModel.from_xml_path(str(path))
+    m = mujoco.MjModel.from_xml_path(str(path))
+    actuation.use_servo(m)
+    return m
 
 
 @lru_cache(maxsize=8)
@@ -123,6 +130,7 @@ def set_initial_pose(d: mujoco.MjData, cfg: Mapping[str, float]) -> None:
         d.qpos[adr] = angles[name]
         d.qvel[m.joint(name).dofadr[0]] = 0.0
         d.ctrl[act] = angles[name]
+    actuation.forget(d)  # the servos' targets restart where the arm now is
     mujoco.mj_forward(m, d)
 
 

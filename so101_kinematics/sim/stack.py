@@ -105,6 +105,7 @@ def run_stack(
     quality: str = "fast",
     progress: bool = True,
     show_ui: bool = False,
+    servo: dict | None = None,
 ) -> StackReport:
     """Run a stacking plan in simulation, the blocks on the table at their starts.
 
@@ -118,6 +119,7 @@ def run_stack(
         quality: a ``so101_kinematics.sim.render.QUALITY`` preset name.
         progress: progress bar while recording.
         show_ui: mode "viewer": show MuJoCo's side panels from the start.
+        servo: keywords of ``so101_kinematics.sim.actuation.use_servo``.
 
     Returns:
         The report: where each block ended, bottom block first.
@@ -137,7 +139,8 @@ def run_stack(
         check_frame_size(size, "Video size")
     m = build_model(render_meshes=mode == "record" and QUALITY[quality].light_meshes,
                     physics_only=mode == "headless", base_height=stack.base_height,
-                    cubes_at=[(*b.start[:2], b.start_yaw_deg) for b in stack.blocks])
+                    cubes_at=[(*b.start[:2], b.start_yaw_deg) for b in stack.blocks],
+                    servo=servo)
     names = cube_names(m)
     overlays = [_Overlay(np.array(b.target), np.eye(3), 0.5 * CUBE_SIZE, FINAL_RGBA)
                 for b in stack.blocks]

@@ -42,6 +42,7 @@ from so101_kinematics.checks import (
 )
 from so101_kinematics.errors import CallShapeError, ViewerClosed
 from so101_kinematics.motion import Trajectory, check_duration
+from so101_kinematics.sim import actuation
 from so101_kinematics.sim.scene import (
     get_command,
     joint_limits,
@@ -91,7 +92,7 @@ def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> 
         start = np.array(list(to_radians(m, {j: path.start[j] for j in path.goal}).values()))
         delta = np.array(list(to_radians(m, path.goal).values())) - start
         elapsed0 = d.time - t0  # [s] at the start of the first step
-        ctrl = d.ctrl
+        ctrl, step = d.ctrl, actuation.step
         if np.array_equal(actuators, np.arange(m.nu)):
             actuators = slice(None)  # all of them, in order: plain row copies
     wall0, sim0 = time.perf_counter(), d.time
@@ -105,7 +106,7 @@ def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> 
         else:
             chunk = max(1, min(n_steps - done, math.ceil((next_sync - d.time) / dt - 1e-6)))
         if path is None:
-            mujoco.mj_step(m, d, chunk)
+            actuation.step(m, d, chunk)
         else:
             if done >= block_stop:
                 block_start, block_stop = done, min(done + COMMAND_BLOCK_STEPS, n_steps)
@@ -114,7 +115,7 @@ def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> 
             chunk = min(chunk, block_stop - done)
             for row in rows[done - block_start:done - block_start + chunk]:
                 ctrl[actuators] = row
-                mujoco.mj_step(m, d)
+                step(m, d)
         done += chunk
         if viewer is None:
             continue

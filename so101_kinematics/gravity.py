@@ -1,0 +1,155 @@
+"""Gravity on the SO-101's joints, and the goal offsets that cancel the sag it causes.
+
+A position servo holds a load only by being off its goal: the STS3215 at
+lerobot's P = 16 sags several degrees at the shoulder (``servo.holding_error``).
+:func:`feedforward` offsets each goal by the error the servo will need there, so
+the joint comes to rest at the goal itself. It needs no MuJoCo: the link masses and
+centres of mass are the upstream model's (``model/so101.xml``, ``<inertial>``), the
+frames the FK's (``frames.get_frame_chain``); a test checks both against MuJoCo's
+``qfrc_bias``.
+
+Example (the all-zero pose: the shoulder holds the stretched arm)::
+
+    >>> cfg = dict.fromkeys(("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex",
+    ...                      "wrist_roll", "gripper"), 0.0)
+    >>> round(holding_torques(cfg)["shoulder_lift"], 3)  # [N m]
+    -0.539
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from so101_kinematics import servo
+from so101_kinematics.frames import (
+    ARM_JOINTS,
+    FIXED_ROTATION,
+    FIXED_TRANSFORMS,
+    GRIPPER_RANGE,
+    JOINT_RANGES_RAD,
+    Rx,
+    pose,
+    read_angles,
+)
+
+GRAVITY = 9.81
+"""[m/s^2], MuJoCo's default (the model sets none)."""
+
+LINKS = {
+    # frame: (mass [kg], centre of mass in the body's frame [m]), model/so101.xml <inertial>
+    "1": (0.100006, (-0.0307604, -1.66727e-05, -0.0252713)),  # shoulder
+    "2": (0.103, (-0.0898471, -0.00838224, 0.0184089)),  # upper_arm
+    "3": (0.104, (-0.0980701, 0.00324376, 0.0182831)),  # lower_arm
+    "4": (0.079, (-0.000103312, -0.0386143, 0.0281156)),  # wrist
+    "5": (0.087, (0.000213627, 0.000245138, -0.025187)),  # gripper
+}
+"""The moving links carried by each joint frame (the base does not move)."""
+
+JAW = (0.012, (-0.00157495, -0.0300244, 0.0192755), (0.0202, 0.0188, -0.0234))
+"""The moving jaw: mass [kg], centre of mass in its body [m], its body's position in the
+gripper body [m] (rotated Rx(90 deg), then by the gripper joint), ``model/so101.xml``."""
+
+MAX_OFFSET_DEG = {"shoulder_pan": 3.0, "shoulder_lift": 12.0, "elbow_flex": 8.0,
+                  "wrist_flex": 4.0, "wrist_roll": 2.0, "gripper": 0.0}
+"""The largest feed-forward offset per joint [deg]: 1.5x the sag at the worst pose of the
+kit's 5 V supply at P = 16 (shoulder 8.2, elbow 4.4, wrist 1.1 deg at the all-zero pose),
+so a wrong voltage or P can at most double the sag it was meant to remove. The gripper
+squeezes: no offset."""
+
+
+_FIXED = [np.array(pose(FIXED_ROTATION[name], FIXED_TRANSFORMS[name][0]))
+          for name in ("w1", "12", "23", "34", "45")]
+_JAW_POS, _JAW_ROTATION = np.array(JAW[2]), Rx(90.0)
+_COMS = [np.append(com, 1.0) for _, com in LINKS.values()]
+_MASSES = [mass for mass, _ in LINKS.values()]
+
+
+def holding_torques_rad(angles: Sequence[float], gripper_rad: float,
+                        payload_kg: float = 0.0) -> list[float]:
+    """:func:`holding_torques` of the five arm joints at angles [rad] (fast: no checks).
+
+    Each joint holds the links beyond it: with ``a`` their mass-weighted centre less
+    the total mass at the joint's origin, gravity (0, 0, -g) turns the joint by
+    ``axis . (a x (0, 0, -g)) = -g (a_y axis_x - a_x axis_y)``; the servo gives its opposite.
+    """
+    frames = []
+    g = np.eye(4)
+    for fixed, theta in zip(_FIXED, angles, strict=True):
+        c, s = math.cos(theta), math.sin(theta)
+        g = g @ fixed @ np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
+        frames.append(g)
+    weighted = [mass * (frame @ com)[:3] for mass, frame, com in zip(_MASSES, frames, _COMS,
+                                                                     strict=True)]
+    c, s = math.cos(gripper_rad), math.sin(gripper_rad)
+    jaw = _JAW_POS + _JAW_ROTATION @ (np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+                                      @ np.array(JAW[1]))
+    weighted.append(JAW[0] * (frames[4][:3, :3] @ jaw + frames[4][:3, 3]))
+    masses = _MASSES + [JAW[0]]
+    if payload_kg:
+        tool = frames[4] @ np.append(FIXED_TRANSFORMS["5t"][0], 1.0)
+        weighted.append(payload_kg * tool[:3])
+        masses = masses + [payload_kg]
+    torques = []
+    for index, frame in enumerate(frames):
+        a = sum(weighted[index:]) - sum(masses[index:]) * frame[:3, 3]
+        torques.append(GRAVITY * (a[1] * frame[0, 2] - a[0] * frame[1, 2]))
+    return torques
+
+
+def holding_torques(cfg: Mapping[str, float], payload_kg: float = 0.0) -> dict[str, float]:
+    """The torque [N m] each servo must give to hold the arm still at ``cfg``.
+
+    MuJoCo's ``qfrc_bias`` at zero velocity (gravity only): positive turns the joint
+    positive. The gripper's own joint is left out (0: it squeezes, it does not hold).
+
+    Args:
+        cfg: configuration [deg], gripper [0, 100] (default 50 when missing).
+        payload_kg: a mass held at the object frame [kg] (a cube).
+    """
+    angles = [math.radians(a) for a in read_angles(cfg)]
+    lower, upper = JOINT_RANGES_RAD["gripper"]
+    opening = float(cfg.get("gripper", 50.0)) / (GRIPPER_RANGE[1] - GRIPPER_RANGE[0])
+    torques = holding_torques_rad(angles, lower + (upper - lower) * opening, payload_kg)
+    return {**dict(zip(ARM_JOINTS, torques, strict=True)), "gripper": 0.0}
+
+
+def feedforward(cfg: Mapping[str, float], settings: servo.Settings, volts: float,
+                variant: str | None = None, payload_kg: float = 0.0) -> dict[str, float]:
+    """Goal offsets [deg] that cancel the static sag at ``cfg``, each bounded.
+
+    The offset is the error at which the servo holds gravity's torque there
+    (``servo.holding_error``), clipped to :data:`MAX_OFFSET_DEG`; none where the
+    joint's own friction holds the load (less than the variant's Coulomb friction).
+
+    Args:
+        cfg: the configuration to hold [deg], gripper [0, 100].
+        settings: the servos' registers (P, dead zone, startup force, torque limit).
+        volts: the supply the servos report [V].
+        variant: a key of ``servo.VARIANTS`` (default: what ``volts`` implies).
+        payload_kg: a mass held at the object frame [kg].
+
+    Returns:
+        joint -> offset [deg] to add to the goal (0 for the gripper).
+    """
+    return dict(zip(ARM_JOINTS + ("gripper",), feedforward_offsets(
+        holding_torques(cfg, payload_kg).values(), settings, volts, variant), strict=True))
+
+
+def feedforward_offsets(torques, settings: servo.Settings, volts: float,
+                    variant: str | None = None) -> list[float]:
+    """:func:`feedforward` from holding torques [N m] (joints in ``JOINTS`` order): [deg]."""
+    variant = variant or servo.default_variant(volts)
+    friction = servo.VARIANTS[variant].coulomb
+    offsets = []
+    for joint, torque in zip(ARM_JOINTS + ("gripper",), torques, strict=False):
+        limit = MAX_OFFSET_DEG[joint]
+        if abs(torque) <= friction or not limit:
+            offsets.append(0.0)
+            continue
+        error = servo.holding_error(torque, settings, volts, variant)
+        degrees = limit if error is None else math.degrees(abs(error))
+        offsets.append(math.copysign(min(degrees, limit), torque))
+    return offsets

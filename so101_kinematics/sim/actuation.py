@@ -1,0 +1,220 @@
+"""Which servo drives the simulated arm, and the physics step that applies it.
+
+``d.ctrl`` stays what the course makes it: each joint's goal [rad]. How the arm
+follows it depends on the model's servo (:func:`use_servo`):
+
+- ``"sts3215"`` (the default of :func:`so101_kinematics.sim.scene.load_model`): the
+  measured servo (``sim/sts3215.py``) at lerobot's registers, a supply and a variant.
+  :func:`step` computes its torque each physics step and hands it to MuJoCo through
+  the position actuators (gain 0, the torque as their bias), then puts the model's
+  native actuators back, so a script's own ``mujoco.mj_step`` still drives the arm.
+- ``"ideal"``: the upstream model's stiff position servo (``kp`` 998.22, ``kv`` 2.731,
+  ``forcerange`` 3.35 N m; TheRobotStudio SO-ARM100 PR #141), kept for comparison.
+- a model nobody set up is stepped with its own actuators (``model/scene.xml``'s
+  native ones: the linearised STS3215, see the comment there).
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from so101_kinematics import gravity, servo
+from so101_kinematics.errors import PlanError
+from so101_kinematics.frames import JOINTS
+from so101_kinematics.sim.sts3215 import ServoBank
+
+SERVO_MODES = ("sts3215", "ideal")
+"""The servos the simulator offers."""
+
+IDEAL_GAINS = (998.22, 2.731, 3.35, 0.60)
+"""The upstream ideal servo: kp [N m/rad], kv [N m s/rad], force range [N m], joint damping
+[N m s/rad]."""
+
+DEFAULT_FEEDFORWARD = True
+"""Goals are offset by the gravity feed-forward unless asked otherwise (``--no-gravity-ff``):
+the real-arm path does the same by default, so the simulated arm is the arm you get."""
+
+DEFAULT_VOLTS = servo.KIT_SUPPLY_V
+"""The simulator's supply by default [V]: the kit's 5 V (``servo.KIT_SUPPLY_V``)."""
+
+
+FEEDFORWARD_REFRESH_DEG = 1.0
+"""The gravity feed-forward is recomputed when a goal has moved this far [deg] since the last
+time (it changes by at most 0.15 deg per degree of motion: 0.15 deg stale at most)."""
+
+
+@dataclass(frozen=True)
+class ServoSpec:
+    """A model's servo: mode, supply [V], variant, registers and the gravity feed-forward.
+
+    ``settings`` holds one ``servo.Settings`` per joint; with ``feedforward`` each goal
+    is offset by the sag ``so101_kinematics.gravity`` predicts there.
+    """
+
+    mode: str
+    volts: float
+    variant: str
+    settings: tuple
+    feedforward: bool = False
+
+    def describe(self) -> str:
+        """One line for a report: "STS3215 C001, P = 16, 5.0 V" or "ideal (kp 998)"."""
+        if self.mode == "ideal":
+            return f"ideal position servo (kp {IDEAL_GAINS[0]:g} N m/rad, upstream)"
+        ff = "with" if self.feedforward else "without"
+        return (f"STS3215 {self.variant}, P = {self.settings[0].p}, {self.volts:g} V, "
+                f"{ff} gravity feed-forward")
+
+
+_SPECS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # model -> ServoSpec
+_BANKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # data -> (ServoBank, time)
+
+
+def lerobot_settings(p: int | None = None) -> tuple:
+    """Lerobot's registers for the six joints (the gripper's torque limit), P optionally changed."""
+    arm = servo.LEROBOT if p is None else servo.LEROBOT.with_(p=p)
+    grip = servo.LEROBOT_GRIPPER if p is None else servo.LEROBOT_GRIPPER.with_(p=p)
+    return tuple(grip if joint == "gripper" else arm for joint in JOINTS)
+
+
+def use_servo(m: mujoco.MjModel, mode: str = "sts3215", volts: float = DEFAULT_VOLTS,
+              variant: str | None = None, p: int | None = None,
+              feedforward: bool = DEFAULT_FEEDFORWARD) -> ServoSpec:
+    """Choose the servo that drives ``m`` (see the module's docstring).
+
+    Args:
+        m: the model (its position actuators are adjusted in place).
+        mode: one of :data:`SERVO_MODES`.
+        volts: the supply [V], in (0, 14].
+        variant: a key of ``servo.VARIANTS`` (default: what ``volts`` implies).
+        p: P_Coefficient (default lerobot's 16), 1-255.
+        feedforward: offset each goal by the sag the servo will have there
+            (``gravity.feedforward``), as the real-arm path does with ``--gravity-ff``.
+
+    Raises:
+        PlanError: an unknown mode or variant, a voltage or P out of range.
+    """
+    if mode not in SERVO_MODES:
+        raise PlanError(f"servo {mode!r} is not one of {', '.join(SERVO_MODES)}. "
+                        "Fix: use --servo sts3215 (the measured servo) or --servo ideal.")
+    if not 0.0 < float(volts) <= 14.0:
+        raise PlanError(f"supply {volts} V is outside (0, 14] V (the STS3215's rated range). "
+                        "Fix: give the supply your servos run on, e.g. 5 or 7.4 or 12.")
+    variant = variant or servo.default_variant(volts)
+    if variant not in servo.VARIANTS:
+        raise PlanError(f"servo variant {variant!r} is not one of "
+                        f"{', '.join(servo.VARIANTS)}. Fix: use C001 (7.4 V) or C018 (12 V).")
+    if p is not None and not 1 <= int(p) <= 255:
+        raise PlanError(f"P coefficient {p} is outside [1, 255]. Fix: lerobot uses 16.")
+    spec = ServoSpec(mode, float(volts), variant, lerobot_settings(p), bool(feedforward))
+    _SPECS[m] = spec
+    acts = _actuators(m)
+    dofs = [int(m.joint(j).dofadr[0]) for j in JOINTS]
+    if mode == "ideal":
+        kp, kv, force, damping = IDEAL_GAINS
+        m.actuator_gainprm[acts, 0] = kp
+        m.actuator_biasprm[acts, 1] = -kp
+        m.actuator_biasprm[acts, 2] = -kv
+        m.actuator_forcerange[acts] = (-force, force)
+        m.dof_damping[dofs] = damping
+    else:
+        bank = ServoBank(spec.settings, spec.volts, variant)
+        kp = np.array(bank.stiffness())
+        chosen = servo.VARIANTS[variant]
+        m.actuator_gainprm[acts, 0] = kp
+        m.actuator_biasprm[acts, 1] = -kp
+        m.actuator_biasprm[acts, 2] = 0.0
+        limit = np.minimum(bank.torque_limit, servo.DUTY_MAX) / 1000.0
+        force = chosen.torque_per_volt * spec.volts * limit
+        m.actuator_forcerange[acts] = np.stack([-force, force], axis=1)
+        m.dof_damping[dofs] = chosen.emf_damping + chosen.viscous
+    _PLANTS.pop(m, None)
+    return spec
+
+
+def servo_spec(m: mujoco.MjModel) -> ServoSpec | None:
+    """The servo set on ``m`` by :func:`use_servo`, or ``None``."""
+    return _SPECS.get(m)
+
+
+_PLANTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _actuators(m: mujoco.MjModel) -> np.ndarray:
+    return np.array([int(m.actuator(j).id) for j in JOINTS])
+
+
+class _Plant:
+    """Per-model index arrays and the native actuator parameters to restore."""
+
+    def __init__(self, m: mujoco.MjModel):
+        self.acts = _actuators(m)
+        self.qadr = np.array([int(m.joint(j).qposadr[0]) for j in JOINTS])
+        self.lower = m.actuator_ctrlrange[self.acts, 0].tolist()
+        self.upper = m.actuator_ctrlrange[self.acts, 1].tolist()
+
+
+def forget(d: mujoco.MjData) -> None:
+    """Drop the servos' state for ``d`` (the arm was placed: targets restart where it is)."""
+    _BANKS.pop(d, None)
+
+
+def bank_of(m: mujoco.MjModel, d: mujoco.MjData) -> ServoBank | None:
+    """The servos stepping ``d`` (after a first :func:`step`), for readings like Present_Load."""
+    entry = _BANKS.get(d)
+    return None if entry is None else entry[0]
+
+
+def step(m: mujoco.MjModel, d: mujoco.MjData, n: int = 1) -> None:
+    """``n`` physics steps with the model's servo (``mujoco.mj_step`` when it has none)."""
+    spec = _SPECS.get(m)
+    if spec is None or spec.mode == "ideal":
+        mujoco.mj_step(m, d, n)
+        return
+    plant = _PLANTS.get(m)
+    if plant is None:
+        plant = _PLANTS[m] = _Plant(m)
+    entry = _BANKS.get(d)
+    if entry is None or entry[1] != d.time:  # new, or stepped or reset by someone else
+        entry = [ServoBank(spec.settings, spec.volts, spec.variant), d.time, None, None]
+        _BANKS[d] = entry
+    bank, feedforward = entry[0], spec.feedforward
+    acts, qadr, dt = plant.acts, plant.qadr, m.opt.timestep
+    gains = m.actuator_gainprm[acts, 0].copy()
+    bias = m.actuator_biasprm[acts, :3].copy()
+    m.actuator_gainprm[acts, 0] = 0.0
+    m.actuator_biasprm[acts, 1:3] = 0.0
+    ctrl, qpos, biasprm = d.ctrl, d.qpos, m.actuator_biasprm
+    lower, upper, torques = plant.lower, plant.upper, bank.torques
+    try:
+        for _ in range(n):
+            goal = [min(max(c, lo), hi)
+                    for c, lo, hi in zip(ctrl[acts].tolist(), lower, upper, strict=True)]
+            if feedforward:
+                goal = _offset(entry, spec, goal)
+            biasprm[acts, 0] = torques(goal, qpos[qadr].tolist(), dt)
+            mujoco.mj_step(m, d)
+    finally:
+        m.actuator_gainprm[acts, 0] = gains
+        m.actuator_biasprm[acts, :3] = bias
+        entry[1] = d.time
+
+
+def _offset(entry: list, spec: ServoSpec, goal: list[float]) -> list[float]:
+    """``goal`` [rad] plus the gravity feed-forward, recomputed when the goal has moved."""
+    at, offsets = entry[2], entry[3]
+    if goal != at and (at is None or max(abs(g - a) for g, a in zip(goal, at, strict=True))
+                       > _REFRESH_RAD):
+        torques = gravity.holding_torques_rad(goal[:5], goal[5])
+        degrees = gravity.feedforward_offsets(torques, spec.settings[0], spec.volts, spec.variant)
+        offsets = entry[3] = [math.radians(x) for x in degrees] + [0.0]
+        entry[2] = goal
+    return [g + f for g, f in zip(goal, offsets, strict=False)]
+
+
+_REFRESH_RAD = math.radians(FEEDFORWARD_REFRESH_DEG)
