@@ -184,7 +184,7 @@ def _run(args, plan, calibration, source, release: str, stack=None) -> int:
             tracking_tolerance=args.tracking_tolerance, confirm=lambda q: ask(q, args.yes),
             write_calibration=args.write_calibration,
             return_on_abort=not args.no_return_on_abort, on_cycle=log, on_start=on_start,
-            trims=args.trims)
+            trims=args.trims, gravity_ff=args.gravity_ff)
         status = 0
     except MotionAborted as error:
         print(f"ABORTED: {error}", file=sys.stderr)

@@ -70,7 +70,7 @@ def load_calibration(robot_name_or_path):
     return course_load_calibration(robot_name_or_path)
 
 
-def setup_motors(calibration, port, offset_config=None):
+def setup_motors(calibration, port, offset_config=None, gravity_ff=True):
     """Connect to the arm and turn torque on where it stands; returns the lerobot bus.
 
     Nothing moves: each servo's goal is set to its present position before
@@ -81,11 +81,13 @@ def setup_motors(calibration, port, offset_config=None):
         port: the arm's serial port (``lerobot-find-port`` tells which).
         offset_config: optional trims, joint -> [deg] added to every goal (a
             dict, a JSON/TOML trim file, or an ``offset_config(config)`` function).
+        gravity_ff: offset each goal by the sag gravity causes at P = 16 (default
+            on; ``False`` shows the raw sag). README, "What the real arm does".
 
     Returns:
         lerobot's ``FeetechMotorsBus``, connected, arm joints in [deg], gripper 0-100.
     """
-    return _setup_motors(calibration, port, offset_config)
+    return _setup_motors(calibration, port, offset_config, gravity_ff)
 
 
 def move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING):

@@ -33,6 +33,7 @@ from so101_kinematics.errors import (
     VirtualSO101Error,
 )
 from so101_kinematics.outputs import check_output_path, write_text_atomic
+from so101_kinematics.servo import VARIANTS
 from so101_kinematics.sim.scene import load_model
 from so101_kinematics.virtual import shell
 from so101_kinematics.virtual.arm import (  # noqa: F401 - the virtual arm's API, re-exported
@@ -42,6 +43,7 @@ from so101_kinematics.virtual.arm import (  # noqa: F401 - the virtual arm's API
     parse_faults,
 )
 from so101_kinematics.virtual.calibration import make_default_calibration
+from so101_kinematics.virtual.electrical import SUPPLY_V
 
 logger = logging.getLogger("virtual_so101")
 
@@ -71,8 +73,11 @@ def main(argv: list[str] | None = None) -> int:
                       help="a leader arm: limp, moved by `demo` / `play FILE` / `pose`")
     parser.add_argument("--link", metavar="PATH",
                         help="a stable symlink to the pty (e.g. /tmp/ttySO101), removed on exit")
-    parser.add_argument("--supply", type=float, default=12.0,
-                        help="the servos' supply voltage [V] (default %(default)s)")
+    parser.add_argument("--supply", type=float, default=SUPPLY_V,
+                        help="the servos' supply voltage [V], 0..25 (default %(default)g: the "
+                        "kit's); Present_Voltage reports it, the servos' torque follows it")
+    parser.add_argument("--variant", choices=sorted(VARIANTS), default=None,
+                        help="STS3215 variant (default: C018 above 9 V, else C001)")
     parser.add_argument("--viewer", action="store_true", help="show the arm (needs a display)")
     parser.add_argument("--wire-timing", action="store_true",
                         help="delay replies by their byte time at the host's baud rate")
@@ -121,6 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         arm = VirtualSO101(calibration=args.calibration, wire_timing=args.wire_timing,
                            faults=args.faults, viewer=args.viewer, log_level=level,
                            factory=args.factory, leader=args.leader, supply=args.supply,
+                           variant=args.variant,
                            cube=[c if len(c) != 2 else (*c, args.cube_yaw)
                                  for c in args.cube or []],
                            base_height=args.base_height)

@@ -95,7 +95,7 @@ def holding_torques_rad(angles: Sequence[float], gripper_rad: float,
     torques = []
     for index, frame in enumerate(frames):
         a = sum(weighted[index:]) - sum(masses[index:]) * frame[:3, 3]
-        torques.append(GRAVITY * (a[1] * frame[0, 2] - a[0] * frame[1, 2]))
+        torques.append(float(GRAVITY * (a[1] * frame[0, 2] - a[0] * frame[1, 2])))
     return torques
 
 
@@ -116,8 +116,9 @@ def holding_torques(cfg: Mapping[str, float], payload_kg: float = 0.0) -> dict[s
     return {**dict(zip(ARM_JOINTS, torques, strict=True)), "gripper": 0.0}
 
 
-def feedforward(cfg: Mapping[str, float], settings: servo.Settings, volts: float,
-                variant: str | None = None, payload_kg: float = 0.0) -> dict[str, float]:
+def feedforward(cfg: Mapping[str, float], settings: servo.Settings | Mapping[str, servo.Settings],
+                volts: float, variant: str | None = None,
+                payload_kg: float = 0.0) -> dict[str, float]:
     """Goal offsets [deg] that cancel the static sag at ``cfg``, each bounded.
 
     The offset is the error at which the servo holds gravity's torque there
@@ -126,7 +127,8 @@ def feedforward(cfg: Mapping[str, float], settings: servo.Settings, volts: float
 
     Args:
         cfg: the configuration to hold [deg], gripper [0, 100].
-        settings: the servos' registers (P, dead zone, startup force, torque limit).
+        settings: the servos' registers (P, dead zone, startup force, torque limit):
+            one for all joints, or joint -> registers.
         volts: the supply the servos report [V].
         variant: a key of ``servo.VARIANTS`` (default: what ``volts`` implies).
         payload_kg: a mass held at the object frame [kg].
@@ -138,8 +140,8 @@ def feedforward(cfg: Mapping[str, float], settings: servo.Settings, volts: float
         holding_torques(cfg, payload_kg).values(), settings, volts, variant), strict=True))
 
 
-def feedforward_offsets(torques, settings: servo.Settings, volts: float,
-                    variant: str | None = None) -> list[float]:
+def feedforward_offsets(torques, settings: servo.Settings | Mapping[str, servo.Settings],
+                        volts: float, variant: str | None = None) -> list[float]:
     """:func:`feedforward` from holding torques [N m] (joints in ``JOINTS`` order): [deg]."""
     variant = variant or servo.default_variant(volts)
     friction = servo.VARIANTS[variant].coulomb
@@ -149,7 +151,59 @@ def feedforward_offsets(torques, settings: servo.Settings, volts: float,
         if abs(torque) <= friction or not limit:
             offsets.append(0.0)
             continue
-        error = servo.holding_error(torque, settings, volts, variant)
+        registers = settings[joint] if isinstance(settings, Mapping) else settings
+        error = servo.holding_error(torque, registers, volts, variant)
         degrees = limit if error is None else math.degrees(abs(error))
         offsets.append(math.copysign(min(degrees, limit), torque))
     return offsets
+
+
+class Feedforward:
+    """The gravity feed-forward of one arm: its servos' registers and supply, and a cache.
+
+    Args:
+        settings: joint -> the servo's registers (``servo.Settings``), as read from it.
+        volts: the supply the servos report [V].
+        variant: a key of ``servo.VARIANTS`` (default: what ``volts`` implies).
+
+    Example::
+
+        >>> ff = Feedforward(dict.fromkeys(ARM_JOINTS + ("gripper",), servo.LEROBOT), 5.0)
+        >>> cfg = dict.fromkeys(ARM_JOINTS, 0.0) | {"gripper": 50.0}
+        >>> round(ff.apply(cfg)["shoulder_lift"], 1)  # the goal sent, to rest at 0 [deg]
+        -5.3
+    """
+
+    REFRESH_DEG = 1.0
+    """Offsets are recomputed when a joint has moved this far since [deg] (they change by
+    at most 0.15 deg per degree of motion)."""
+
+    def __init__(self, settings: Mapping[str, servo.Settings], volts: float,
+                 variant: str | None = None):
+        self.settings = dict(settings)
+        self.volts = float(volts)
+        self.variant = variant or servo.default_variant(self.volts)
+        self._at: dict[str, float] | None = None
+        self._offsets: dict[str, float] = {}
+
+    def offsets(self, cfg: Mapping[str, float]) -> dict[str, float]:
+        """Each joint's offset [deg] at ``cfg`` (cached while no joint moved ``REFRESH_DEG``)."""
+        at = self._at
+        if at is None or any(abs(cfg[j] - at[j]) > self.REFRESH_DEG for j in ARM_JOINTS):
+            self._offsets = feedforward(cfg, self.settings, self.volts, self.variant)
+            self._at = {j: float(cfg[j]) for j in ARM_JOINTS}
+        return self._offsets
+
+    def apply(self, cfg: Mapping[str, float]) -> dict[str, float]:
+        """``cfg`` with each joint's offset added: the goal that makes the arm rest at ``cfg``."""
+        offsets = self.offsets(cfg)
+        return {j: value + offsets.get(j, 0.0) for j, value in cfg.items()}
+
+    def describe(self, cfg: Mapping[str, float]) -> str:
+        """One line: the supply, P and each arm joint's offset at ``cfg``."""
+        offsets = self.offsets(cfg)
+        p = sorted({s.p for s in self.settings.values()})
+        gains = "/".join(str(v) for v in p)
+        joints = ", ".join(f"{j} {offsets[j]:+.1f}" for j in ARM_JOINTS if offsets[j])
+        return (f"gravity feed-forward ({self.variant}, P = {gains}, {self.volts:.1f} V): "
+                f"{joints or 'no offsets'} deg")

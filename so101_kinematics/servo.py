@@ -31,7 +31,7 @@ Example (the shoulder's stiffness at lerobot's P = 16)::
     >>> round(stiffness(LEROBOT, 7.4), 2)  # [N m/rad] at 7.4 V
     8.74
     >>> round(stiffness(LEROBOT, 5.0), 2)  # the kit's 5 V supply
-    5.91
+    5.9
 """
 
 from __future__ import annotations

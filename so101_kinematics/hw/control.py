@@ -35,9 +35,11 @@ from so101_kinematics.errors import (  # noqa: F401 - the family, re-exported
     TrackingError,
 )
 from so101_kinematics.frames import JOINTS
+from so101_kinematics.gravity import Feedforward
 from so101_kinematics.hw.bus import (
     PORT_SETTLE_S,
     PortLost,
+    clamp_to_limits,
     discard_stale_input,
     port_lost,
     read_pose,
@@ -116,6 +118,9 @@ class ArmSession:
         clock, sleep: time sources (tests).
         trims: per-joint offsets (the course's offset_config; ``so101_kinematics.trims``),
             added to every goal written and taken off every position read, here only.
+        feedforward: the gravity feed-forward (``hw/feedforward.py``), or None: its
+            offsets are added to every goal written (within the calibrated range), so the
+            sagging arm rests at the command; positions read are the arm's own.
     """
 
     def __init__(self, bus, *, rate_hz: float = DEFAULT_RATE_HZ, profile: str = "minimum_jerk",
@@ -125,12 +130,14 @@ class ArmSession:
                  outage_tolerance: float = OUTAGE_TOLERANCE_S,
                  on_cycle: Callable[[ArmSession, Cycle], None] | None = None,
                  clock: Callable[[], float] = time.perf_counter,
-                 sleep: Callable[[float], None] = time.sleep, trims: Trims | None = None):
+                 sleep: Callable[[float], None] = time.sleep, trims: Trims | None = None,
+                 feedforward: Feedforward | None = None):
         if profile not in PROFILES:
             raise PlanError(f"Unknown profile '{profile}'; use one of {', '.join(PROFILES)}.")
         check_rate(rate_hz)
         self.bus = bus
         self.trims = as_trims(trims)  # commands and readings here are the model's angles
+        self.feedforward = feedforward
         self.limits = self.trims.limits(calibrated_limits(bus.calibration))
         self.loop = RateLoop(rate_hz, clock, sleep)
         self.profile = profile
@@ -188,9 +195,15 @@ class ArmSession:
         """Whether the last read of the arm succeeded."""
         return self._unobserved_since is None
 
+    def goal_for(self, command: Mapping[str, float]) -> Configuration:
+        """The goal written for ``command``: plus the gravity feed-forward, in the range."""
+        if self.feedforward is None:
+            return dict(command)
+        return clamp_to_limits(self.feedforward.apply(command), self.limits)
+
     def _send(self, command: Configuration) -> None:
         try:
-            self.bus.sync_write("Goal_Position", self.trims.to_wire(command))
+            self.bus.sync_write("Goal_Position", self.trims.to_wire(self.goal_for(command)))
         except Exception as error:  # noqa: BLE001 - a broadcast gets no reply: only the port fails
             if port_lost(self.bus):
                 raise PortLost.during("sending Goal_Position") from error

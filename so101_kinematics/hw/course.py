@@ -55,6 +55,7 @@ from so101_kinematics.hw.bus import (
     with_retries,
 )
 from so101_kinematics.hw.control import ArmSession, signals_as_interrupt, stop_on_signals
+from so101_kinematics.hw.feedforward import read_feedforward
 from so101_kinematics.hw.run import (
     LIMIT_SLACK_DEG,
     RELEASE_HINT,
@@ -141,7 +142,8 @@ def course_load_calibration(robot_name_or_path: str | os.PathLike) -> CourseCali
 
 
 def setup_motors(calibration: Mapping[str, Any], port: str,
-                 offset_config: Mapping[str, float] | str | Path | Callable | None = None):
+                 offset_config: Mapping[str, float] | str | Path | Callable | None = None,
+                 gravity_ff: bool = True):
     """Connect, configure and torque the arm where it stands; returns the lerobot bus.
 
     The port is taken for this program alone; the servos must hold this
@@ -155,6 +157,9 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
             file, or the course's ``offset_config(config)`` function); see
             ``so101_kinematics.trims``. Positions read back through the bus
             (``bus.sync_read``) are the servos' own, without the trims.
+        gravity_ff: offset every goal by the sag the servos will have there (read from
+            their P_Coefficient and Present_Voltage; ``so101_kinematics/hw/feedforward.py``),
+            so the arm rests where it is sent; ``False``: the raw sag, as lerobot alone.
 
     Raises:
         ScriptEnded: refused before anything moved (one line, exit status 2).
@@ -177,6 +182,7 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
         armed = True
         with bus_errors("configuring the servos and enabling torque"):
             with_retries(configure, bus)
+            feedforward = read_feedforward(bus, gravity_ff)
             with_retries(enable_torque_in_place, bus)
     except BaseException as error:
         if armed:  # torque may be on at the starting pose, nothing moved: release there
@@ -187,7 +193,8 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
         raise
     source = getattr(calibration, "source", None)
     arm = f"--id {robot_id}" if robot_id else f"--calibration {source or 'YOUR_CALIBRATION.json'}"
-    run = CourseRun(ArmSession(bus, trims=trims), start, RELEASE_HINT.format(port=port, arm=arm))
+    run = CourseRun(ArmSession(bus, trims=trims, feedforward=feedforward), start,
+                    RELEASE_HINT.format(port=port, arm=arm))
     run.session.command = dict(start)
     run.restore.callback(_unlock_port, bus)  # a run that ended leaves the port to other programs
     run.restore.enter_context(signals_as_interrupt())  # SIGTERM/SIGHUP between calls: as Ctrl-C

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from so101_kinematics.cli import add_gravity_ff_argument
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.run import MotionAborted, ending, format_pose, run_on_arm
@@ -35,11 +36,13 @@ SETTLE_WINDOW_S = 0.5          # the measured home pose: mean over the hold's la
 
 
 def add_calibration_check_arguments(parser: argparse.ArgumentParser, mode) -> None:
-    """Add ``--trims FILE`` to ``parser`` and ``--home-check`` to its group of modes ``mode``."""
+    """Add ``--trims FILE``, ``--gravity-ff`` and, to the modes ``mode``, ``--home-check``."""
     parser.add_argument("--trims", type=Path, metavar="FILE",
                         help="per-joint trims [deg] added to every goal (the course's "
                              "offset_config), JSON or TOML, e.g. {\"shoulder_lift\": 2.0}; at most "
-                             f"{TRIM_LIMIT_DEG:g} deg each (beyond that, recalibrate)")
+                             f"{TRIM_LIMIT_DEG:g} deg each (beyond that, recalibrate). With the "
+                             "gravity feed-forward on, a trim is what remains after it")
+    add_gravity_ff_argument(parser)
     mode.add_argument("--home-check", action="store_true",
                       help="the course's calibration check: move slowly to the all-zero "
                            "configuration, hold, print where the FK puts the gripper, return")
@@ -88,7 +91,8 @@ def home_check(args: argparse.Namespace, calibration: Mapping[str, Any], source,
             args.port, calibration, home_plan(), robot_id=args.robot_id, source=str(source),
             rate_hz=args.rate, profile=args.profile, max_joint_speed=speed,
             tracking_tolerance=args.tracking_tolerance, confirm=confirm,
-            write_calibration=args.write_calibration, trims=trims)
+            write_calibration=args.write_calibration, trims=trims,
+            gravity_ff=getattr(args, "gravity_ff", True))
         status = 0
     except MotionAborted as error:
         print(f"ABORTED: {error}", file=sys.stderr)

@@ -63,6 +63,7 @@ from so101_kinematics.hw.control import (
     stop_on_signals,
     tracking_tolerances,
 )
+from so101_kinematics.hw.feedforward import read_feedforward
 from so101_kinematics.motion import (
     Configuration,
     JointLimitError,
@@ -305,7 +306,8 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
                confirm: Callable[[str], bool] | None = None, write_calibration: bool = False,
                return_on_abort: bool = True, trims: Trims | str | None = None,
                on_cycle: Callable[[ArmSession, Cycle], None] | None = None,
-               on_start: Callable[[Configuration, float], None] | None = None) -> RunResult:
+               on_start: Callable[[Configuration, float], None] | None = None,
+               gravity_ff: bool = True) -> RunResult:
     """The whole hardware run: check, connect, confirm, torque on, run, return, torque off.
 
     Nothing is sent to the servos' goal registers and torque stays off until
@@ -329,6 +331,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
         on_cycle: hook called after each control cycle (the log).
         on_start: called with the measured starting pose and the first move's
             duration [s] before ``confirm``.
+        gravity_ff: offset each goal by the sag the servos will have (``hw/feedforward.py``).
 
     Raises:
         CalibrationError, PlanError, ConnectionFailed, LerobotMissing, NotConfirmed:
@@ -356,6 +359,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
         armed = True
         with bus_errors("configuring the servos and enabling torque"):
             with_retries(configure, bus)
+            session.feedforward = read_feedforward(bus, gravity_ff)
             with_retries(enable_torque_in_place, bus)
         return execute(session, plan, start, return_on_abort=return_on_abort)
     except MotionAborted:

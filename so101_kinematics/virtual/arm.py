@@ -152,6 +152,8 @@ class VirtualSO101:
         leader: a leader arm: limp from power-up, a hand resting on it (it
             does not sag) that ``hand_move`` moves.
         supply: [V] the servos' supply voltage (``virtual/electrical.py``).
+        variant: the servos' STS3215 variant (``so101_kinematics.servo.VARIANTS``; default:
+            what ``supply`` implies).
         thermal_time_s: [s] the servos' thermal time constant.
 
     Raises:
@@ -167,7 +169,7 @@ class VirtualSO101:
                  log_level: int = logging.WARNING, startup_timeout: float = 60.0,
                  factory: bool = False, leader: bool = False, supply: float = SUPPLY_V,
                  thermal_time_s: float = THERMAL_TIME_S,
-                 cube=None, base_height: float = 0.0):
+                 cube=None, base_height: float = 0.0, variant: str | None = None):
         self.calibration = load_calibration(calibration)
         cubes, base_height = check_cubes(cube), check_base_height(base_height)
         self._ids = {name: entry["id"] for name, entry in self.calibration.items()}
@@ -181,7 +183,7 @@ class VirtualSO101:
                    "torque_on_start": torque_on_start and not (factory or leader),
                    "log_level": log_level, "factory": factory, "hand_holds": factory or leader,
                    "supply": float(supply), "thermal_time_s": float(thermal_time_s),
-                   "cubes": cubes, "base_height": base_height}
+                   "cubes": cubes, "base_height": base_height, "variant": variant}
         # A fresh interpreter (as multiprocessing's "spawn", but without re-running
         # the caller's __main__, so scripts without a __main__ guard work too).
         parent_sock, child_sock = socket.socketpair()

@@ -45,7 +45,7 @@ STALL_CURRENT_MA = 2700.0  # [mA] current at stall torque (12 V STS3215)
 AMBIENT_C = 25.0  # [degC]
 STALL_RISE_C = 80.0  # [K] steady-state rise above ambient at stall torque
 THERMAL_TIME_S = 120.0  # [s] thermal time constant of a servo
-SUPPLY_V = 12.0  # [V] default supply voltage
+SUPPLY_V = 5.0  # [V] default supply voltage: the SO-101 kit's (so101_kinematics.servo.KIT_SUPPLY_V)
 SUPPLY_RESISTANCE_OHM = 0.1  # [ohm] supply + cable internal resistance
 
 

@@ -82,6 +82,7 @@ class _Emulator(ServoRegisters, ParentCommands, Hand):
         self.supply = float(options.get("supply", SUPPLY_V))  # [V]
         self.voltage = round(10 * self.supply)  # [0.1 V] Present_Voltage, updated by the physics
         self.thermal_time_s = float(options.get("thermal_time_s", THERMAL_TIME_S))
+        self.make_servo_bank(options.get("variant"))
         self.wire_timing = bool(options["wire_timing"])
         self.goal_log: deque[tuple[float, int, int]] = deque(maxlen=GOAL_LOG_LENGTH)
         self.lateness = deque(maxlen=20000)

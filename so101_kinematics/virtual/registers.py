@@ -27,17 +27,40 @@ from __future__ import annotations
 import math
 import time
 
+from so101_kinematics import servo as servo_facts
+from so101_kinematics.frames import JOINTS
+from so101_kinematics.sim.actuation import IDEAL_GAINS
+from so101_kinematics.sim.sts3215 import ServoBank
 from so101_kinematics.virtual.calibration import TICKS_PER_RAD
 from so101_kinematics.virtual.electrical import (
-    current_units,
+    SUPPLY_RESISTANCE_OHM,
     next_temperature,
     status_bits,
-    voltage_units,
 )
 from so101_kinematics.virtual.protocol import EEPROM_END, READ_ONLY, RESOLUTION
 from so101_kinematics.virtual.servo import VirtualServo
 
 STALL_LOAD_RATE = 2000.0  # [0.1 % per s] Present_Load rise of a stalled servo
+HAND_GAINS = IDEAL_GAINS  # a hand guiding a limp joint: the upstream model's stiff spring
+SETTING_ADDRESSES = {16, 21, 22, 23, 24, 26, 27, 33, 41, 44, 45, 46, 47, 48}
+"""Registers that change the servo's loop (gains, dead zone, mode, profile, torque limit)."""
+
+
+def servo_settings(servo: VirtualServo) -> servo_facts.Settings:
+    """The loop's registers of one virtual servo (``servo.Settings``).
+
+    The duty cap is Torque_Limit, never above Max_Torque_Limit (the STS loads 48 from 16
+    at power-up; a Max_Torque_Limit written since then caps it too: lerobot's gripper
+    setting acts without a power cycle). The two dead zones are averaged. In wheel
+    mode Goal_Velocity is the wheel's speed, not a cap.
+    """
+    regs = servo.regs
+    wheel = regs[33] == 1
+    return servo_facts.Settings(
+        p=regs[21], d=regs[22], i=regs[23], min_startup=servo.get("Minimum_Startup_Force"),
+        dead_zone=(regs[26] + regs[27]) / 2, acceleration=regs[41],
+        goal_velocity=0 if wheel else abs(servo.get("Goal_Velocity")),
+        torque_limit=min(servo.get("Torque_Limit"), servo.get("Max_Torque_Limit")))
 GOAL_LOG_LENGTH = 1_000_000  # Goal_Position writes kept (about 30 min of a 100 Hz loop)
 
 
@@ -50,24 +73,44 @@ class ServoRegisters:
     """
 
     # --- physics --------------------------------------------------------------------------
+    def make_servo_bank(self, variant: str | None = None) -> None:
+        """The servos' dynamics (``sim/sts3215.py``), in ``JOINTS`` order, at the supply."""
+        self.order = [self.by_joint[j] for j in JOINTS if j in self.by_joint]
+        for index, s in enumerate(self.order):
+            s.index = index
+        variant = variant or servo_facts.default_variant(self.supply)
+        self.bank = ServoBank([servo_settings(s) for s in self.order], self.supply, variant)
+        self.bank_acts = [s.act for s in self.order]
+        self.bank_qadr = [s.qadr for s in self.order]
+        for s in self.order:
+            self._apply_torque(s)
+
     def _apply_torque(self, servo: VirtualServo) -> None:
-        """The actuator pushes when torque is on, or as the hand's spring while a hand grips it."""
+        """The servo pushes when torque is on; a hand gripping a limp joint is a spring there."""
         if servo.torque and servo.joint in self.hand_grip:  # the servo takes over from the hand
             del self.hand_grip[servo.joint]
             self.d.qfrc_applied[servo.dofadr] = 0.0
-        on = servo.torque or servo.joint in self.hand_grip
         m, act = self.m, servo.act
-        m.actuator_gainprm[act, 0] = servo.kp if on else 0.0
-        m.actuator_biasprm[act, 1] = -servo.kp if on else 0.0
-        m.actuator_biasprm[act, 2] = -servo.kv if on else 0.0
-        force = servo.max_force * min(1000, servo.get("Max_Torque_Limit")) / 1000.0
+        self.bank.torque_on[servo.index] = servo.torque
+        self.bank.set(servo.index, servo_settings(servo))
+        self.bank.mode[servo.index] = servo.regs[33]
+        spring = not servo.torque and servo.joint in self.hand_grip
+        kp, kv, force, _ = HAND_GAINS if spring else (0.0, 0.0, 1e3, 0.0)
+        m.actuator_gainprm[act, 0] = kp
+        m.actuator_biasprm[act, 1] = -kp
+        m.actuator_biasprm[act, 2] = -kv
+        m.actuator_biasprm[act, 0] = 0.0
         m.actuator_forcerange[act] = (-force, force)
+        pwm = servo.get("Goal_Time")  # Operating_Mode 2: duty [0.1 %], bit 10 the direction
+        self.bank.pwm[servo.index] = -(pwm & 0x3FF) if pwm & 0x400 else pwm & 0x3FF
+        self.bank.wheel_speed[servo.index] = servo.get("Goal_Velocity")
 
     def _hold(self, servo: VirtualServo) -> None:
         """Goal_Position := Present_Position, actuator target := measured angle."""
         angle = float(self.d.qpos[servo.qadr])
         servo.set("Goal_Position", servo.angle_to_present(angle))
         self.d.ctrl[servo.act] = angle
+        self.bank.reset_target(servo.index, round(angle * servo_facts.COUNTS_PER_RAD))
 
     def step_physics(self) -> None:
         """Step the simulation up to the wall clock (at most 25 steps behind: then time slips)."""
@@ -79,7 +122,11 @@ class ServoRegisters:
             due = 25
         m, d, step = self.m, self.d, self.mujoco.mj_step
         stalled = [s for s in self.servos.values() if s.stalled_at is not None]
+        acts, qadr, torques, bias = self.bank_acts, self.bank_qadr, self.bank.torques, \
+            m.actuator_biasprm
+        ctrl, qpos = d.ctrl, d.qpos
         for _ in range(due):
+            bias[acts, 0] = torques(ctrl[acts].tolist(), qpos[qadr].tolist(), self.dt)
             step(m, d)
             for s in stalled:
                 d.qpos[s.qadr] = s.stalled_at
@@ -101,23 +148,30 @@ class ServoRegisters:
             self.next_view = time.perf_counter() + 1 / 60
 
     def effort(self, servo: VirtualServo) -> float:
-        """What the servo's motor pushes [0.1 % of stall]: 0 when limp (a hand moves it)."""
+        """Present_Load: the duty the servo's loop applies [0.1 %]; 0 when limp."""
         if servo.stalled_at is not None:
             return servo.load
-        if not servo.torque:
-            return 0.0
-        return float(self.d.actuator_force[servo.act]) / servo.max_force * 1000.0
+        return self.bank.duty[servo.index] if servo.torque else 0.0
+
+    def current(self, servo: VirtualServo) -> float:
+        """The servo's motor current [A] (a stalled one draws its stall duty's)."""
+        if servo.stalled_at is not None:
+            return abs(servo.load) / 1000.0 * self.supply * self.bank.variant.torque_per_volt \
+                / self.bank.variant.kt
+        return self.bank.current(servo.index, float(self.d.qvel[servo.dofadr]))
 
     def update_electrical(self, dt: float) -> None:
         """Advance every servo's temperature and overload timer by ``dt`` [s]; the bus voltage."""
-        loads = []
+        amps = 0.0
         for servo in self.by_joint.values():
             load = self.effort(servo)
-            loads.append(load)
+            amps += self.current(servo)
             servo.temperature = next_temperature(servo.temperature, load, dt, self.thermal_time_s)
             limit = 10 * servo.regs[36]  # Overload_Torque [%] -> [0.1 %]
             servo.overload_time = servo.overload_time + dt if 0 < limit <= abs(load) else 0.0
-        self.voltage = voltage_units(self.supply, loads)
+        volts = self.supply - SUPPLY_RESISTANCE_OHM * amps
+        self.voltage = max(0, min(255, round(10.0 * volts)))
+        self.bank.volts = max(0.0, volts)
 
     def refresh(self, servo: VirtualServo, lo: int = 56, hi: int = 71) -> None:
         """Update the servo's Present_* registers overlapping [lo, hi) from the simulation."""
@@ -131,12 +185,13 @@ class ServoRegisters:
         if hi <= 58:
             return
         velocity = float(d.qvel[servo.dofadr]) * TICKS_PER_RAD
+        velocity = round(velocity / servo_facts.VELOCITY_STEP) * servo_facts.VELOCITY_STEP
         load = max(-1000, min(1000, round(self.effort(servo))))
-        servo.set("Present_Velocity", max(-32767, min(32767, round(velocity))))
+        servo.set("Present_Velocity", max(-32767, min(32767, velocity)))
         servo.set("Present_Load", load)
         regs[62] = self.voltage
         regs[63] = max(0, min(255, round(servo.temperature)))
-        servo.set("Present_Current", current_units(load))
+        servo.set("Present_Current", round(self.current(servo) / servo_facts.CURRENT_UNIT_A))
         regs[66] = int(abs(velocity) > 20)
         regs[65] = self.error_byte(servo)
 
@@ -186,7 +241,7 @@ class ServoRegisters:
             self.update_listening()
             if touched & {6}:
                 self.on_setup_write(servo)
-        if touched & {40, 16, 17}:
+        if touched & ({40} | SETTING_ADDRESSES):
             self._apply_torque(servo)
             if servo.torque and not was_on:
                 self._hold(servo)
