@@ -165,6 +165,8 @@ class Feedforward:
         settings: joint -> the servo's registers (``servo.Settings``), as read from it.
         volts: the supply the servos report [V].
         variant: a key of ``servo.VARIANTS`` (default: what ``volts`` implies).
+        enabled: add the offsets (``False``: :meth:`apply` changes nothing, and
+            :meth:`expected_errors` counts the sag in).
 
     Example::
 
@@ -179,7 +181,8 @@ class Feedforward:
     at most 0.15 deg per degree of motion)."""
 
     def __init__(self, settings: Mapping[str, servo.Settings], volts: float,
-                 variant: str | None = None):
+                 variant: str | None = None, enabled: bool = True):
+        self.enabled = bool(enabled)
         self.settings = dict(settings)
         self.volts = float(volts)
         self.variant = variant or servo.default_variant(self.volts)
@@ -196,11 +199,28 @@ class Feedforward:
 
     def apply(self, cfg: Mapping[str, float]) -> dict[str, float]:
         """``cfg`` with each joint's offset added: the goal that makes the arm rest at ``cfg``."""
+        if not self.enabled:
+            return dict(cfg)
         offsets = self.offsets(cfg)
         return {j: value + offsets.get(j, 0.0) for j, value in cfg.items()}
 
+    def expected_errors(self, cfg: Mapping[str, float],
+                        speeds: Mapping[str, float]) -> dict[str, float]:
+        """How far [deg] each arm joint will be from ``cfg`` moving at ``speeds`` [deg/s].
+
+        The servo's lag at that speed (``servo.lag``), plus the sag where no offset
+        cancels it: what a tracking check must allow before it calls a joint blocked.
+        """
+        offsets = self.offsets(cfg)
+        return {j: math.degrees(servo.lag(math.radians(speeds.get(j, 0.0)), self.settings[j],
+                                          self.volts, self.variant))
+                + (0.0 if self.enabled else abs(offsets[j])) for j in ARM_JOINTS}
+
     def describe(self, cfg: Mapping[str, float]) -> str:
         """One line: the supply, P and each arm joint's offset at ``cfg``."""
+        if not self.enabled:
+            return (f"no gravity feed-forward ({self.variant} at {self.volts:.1f} V: the arm "
+                    "sags)")
         offsets = self.offsets(cfg)
         p = sorted({s.p for s in self.settings.values()})
         gains = "/".join(str(v) for v in p)

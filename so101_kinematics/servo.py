@@ -220,3 +220,13 @@ def holding_error(torque: float, settings: Settings, volts: float, variant: str 
     counts = settings.dead_zone + max(0.0, needed - settings.min_startup) * 4.0 / settings.p
     counts += math.radians(backlash_deg) / 2 * COUNTS_PER_RAD
     return math.copysign(counts / COUNTS_PER_RAD, torque)
+
+
+def lag(speed: float, settings: Settings, volts: float, variant: str = "C001") -> float:
+    """How far [rad] the joint trails a goal moving at ``speed`` [rad/s], steady, unloaded.
+
+    The push that balances the back-EMF and viscous damping at that speed, over the
+    loop's stiffness (``stiffness``): 0.10 s of motion at P = 16 on 5 V.
+    """
+    chosen = VARIANTS[variant]
+    return (chosen.emf_damping + chosen.viscous) * abs(speed) / stiffness(settings, volts, variant)

@@ -190,6 +190,15 @@ class ArmSession:
             out[joint] = min(upper, max(lower, value))
         return out
 
+    def _allowed(self, previous: Configuration, command: Configuration) -> dict:
+        """Tracking tolerances for this cycle: the margin plus the lag and sag the servo has."""
+        if self.feedforward is None:
+            return self.tracking_tolerance
+        speeds = {j: (command[j] - previous[j]) / self.loop.period for j in command}
+        expected = self.feedforward.expected_errors(previous, speeds)
+        return {j: None if allowed is None else allowed + expected.get(j, 0.0)
+                for j, allowed in self.tracking_tolerance.items()}
+
     @property
     def observed(self) -> bool:
         """Whether the last read of the arm succeeded."""
@@ -197,7 +206,7 @@ class ArmSession:
 
     def goal_for(self, command: Mapping[str, float]) -> Configuration:
         """The goal written for ``command``: plus the gravity feed-forward, in the range."""
-        if self.feedforward is None:
+        if self.feedforward is None or not self.feedforward.enabled:
             return dict(command)
         return clamp_to_limits(self.feedforward.apply(command), self.limits)
 
@@ -244,7 +253,7 @@ class ArmSession:
                 logger.warning("The arm answers again after %.2f s; resuming the plan.", length)
                 self._unobserved_since = None
             if previous is not None:
-                check_tracking(previous, measured, deadline, self.tracking_tolerance,
+                check_tracking(previous, measured, deadline, self._allowed(previous, command),
                                self.tracking_timeout, self._beyond)
             if len(self.cycles) % STATUS_EVERY == 0:
                 check_status(self.bus, self.known_faults, self._status_seen)

@@ -23,18 +23,17 @@ REGISTERS = ("P_Coefficient", "Minimum_Startup_Force", "CW_Dead_Zone", "CCW_Dead
 """What the feed-forward reads from each servo (raw values)."""
 
 
-def read_feedforward(bus, enabled: bool = True) -> Feedforward | None:
-    """The arm's feed-forward from its servos' registers, or ``None`` when not ``enabled``.
+def read_feedforward(bus, enabled: bool = True) -> Feedforward:
+    """The arm's feed-forward from its servos' registers (offsets only when ``enabled``).
 
     A register that cannot be read is taken at lerobot's value (and the supply at the
     kit's 5 V), with a warning: the offsets are then only as good as that guess.
 
     Args:
         bus: a connected lerobot ``FeetechMotorsBus``.
-        enabled: ``--gravity-ff`` (``False``: no offsets, the raw sag).
+        enabled: ``--gravity-ff`` (``False``: no offsets, the raw sag; the tracking
+            check still learns from it how far the arm will sag and lag).
     """
-    if not enabled:
-        return None
     values: dict[str, dict[str, int]] = {}
     for register in REGISTERS:
         try:
@@ -61,4 +60,6 @@ def read_feedforward(bus, enabled: bool = True) -> Feedforward | None:
     if not volts:
         logger.warning("No Present_Voltage read: the gravity feed-forward assumes the kit's "
                        "%g V supply.", supply)
-    return Feedforward(settings, supply)
+    feedforward = Feedforward(settings, supply, enabled=enabled)
+    logger.info("%s", feedforward.describe(dict.fromkeys(JOINTS, 0.0)))
+    return feedforward
