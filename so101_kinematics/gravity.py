@@ -161,6 +161,11 @@ def feedforward_offsets(torques, settings: servo.Settings | Mapping[str, servo.S
 class Feedforward:
     """The gravity feed-forward of one arm: its servos' registers and supply, and a cache.
 
+    Each goal is offset by the error at which its servo holds gravity there, plus, in
+    the direction the joint last moved, the error its Coulomb friction leaves: a joint
+    stops on the approach side, short by friction over stiffness ([TEL]: "unloaded moves
+    stop 5-6 counts short of the goal on the approach side"; 0.5 deg at P = 16 on 5 V).
+
     Args:
         settings: joint -> the servo's registers (``servo.Settings``), as read from it.
         volts: the supply the servos report [V].
@@ -188,9 +193,17 @@ class Feedforward:
         self.variant = variant or servo.default_variant(self.volts)
         self._at: dict[str, float] | None = None
         self._offsets: dict[str, float] = {}
+        friction = servo.VARIANTS[self.variant].coulomb
+        self.friction = {j: math.degrees(friction / servo.stiffness(self.settings[j], self.volts,
+                                                                    self.variant))
+                         for j in ARM_JOINTS}
+        """Joint -> the error [deg] its friction leaves on the approach side."""
+        self._last: dict[str, float] | None = None
+        self.direction = dict.fromkeys(ARM_JOINTS, 0.0)
+        """Joint -> the sign of its last move (0 before any)."""
 
     def offsets(self, cfg: Mapping[str, float]) -> dict[str, float]:
-        """Each joint's offset [deg] at ``cfg`` (cached while no joint moved ``REFRESH_DEG``)."""
+        """Each joint's gravity offset [deg] at ``cfg`` (cached while no joint moved much)."""
         at = self._at
         if at is None or any(abs(cfg[j] - at[j]) > self.REFRESH_DEG for j in ARM_JOINTS):
             self._offsets = feedforward(cfg, self.settings, self.volts, self.variant)
@@ -198,23 +211,36 @@ class Feedforward:
         return self._offsets
 
     def apply(self, cfg: Mapping[str, float]) -> dict[str, float]:
-        """``cfg`` with each joint's offset added: the goal that makes the arm rest at ``cfg``."""
+        """The goal that makes the arm rest at ``cfg``: each joint's offsets added.
+
+        Called with each successive command (it learns each joint's direction of motion).
+        """
         if not self.enabled:
             return dict(cfg)
+        last, direction = self._last, self.direction
+        if last is not None:
+            for joint in ARM_JOINTS:
+                change = cfg[joint] - last[joint]
+                if abs(change) > 1e-6:
+                    direction[joint] = 1.0 if change > 0 else -1.0
+        self._last = {j: float(cfg[j]) for j in ARM_JOINTS}
         offsets = self.offsets(cfg)
-        return {j: value + offsets.get(j, 0.0) for j, value in cfg.items()}
+        return {j: value + offsets.get(j, 0.0) + self.friction.get(j, 0.0) * direction.get(j, 0.0)
+                for j, value in cfg.items()}
 
     def expected_errors(self, cfg: Mapping[str, float],
                         speeds: Mapping[str, float]) -> dict[str, float]:
         """How far [deg] each arm joint will be from ``cfg`` moving at ``speeds`` [deg/s].
 
-        The servo's lag at that speed (``servo.lag``), plus the sag where no offset
-        cancels it: what a tracking check must allow before it calls a joint blocked.
+        The servo's lag at that speed (``servo.lag``), plus the sag and the friction
+        band where no offset cancels them: what a tracking check must allow before it
+        calls a joint blocked.
         """
         offsets = self.offsets(cfg)
         return {j: math.degrees(servo.lag(math.radians(speeds.get(j, 0.0)), self.settings[j],
                                           self.volts, self.variant))
-                + (0.0 if self.enabled else abs(offsets[j])) for j in ARM_JOINTS}
+                + (0.0 if self.enabled else abs(offsets[j]) + self.friction[j])
+                for j in ARM_JOINTS}
 
     def describe(self, cfg: Mapping[str, float]) -> str:
         """One line: the supply, P and each arm joint's offset at ``cfg``."""
@@ -225,5 +251,7 @@ class Feedforward:
         p = sorted({s.p for s in self.settings.values()})
         gains = "/".join(str(v) for v in p)
         joints = ", ".join(f"{j} {offsets[j]:+.1f}" for j in ARM_JOINTS if offsets[j])
+        friction = max(self.friction.values())
         return (f"gravity feed-forward ({self.variant}, P = {gains}, {self.volts:.1f} V): "
-                f"{joints or 'no offsets'} deg")
+                f"{joints or 'no offsets'} deg, and up to {friction:.1f} deg of friction in "
+                "the direction of motion")

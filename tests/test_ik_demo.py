@@ -11,9 +11,11 @@ import mujoco
 import numpy as np
 import pytest
 
+import so101_mujoco_utils as utils
 import test_ik_mujoco
 from so101_forward_kinematics import get_forward_kinematics
 from so101_inverse_kinematics import get_inverse_kinematics
+from so101_kinematics.sim import actuation
 from so101_kinematics.sim.fk_pictures import project_to_pixels
 from so101_kinematics.sim.ik_demo import (
     CUBE_SYMMETRY,
@@ -31,11 +33,16 @@ from so101_mujoco_utils import (
     set_initial_pose,
 )
 
-# What "reached" means, from the task and the model, not from the script's constants: the
-# servos (kp ~ 1000 N m/rad) hold the arm within a fraction of a millimetre (0.1-0.25 mm
-# measured); 2 mm and 1 deg would catch a wrong IK branch, a wrong offset or a wrong yaw.
-POSITION_TOL = 0.002  # [m]
+# What "reached" means, from the task and the model, not from the script's constants: an
+# ideal servo (kp ~ 1000 N m/rad) holds the arm within a fraction of a millimetre (0.1-0.25
+# mm measured), so 2 mm and 1 deg catch a wrong IK branch, a wrong offset or a wrong yaw.
+# The STS3215 at P = 16 (the default) rests anywhere in its friction band, +-0.5 deg a joint
+# (BAM's Coulomb 0.052 N m over 5.9 N m/rad at 5 V): up to about 5 mm and 1 deg at the
+# object frame at the course's reach (2.1-4.8 mm measured).
+POSITION_TOL = 0.002  # [m], the ideal servo
 YAW_TOL = 1.0  # [deg], modulo 90
+SERVO_POSITION_TOL = 0.006  # [m], the STS3215
+SERVO_YAW_TOL = 2.0  # [deg]
 COURSE_HEIGHT = 0.014  # [m] z of the course's cube targets
 # Inside the top-down workspace at yaw 0 (every point of this box checked reachable).
 COURSE_X_RANGE, COURSE_Y_RANGE = (0.12, 0.25), (-0.12, 0.12)  # [m]
@@ -47,9 +54,14 @@ def course_random_position(rng) -> list[float]:
             COURSE_HEIGHT]
 
 
-def test_assignment7_call_sequence_puts_the_object_frame_on_each_target(model):
+@pytest.mark.parametrize(("servo", "position_tol", "yaw_tol"), [
+    ("ideal", POSITION_TOL, YAW_TOL), ("sts3215", SERVO_POSITION_TOL, SERVO_YAW_TOL)])
+def test_assignment7_call_sequence_puts_the_object_frame_on_each_target(servo, position_tol,
+                                                                         yaw_tol):
     """The course's test script, headless: its calls, shapes and order, with viewer = None."""
-    m, d = model, mujoco.MjData(model)
+    m = utils.load_model()
+    actuation.use_servo(m, mode=servo)
+    d = mujoco.MjData(m)
     initial_config = {"shoulder_pan": 0.0, "shoulder_lift": 0.0, "elbow_flex": 0.00,
                       "wrist_flex": 0.0, "wrist_roll": 0.0, "gripper": 0}
     set_initial_pose(d, initial_config)
@@ -63,13 +75,13 @@ def test_assignment7_call_sequence_puts_the_object_frame_on_each_target(model):
         move_to_pose(m, d, viewer, joint_configuration, 1.0)
         hold_position(m, d, viewer, joint_configuration, 2.0)
         reached = d.site(TOOL_SITE).xpos
-        assert np.linalg.norm(reached - desired_position) <= POSITION_TOL, (desired_position,
+        assert np.linalg.norm(reached - desired_position) <= position_tol, (desired_position,
                                                                              reached)
         # The course's frame: np.eye(3) is a top-down grasp at yaw 0 (z up), asked and reached.
         rotation = d.site(TOOL_SITE).xmat.reshape(3, 3)
         angle = math.degrees(math.acos(min(1.0, (np.trace(desired_orientation.T @ rotation)
                                                  - 1.0) / 2.0)))
-        assert angle <= YAW_TOL, (desired_position, rotation)  # 0.03-0.06 deg measured
+        assert angle <= yaw_tol, (desired_position, rotation)  # ideal: 0.03-0.06 deg measured
     assert d.time == pytest.approx(5 * 3.0, abs=1e-6)
 
 
@@ -106,8 +118,8 @@ def test_headless_run_reaches_each_given_target(tmp_path, capsys):
     assert report["success"] and len(report["results"]) == 3
     for (x, y, yaw), result in zip(GIVEN, report["results"], strict=True):
         final = np.array(result["final_position_m"])
-        assert np.linalg.norm(final - [x, y, COURSE_HEIGHT]) <= POSITION_TOL, (x, y, final)
-        assert abs(yaw_difference(result["final_yaw_deg"], yaw)) <= YAW_TOL
+        assert np.linalg.norm(final - [x, y, COURSE_HEIGHT]) <= SERVO_POSITION_TOL, (x, y, final)
+        assert abs(yaw_difference(result["final_yaw_deg"], yaw)) <= SERVO_YAW_TOL
     assert report["sim_time_s"] == pytest.approx(3 * 2.0, abs=1e-6)
 
 
@@ -123,8 +135,8 @@ def test_headless_seeded_run_exits_0_with_each_random_target_reached(tmp_path, c
             for r in report["results"]] == expected
     for target, result in zip(expected, report["results"], strict=True):
         final = np.array(result["final_position_m"])
-        assert np.linalg.norm(final - target.position) <= POSITION_TOL
-        assert abs(yaw_difference(result["final_yaw_deg"], target.yaw_deg)) <= YAW_TOL
+        assert np.linalg.norm(final - target.position) <= SERVO_POSITION_TOL
+        assert abs(yaw_difference(result["final_yaw_deg"], target.yaw_deg)) <= SERVO_YAW_TOL
 
 
 def test_a_target_not_reached_exits_1_saying_which_and_by_how_much(capsys):

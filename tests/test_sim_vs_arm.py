@@ -53,8 +53,10 @@ def test_the_sidecar_holds_what_a_replay_needs(hw_log):
 def test_on_the_virtual_arm_simulator_and_arm_agree(hw_log, tmp_path):
     report = compare(hw_log, tmp_path)
     assert all(report["sim_vs_arm_rms_deg"][j] < 1.0 for j in ARM_JOINTS)
-    assert report["pick_position_error_mm"] < 3.0
-    assert report["place_position_error_mm"] < 3.0
+    # Both arms are the STS3215 with the feed-forward: each rests anywhere in its friction
+    # band (+-0.5 deg a joint at P = 16 on 5 V), so their object frames agree to about 5 mm.
+    assert report["pick_position_error_mm"] < 6.0
+    assert report["place_position_error_mm"] < 6.0
     assert all(report["max_tracking_error_deg"][j] >= 0.0 for j in ARM_JOINTS)
 
 

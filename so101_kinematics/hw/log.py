@@ -77,6 +77,12 @@ class CycleLog:
 
     def __call__(self, session: ArmSession, cycle: Cycle) -> None:
         """Append ``cycle``; flush once ``FLUSH_EVERY_S`` of run time passed since the last."""
+        feedforward = getattr(session, "feedforward", None)
+        if self.run_info is not None and feedforward is not None and "servo" not in self.run_info:
+            # what the replay needs to simulate this arm: its supply, P, the feed-forward
+            self.run_info["servo"] = {"gravity_ff": feedforward.enabled,
+                                      "supply_v": feedforward.volts,
+                                      "p": feedforward.settings["shoulder_lift"].p}
         self._writer.writerow(cycle_row(cycle, session.trims))
         self.rows += 1
         if cycle.wall_s - self._flushed_at >= FLUSH_EVERY_S:

@@ -108,8 +108,13 @@ def _plan(record: dict) -> Plan:
                 record.get("return_duration", 2.0))
 
 
-def replay(t: np.ndarray, commands: dict[str, np.ndarray], start: dict[str, float]):
-    """Simulated joints at each time of ``t``, the commands sent as the arm got them."""
+def replay(t: np.ndarray, commands: dict[str, np.ndarray], start: dict[str, float],
+           servo: dict | None = None):
+    """Simulated joints at each time of ``t``, the commands sent as the arm got them.
+
+    ``servo``: the log's record of the arm's servos (``gravity_ff``, ``supply_v``, ``p``;
+    ``hw/log.py``); a log without it comes from a run before the feed-forward existed.
+    """
     import mujoco
 
     from so101_kinematics.sim import actuation
@@ -121,6 +126,9 @@ def replay(t: np.ndarray, commands: dict[str, np.ndarray], start: dict[str, floa
     )
 
     m = load_model()
+    servo = servo or {}
+    actuation.use_servo(m, volts=float(servo.get("supply_v", actuation.DEFAULT_VOLTS)),
+                        p=int(servo.get("p", 16)), feedforward=bool(servo.get("gravity_ff")))
     d = mujoco.MjData(m)
     set_initial_pose(d, start)
     d.time = float(t[0])
@@ -142,7 +150,7 @@ def compare_run(path: str | Path) -> Comparison:
     t = np.array([float(r["t_s"]) for r in rows])
     commanded = {j: np.array([float(r[f"cmd_{j}"]) for r in rows]) for j in JOINTS}
     measured = {j: np.array([float(r[f"meas_{j}"]) for r in rows]) for j in JOINTS}
-    simulated = replay(t, commanded, info["start_pose"])
+    simulated = replay(t, commanded, info["start_pose"], info.get("servo"))
     result = Comparison(
         t, commanded, measured, simulated,
         {j: float(np.max(np.abs(commanded[j] - measured[j]))) for j in JOINTS},

@@ -43,11 +43,6 @@ DEFAULT_VOLTS = servo.KIT_SUPPLY_V
 """The simulator's supply by default [V]: the kit's 5 V (``servo.KIT_SUPPLY_V``)."""
 
 
-FEEDFORWARD_REFRESH_DEG = 1.0
-"""The gravity feed-forward is recomputed when a goal has moved this far [deg] since the last
-time (it changes by at most 0.15 deg per degree of motion: 0.15 deg stale at most)."""
-
-
 @dataclass(frozen=True)
 class ServoSpec:
     """A model's servo: mode, supply [V], variant, registers and the gravity feed-forward.
@@ -75,16 +70,16 @@ _SPECS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # model -> Serv
 _BANKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # data -> (ServoBank, time)
 
 
-def lerobot_settings(p: int | None = None) -> tuple:
-    """Lerobot's registers for the six joints (the gripper's torque limit), P optionally changed."""
-    arm = servo.LEROBOT if p is None else servo.LEROBOT.with_(p=p)
-    grip = servo.LEROBOT_GRIPPER if p is None else servo.LEROBOT_GRIPPER.with_(p=p)
-    return tuple(grip if joint == "gripper" else arm for joint in JOINTS)
+def lerobot_settings(p: int | None = None, i: int = 0) -> tuple:
+    """The registers lerobot writes, per joint (the gripper's torque cap), with P and I changed."""
+    changes = {"i": int(i)} | ({} if p is None else {"p": int(p)})
+    return tuple((servo.LEROBOT_GRIPPER if joint == "gripper" else servo.LEROBOT).with_(**changes)
+                 for joint in JOINTS)
 
 
 def use_servo(m: mujoco.MjModel, mode: str = "sts3215", volts: float = DEFAULT_VOLTS,
               variant: str | None = None, p: int | None = None,
-              feedforward: bool = DEFAULT_FEEDFORWARD) -> ServoSpec:
+              feedforward: bool = DEFAULT_FEEDFORWARD, i: int = 0) -> ServoSpec:
     """Choose the servo that drives ``m`` (see the module's docstring).
 
     Args:
@@ -95,6 +90,7 @@ def use_servo(m: mujoco.MjModel, mode: str = "sts3215", volts: float = DEFAULT_V
         p: P_Coefficient (default lerobot's 16), 1-255.
         feedforward: offset each goal by the sag the servo will have there
             (``gravity.feedforward``), as the real-arm path does with ``--gravity-ff``.
+        i: I_Coefficient (lerobot's 0), 0-255.
 
     Raises:
         PlanError: an unknown mode or variant, a voltage or P out of range.
@@ -111,7 +107,9 @@ def use_servo(m: mujoco.MjModel, mode: str = "sts3215", volts: float = DEFAULT_V
                         f"{', '.join(servo.VARIANTS)}. Fix: use C001 (7.4 V) or C018 (12 V).")
     if p is not None and not 1 <= int(p) <= 255:
         raise PlanError(f"P coefficient {p} is outside [1, 255]. Fix: lerobot uses 16.")
-    spec = ServoSpec(mode, float(volts), variant, lerobot_settings(p), bool(feedforward))
+    if not 0 <= int(i) <= 255:
+        raise PlanError(f"I coefficient {i} is outside [0, 255]. Fix: lerobot uses 0.")
+    spec = ServoSpec(mode, float(volts), variant, lerobot_settings(p, i), bool(feedforward))
     _SPECS[m] = spec
     acts = _actuators(m)
     dofs = [int(m.joint(j).dofadr[0]) for j in JOINTS]
@@ -181,7 +179,7 @@ def step(m: mujoco.MjModel, d: mujoco.MjData, n: int = 1) -> None:
         plant = _PLANTS[m] = _Plant(m)
     entry = _BANKS.get(d)
     if entry is None or entry[1] != d.time:  # new, or stepped or reset by someone else
-        entry = [ServoBank(spec.settings, spec.volts, spec.variant), d.time, None, None]
+        entry = [ServoBank(spec.settings, spec.volts, spec.variant), d.time, None, None, None]
         _BANKS[d] = entry
     bank, feedforward = entry[0], spec.feedforward
     acts, qadr, dt = plant.acts, plant.qadr, m.opt.timestep
@@ -206,15 +204,15 @@ def step(m: mujoco.MjModel, d: mujoco.MjData, n: int = 1) -> None:
 
 
 def _offset(entry: list, spec: ServoSpec, goal: list[float]) -> list[float]:
-    """``goal`` [rad] plus the gravity feed-forward, recomputed when the goal has moved."""
-    at, offsets = entry[2], entry[3]
-    if goal != at and (at is None or max(abs(g - a) for g, a in zip(goal, at, strict=True))
-                       > _REFRESH_RAD):
-        torques = gravity.holding_torques_rad(goal[:5], goal[5])
-        degrees = gravity.feedforward_offsets(torques, spec.settings[0], spec.volts, spec.variant)
-        offsets = entry[3] = [math.radians(x) for x in degrees] + [0.0]
-        entry[2] = goal
-    return [g + f for g, f in zip(goal, offsets, strict=False)]
-
-
-_REFRESH_RAD = math.radians(FEEDFORWARD_REFRESH_DEG)
+    """``goal`` [rad] plus the gravity feed-forward (``gravity.Feedforward``, as on the arm)."""
+    if goal == entry[2]:  # holding: the offsets stand
+        return entry[3]
+    feedforward = entry[4]
+    if feedforward is None:
+        feedforward = entry[4] = gravity.Feedforward(dict(zip(JOINTS, spec.settings, strict=True)),
+                                                     spec.volts, spec.variant)
+    cfg = {j: math.degrees(g) for j, g in zip(JOINTS, goal, strict=True)}
+    cfg["gripper"] = 50.0  # the jaw's weight barely moves with the opening
+    sent = feedforward.apply(cfg)
+    entry[2], entry[3] = goal, [math.radians(sent[j]) for j in JOINTS[:5]] + [goal[5]]
+    return entry[3]
