@@ -37,11 +37,11 @@ from so101_mujoco_utils import (
 # ideal servo (kp ~ 1000 N m/rad) holds the arm within a fraction of a millimetre (0.1-0.25
 # mm measured), so 2 mm and 1 deg catch a wrong IK branch, a wrong offset or a wrong yaw.
 # The STS3215 at P = 16 (the default) rests anywhere in its friction band, +-0.5 deg a joint
-# (BAM's Coulomb 0.052 N m over 5.9 N m/rad at 5 V): up to about 5 mm and 1 deg at the
-# object frame at the course's reach (2.1-4.8 mm measured).
+# (BAM's Coulomb 0.052 N m over 5.9 N m/rad at 5 V) less what the feed-forward takes out:
+# up to 5.3 mm and 1.4 deg at the object frame over 50 random targets (2026-12-02).
 POSITION_TOL = 0.002  # [m], the ideal servo
 YAW_TOL = 1.0  # [deg], modulo 90
-SERVO_POSITION_TOL = 0.006  # [m], the STS3215
+SERVO_POSITION_TOL = 0.007  # [m], the STS3215
 SERVO_YAW_TOL = 2.0  # [deg]
 COURSE_HEIGHT = 0.014  # [m] z of the course's cube targets
 # Inside the top-down workspace at yaw 0 (every point of this box checked reachable).
@@ -211,7 +211,9 @@ def _translucent_red(patch: np.ndarray) -> np.ndarray:
 def test_recorded_video_shows_each_target_as_a_translucent_cube(tmp_path, capsys, model):
     video = tmp_path / "ik.mp4"
     targets = [(0.2, 0.15, 0.0), (0.2, -0.15, 30.0)]  # apart: the arm at one hides not the other
-    args = ["--record", str(video), "--move-duration", "0.5", "--hold", "0.5"]
+    # The ideal servo: this checks the overlay, and half a second's move and hold is too
+    # short for the STS3215 at P = 16 to settle (it ends up to 10 mm off: a "miss", exit 1).
+    args = ["--record", str(video), "--move-duration", "0.5", "--hold", "0.5", "--servo", "ideal"]
     for x, y, yaw in targets:
         args += ["--target", str(x), str(y), str(yaw)]
     code, out, err = run_script(capsys, *args)

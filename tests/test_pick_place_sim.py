@@ -31,18 +31,19 @@ from so101_kinematics.sim import stepping
 
 REPO = Path(__file__).resolve().parent.parent
 WAYPOINTS = REPO / "waypoints"
-# The STS3215 at lerobot's P = 16 on the kit's 5 V, with the gravity feed-forward, rests
-# within its friction band of the goal (BAM's Coulomb 0.052 N m over 5.9 N m/rad: 0.5 deg)
-# plus its dead zone and half its gear play (0.4 deg); the held cube's weight, which the
-# feed-forward leaves out, adds up to 0.2 deg. 1.5 deg is under the 3-6 deg the sag shows
-# without the feed-forward, and under what a misplaced waypoint would.
-WAYPOINT_TOLERANCE_DEG = 1.5
+# The STS3215 at lerobot's P = 16 on the kit's 5 V, with the feed-forward (gravity, and
+# friction in the direction of motion), rests within a few tenths of a degree of the goal
+# (0.56 deg at worst measured on 2026-12-02: its dead zone, half its gear play and the held
+# cube's weight, which the feed-forward leaves out). 1.0 deg is under the 3-6 deg the sag
+# shows without the feed-forward, and under what a misplaced waypoint would.
+WAYPOINT_TOLERANCE_DEG = 1.0
 # 5 mm in eight horizontal directions (every 45 deg), and 10 deg about z both ways.
 PERTURBATIONS = [CubeStart((0.005 * math.cos(a), 0.005 * math.sin(a)))
                  for a in np.radians(np.arange(0, 360, 45))]
 PERTURBATIONS += [CubeStart(yaw=10.0), CubeStart(yaw=-10.0)]
 # Both at once, the two worst combinations of a sweep over all 16 (sideways to
-# the jaws, where the grasp cannot re-centre the cube, and turned): 7.1 mm.
+# the jaws, where the grasp cannot re-centre the cube, and turned): 7.1 mm with the ideal
+# servo, 7.3 and 8.3 mm with the STS3215 and the feed-forward (2026-12-02).
 PERTURBATIONS += [CubeStart((0.005 * math.cos(a), 0.005 * math.sin(a)), yaw)
                   for a, yaw in ((math.radians(135), 10.0), (math.radians(315), -10.0))]
 
@@ -101,19 +102,14 @@ SPEC_PLACEMENT_M = 0.010
 SPEC_TILT_DEG = 10.0
 
 
-# A perturbed start adds its own placement error (up to 7.1 mm with the ideal servo) to the
-# servo's residual with the feed-forward (3.7 mm at the nominal start, 2026-12-02): the two
-# worst combinations land 10.4 mm from the FK target, just past the 10 mm criterion
-# (README, "What the real arm does"); 12 mm still catches a cube dropped or pushed away.
-PERTURBED_PLACEMENT_M = 0.012
 
 
-def check_placed(report, tolerance: float = SPEC_PLACEMENT_M):
+def check_placed(report):
     assert report.completed and not report.dropped
     assert report.max_lift_m > 0.10, "the cube must be carried over the middle configurations"
-    assert report.placement_error_m <= tolerance
+    assert report.placement_error_m <= SPEC_PLACEMENT_M
     assert report.tilt_deg <= SPEC_TILT_DEG
-    assert report.success or report.placement_error_m > SPEC_PLACEMENT_M
+    assert report.success
 
 
 def judge_cube_at(offset_m=(0.0, 0.0), tilt_deg=0.0, max_lift_m=0.05, dropped=False):
@@ -172,7 +168,7 @@ def test_cube_is_carried_and_placed_from_the_nominal_start(nominal):
     f"dx{p.offset[0] * 1e3:+.1f}_dy{p.offset[1] * 1e3:+.1f}_yaw{p.yaw:+.0f}"
     for p in PERTURBATIONS])
 def test_cube_is_placed_from_perturbed_starts(start):
-    check_placed(run_pick_place(cube=start), PERTURBED_PLACEMENT_M)
+    check_placed(run_pick_place(cube=start))
 
 
 def arm_path(timestep):
