@@ -64,8 +64,8 @@ def main() -> None:
             ax.plot(points[:, 0], points[:, 1], style, marker="o", markersize=3, label=label)
         miss = np.linalg.norm(sagged[-1] - target[-1])
         left = np.linalg.norm(fixed[-1] - target[-1])
-        ax.set_title(f"{title}\nobject frame {miss:.0f} mm off; {left:.1f} mm with the feed-forward",
-                     fontsize=10)
+        ax.set_title(f"{title}\nobject frame {miss:.0f} mm off; {left:.1f} mm with the "
+                     "feed-forward", fontsize=10)
         ax.set_xlabel("along the arm [mm]")
         ax.set_ylabel("height [mm]")
         ax.set_aspect("equal")

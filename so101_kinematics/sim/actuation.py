@@ -147,14 +147,26 @@ def _actuators(m: mujoco.MjModel) -> np.ndarray:
     return np.array([int(m.actuator(j).id) for j in JOINTS])
 
 
+def _index(values: list[int]):
+    """A slice when ``values`` are consecutive (plain row copies: faster), else the list."""
+    if values == list(range(values[0], values[0] + len(values))):
+        return slice(values[0], values[0] + len(values))
+    return np.array(values)
+
+
 class _Plant:
-    """Per-model index arrays and the native actuator parameters to restore."""
+    """Per-model indices (slices when consecutive) and the controls' ranges."""
 
     def __init__(self, m: mujoco.MjModel):
-        self.acts = _actuators(m)
-        self.qadr = np.array([int(m.joint(j).qposadr[0]) for j in JOINTS])
+        self.acts = _index([int(m.actuator(j).id) for j in JOINTS])
+        self.qadr = _index([int(m.joint(j).qposadr[0]) for j in JOINTS])
         self.lower = m.actuator_ctrlrange[self.acts, 0].tolist()
         self.upper = m.actuator_ctrlrange[self.acts, 1].tolist()
+
+
+FEEDFORWARD_REFRESH_DEG = 0.5
+"""The feed-forward is re-evaluated when a goal moved this far [deg] (its gravity offsets
+change by at most 0.15 deg per degree; a joint's direction is seen that late)."""
 
 
 def forget(d: mujoco.MjData) -> None:
@@ -168,11 +180,26 @@ def bank_of(m: mujoco.MjModel, d: mujoco.MjData) -> ServoBank | None:
     return None if entry is None else entry[0]
 
 
-def step(m: mujoco.MjModel, d: mujoco.MjData, n: int = 1) -> None:
-    """``n`` physics steps with the model's servo (``mujoco.mj_step`` when it has none)."""
+def step(m: mujoco.MjModel, d: mujoco.MjData, n: int = 1, commands=None,
+         actuators=slice(None)) -> None:
+    """``n`` physics steps with the model's servo (``mujoco.mj_step`` when it has none).
+
+    Args:
+        m: the model.
+        d: the data.
+        n: steps.
+        commands: optional rows of goals [rad], one per step, written to
+            ``d.ctrl[actuators]`` before it (a move's path, in one call).
+        actuators: the controls ``commands`` sets.
+    """
     spec = _SPECS.get(m)
     if spec is None or spec.mode == "ideal":
-        mujoco.mj_step(m, d, n)
+        if commands is None:
+            mujoco.mj_step(m, d, n)
+            return
+        for row in commands[:n]:
+            d.ctrl[actuators] = row
+            mujoco.mj_step(m, d)
         return
     plant = _PLANTS.get(m)
     if plant is None:
@@ -187,16 +214,21 @@ def step(m: mujoco.MjModel, d: mujoco.MjData, n: int = 1) -> None:
     bias = m.actuator_biasprm[acts, :3].copy()
     m.actuator_gainprm[acts, 0] = 0.0
     m.actuator_biasprm[acts, 1:3] = 0.0
-    ctrl, qpos, biasprm = d.ctrl, d.qpos, m.actuator_biasprm
-    lower, upper, torques = plant.lower, plant.upper, bank.torques
+    ctrl, qpos, bias_column = d.ctrl, d.qpos, m.actuator_biasprm[:, 0]
+    lower, upper, torques, physics = plant.lower, plant.upper, bank.torques, mujoco.mj_step
+    rows = iter(commands) if commands is not None else None
     try:
         for _ in range(n):
-            goal = [min(max(c, lo), hi)
-                    for c, lo, hi in zip(ctrl[acts].tolist(), lower, upper, strict=True)]
+            if rows is not None:
+                ctrl[actuators] = next(rows)
+            goal = ctrl[acts].tolist()
+            for k, (value, lo, hi) in enumerate(zip(goal, lower, upper, strict=True)):
+                if not lo <= value <= hi:  # the servo clamps to its position limits
+                    goal[k] = lo if value < lo else hi
             if feedforward:
                 goal = _offset(entry, spec, goal)
-            biasprm[acts, 0] = torques(goal, qpos[qadr].tolist(), dt)
-            mujoco.mj_step(m, d)
+            bias_column[acts] = torques(goal, qpos[qadr].tolist(), dt)
+            physics(m, d)
     finally:
         m.actuator_gainprm[acts, 0] = gains
         m.actuator_biasprm[acts, :3] = bias
@@ -204,15 +236,23 @@ def step(m: mujoco.MjModel, d: mujoco.MjData, n: int = 1) -> None:
 
 
 def _offset(entry: list, spec: ServoSpec, goal: list[float]) -> list[float]:
-    """``goal`` [rad] plus the gravity feed-forward (``gravity.Feedforward``, as on the arm)."""
-    if goal == entry[2]:  # holding: the offsets stand
-        return entry[3]
-    feedforward = entry[4]
-    if feedforward is None:
-        feedforward = entry[4] = gravity.Feedforward(dict(zip(JOINTS, spec.settings, strict=True)),
-                                                     spec.volts, spec.variant)
-    cfg = {j: math.degrees(g) for j, g in zip(JOINTS, goal, strict=True)}
-    cfg["gripper"] = 50.0  # the jaw's weight barely moves with the opening
-    sent = feedforward.apply(cfg)
-    entry[2], entry[3] = goal, [math.radians(sent[j]) for j in JOINTS[:5]] + [goal[5]]
-    return entry[3]
+    """``goal`` [rad] plus the gravity feed-forward (``gravity.Feedforward``, as on the arm).
+
+    The offsets are re-evaluated when a goal moved ``FEEDFORWARD_REFRESH_DEG``; between,
+    the last ones are added to the goal as it moves.
+    """
+    at, deltas = entry[2], entry[3]
+    if at is None or max(abs(g - a) for g, a in zip(goal, at, strict=True)) > _REFRESH_RAD:
+        feedforward = entry[4]
+        if feedforward is None:
+            feedforward = entry[4] = gravity.Feedforward(
+                dict(zip(JOINTS, spec.settings, strict=True)), spec.volts, spec.variant)
+        cfg = {j: math.degrees(g) for j, g in zip(JOINTS, goal, strict=True)}
+        cfg["gripper"] = 50.0  # the jaw's weight barely moves with the opening
+        sent = feedforward.apply(cfg)
+        deltas = entry[3] = [math.radians(sent[j] - cfg[j]) for j in JOINTS[:5]] + [0.0]
+        entry[2] = goal
+    return [g + o for g, o in zip(goal, deltas, strict=True)]
+
+
+_REFRESH_RAD = math.radians(FEEDFORWARD_REFRESH_DEG)

@@ -113,9 +113,7 @@ def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> 
                 elapsed = elapsed0 + dt * np.arange(block_start, block_stop)  # [s] per step
                 rows = start + path.fractions(elapsed)[:, None] * delta  # [rad], one per step
             chunk = min(chunk, block_stop - done)
-            for row in rows[done - block_start:done - block_start + chunk]:
-                ctrl[actuators] = row
-                step(m, d)
+            step(m, d, chunk, rows[done - block_start:done - block_start + chunk], actuators)
         done += chunk
         if viewer is None:
             continue
