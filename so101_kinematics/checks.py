@@ -223,7 +223,8 @@ def check_configuration(cfg: Mapping[str, float], limits: Limits, where: str = "
         value = cfg[joint]
         if not is_finite_number(value):
             lower, upper = limits[joint]
-            within = (f" within its limits [{lower:g}, {upper:g}] {unit(joint)}"
+            within = (f" within its limits [{format_limit(lower)}, {format_limit(upper)}] "
+                      f"{unit(joint)}"
                       if math.isfinite(lower) and math.isfinite(upper) else f" [{unit(joint)}]")
             raise PlanError(f"{prefix}joint '{joint}' must be a finite number{within}, got "
                             f"{describe_value(value)}. Fix: give {joint} a number"
