@@ -9,6 +9,7 @@ steps) and hand arithmetic on the printed limits.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -31,6 +32,7 @@ from so101_kinematics.checks import (
 from so101_kinematics.errors import JointLimitError, PlanError, UnreachableError
 from so101_kinematics.frames import JOINT_LIMITS
 
+REPO = Path(__file__).resolve().parent.parent
 START = {"shoulder_pan": -45.0, "shoulder_lift": 45.0, "elbow_flex": -45.0, "wrist_flex": 90.0,
          "wrist_roll": 0.0, "gripper": 50.0}
 
@@ -203,3 +205,40 @@ def test_the_course_names_import():
     for name in ("load_calibration", "setup_motors", "move_to_pose", "hold_position",
                  "offset_config", "pick_up_block", "place_block"):
         assert callable(getattr(so101_utils, name)), name
+
+
+# --- on the real arm's path (the virtual arm) ---------------------------------------------------
+
+@pytest.mark.hw
+def test_offset_config_reads_the_trims_given_to_setup_motors(course_arm):
+    import so101_utils
+
+    calibration = so101_utils.load_calibration(str(REPO / "calibration" / "virtual_so101.json"))
+    bus = so101_utils.setup_motors(calibration, course_arm.port,
+                                   offset_config={"shoulder_lift": 2.0, "elbow_flex": -4.0})
+    try:
+        cfg = dict(START, shoulder_lift=10.0, elbow_flex=20.0)
+        assert so101_utils.offset_config(cfg) == dict(cfg, shoulder_lift=12.0, elbow_flex=16.0)
+    finally:
+        bus.disable_torque()
+        bus.disconnect(disable_torque=False)
+
+
+@pytest.mark.hw
+def test_an_unreachable_block_on_the_arm_ends_the_script_before_it_moves(course_arm, capsys):
+    import so101_kinematics.hw.course as course
+    import so101_utils
+
+    calibration = so101_utils.load_calibration(str(REPO / "calibration" / "virtual_so101.json"))
+    bus = so101_utils.setup_motors(calibration, course_arm.port)
+    before = course_arm.joint_positions()
+    with pytest.raises(course.ScriptEnded) as ended:
+        so101_utils.place_block(bus, [0.25, -0.1, 0.043], 2.0)  # 3 cm above it: out of reach
+    assert ended.value.code == 1
+    err = capsys.readouterr().err
+    assert "ABORTED: place_block:" in err and "wrist_flex" in err and "Traceback" not in err
+    after = course_arm.joint_positions()
+    moved = {j: round(after[j] - before[j], 2) for j in JOINTS}
+    assert all(abs(v) < 1.0 for v in moved.values()), moved  # it never moved away
+    assert not any(course_arm.torque_enabled().values())
+    bus.disconnect(disable_torque=False)
