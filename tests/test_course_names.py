@@ -93,6 +93,15 @@ def test_converters_refuse_bad_input_in_one_line(call, message):
     assert "\n" not in str(error.value)
 
 
+def test_qpos_passed_as_a_configuration_is_refused_in_one_line_naming_the_converter(model, data):
+    for call in (lambda: utils.move_to_pose(model, data, None, data.qpos, 1.0),
+                 lambda: utils.set_initial_pose(data, [0.0] * 6),
+                 lambda: utils.send_position_command(data, data.qpos)):
+        with pytest.raises(PlanError, match=r"must be a dict .*convert_to_dictionary\(d\.qpos\)"):
+            call()
+    assert data.time == 0.0
+
+
 # --- limits: accept what they print -----------------------------------------------------------
 
 @pytest.mark.parametrize("joint", JOINTS)

@@ -193,8 +193,12 @@ def held_at_limits(m: mujoco.MjModel, cfg: Mapping[str, float], where: str,
         The configuration within the limits, keys in ``JOINTS`` order.
 
     Raises:
-        PlanError: missing or unknown joints, values that are not finite numbers.
+        PlanError: not a dict, missing or unknown joints, values that are not finite numbers.
     """
+    if not isinstance(cfg, Mapping):
+        raise PlanError(f"{where} must be a dict joint name -> value ([deg], gripper [0, 100]), "
+                        f"got {describe_value(cfg)}. Fix: e.g. {{'shoulder_pan': 0.0, ...}}; "
+                        "convert_to_dictionary(d.qpos) makes one from the joint angles [rad].")
     limits = joint_limits(m)
     joints = [j for j in limits if j in cfg] if partial else list(limits)
     out = check_configuration(cfg, dict.fromkeys(joints, (-math.inf, math.inf)), where)
