@@ -65,6 +65,9 @@ course's), radians inside. Example (the course's starting position)::
 
 from __future__ import annotations
 
+import numpy as np
+
+from so101_forward_kinematics import get_g5t, get_g45
 from so101_kinematics.constants import CUBE_HALF_SIZE  # noqa: F401 - the course's names
 from so101_kinematics.errors import UnreachableError  # noqa: F401
 from so101_kinematics.frames import (  # noqa: F401
@@ -72,6 +75,7 @@ from so101_kinematics.frames import (  # noqa: F401
     JOINT_LIMITS,
     JOINT_RANGES_RAD,
 )
+from so101_kinematics.ik.course import _as_rotation as as_rotation
 from so101_kinematics.ik.course import get_inverse_kinematics  # noqa: F401
 from so101_kinematics.ik.geometry import (  # noqa: F401
     GRIPPER_OPEN,
@@ -84,3 +88,33 @@ from so101_kinematics.ik.geometry import (  # noqa: F401
     get_jacobian,
 )
 from so101_kinematics.ik.solver import as_position, sample_top_down_targets  # noqa: F401
+
+
+def get_wrist_flex_position(target_position, target_orientation=None):
+    """Assignment 7's step 1c: the wrist_flex frame (4) that puts the object frame at the target.
+
+    ``g_w4 = g_wt g_4t^-1`` with ``g_4t = g_45(0) g_5t`` (wrist_roll at 0), the
+    factors of ``so101_forward_kinematics``: frame 4 sits on the wrist_flex
+    axis, so its position is the wrist point the shoulder and elbow must reach.
+
+    Args:
+        target_position: the object frame's position (x, y, z) [m] in the base frame.
+        target_orientation: its 3x3 rotation; None: top-down at yaw 0 (the identity).
+
+    Returns:
+        (position (3,) [m], rotation (3, 3)) of frame 4 in the world frame.
+
+    Example (top-down: the wrist_flex axis 0.0611 + 0.1075 m above the target,
+    frame 4's origin on it, 18 mm to the side of the object frame)::
+
+        >>> position, rotation = get_wrist_flex_position([0.2, 0.0, 0.014])
+        >>> [round(float(v), 4) for v in position]  # [m]
+        [0.1958, -0.0179, 0.1826]
+    """
+    g_wt = np.eye(4)
+    g_wt[:3, 3] = as_position(target_position)
+    if target_orientation is not None:
+        g_wt[:3, :3] = as_rotation(target_orientation)
+    g_4t = get_g45(0.0) @ get_g5t()
+    g_w4 = g_wt @ np.linalg.inv(g_4t)
+    return g_w4[:3, 3].copy(), g_w4[:3, :3].copy()

@@ -9,6 +9,19 @@ gripper in [0, 100] (0 closed, 100 open). The machinery lives in the
 package: ``so101_kinematics/sim/scene.py`` (loading, units, poses, commands)
 and ``so101_kinematics/sim/stepping.py`` (the timed moves, the viewer).
 
+As the course's utils, in simulation:
+
+- a joint beyond the model's range (a pose copied from the viewer,
+  -1.75 rad = -100.27 deg) is held at its limit, with one warning line naming
+  the joint, the value and the limit (the real arm, ``so101_utils``, refuses
+  it); a value on a limit's round number (-100 deg) is within it;
+- closing the viewer stops the motion: ``move_to_pose`` and ``hold_position``
+  return at once from then on, so ``while viewer.is_running():`` ends;
+- ``convert_to_dictionary(d.qpos)`` / ``convert_to_list(cfg)`` convert between
+  radians and a configuration, the gripper by this project's mapping
+  (see ``scene.convert_to_dictionary``);
+- ``pick_up_block`` / ``place_block`` are assignment 8's (``m, d, viewer`` first).
+
 Example (the course's test pose, headless)::
 
     >>> import mujoco
@@ -22,12 +35,18 @@ Example (the course's test pose, headless)::
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 from so101_kinematics.display import has_display  # noqa: F401 - the scripts' display check
 from so101_kinematics.errors import CallShapeError, ViewerClosed  # noqa: F401
 from so101_kinematics.frames import GRIPPER_RANGE, JOINTS, TOOL_SITE  # noqa: F401
+from so101_kinematics.ik.blocks import pick_up_moves, place_moves
+from so101_kinematics.sim import scene
 from so101_kinematics.sim.scene import (  # noqa: F401 - the course's names
     MODEL_DIR,
     SCENE_PATH,
+    convert_to_dictionary,
+    convert_to_list,
     from_radians,
     get_command,
     get_configuration,
@@ -37,8 +56,6 @@ from so101_kinematics.sim.scene import (  # noqa: F401 - the course's names
     joint_limits,
     joint_table,
     load_model,
-    send_position_command,
-    set_initial_pose,
     to_radians,
     validate,
 )
@@ -49,3 +66,48 @@ from so101_kinematics.sim.stepping import (  # noqa: F401
     hold_position,
     move_to_pose,
 )
+
+
+def set_initial_pose(d, position_dict: Mapping[str, float]) -> None:
+    """Place the arm at ``position_dict`` at rest ([deg], gripper [0, 100]) and command it there.
+
+    A joint beyond the model's range is held at its limit, with a warning line.
+    """
+    scene.set_initial_pose(d, scene.held_at_limits(d.model, position_dict, "set_initial_pose"))
+
+
+def send_position_command(d, position_dict: Mapping[str, float]) -> None:
+    """Command the servos to ``position_dict`` ([deg], gripper [0, 100]); others keep theirs.
+
+    A joint beyond the model's range is commanded to its limit, with a warning line.
+    """
+    scene.send_position_command(
+        d, scene.held_at_limits(d.model, position_dict, "send_position_command", partial=True))
+
+
+def pick_up_block(m, d, viewer, block_position, move_to_duration: float) -> None:
+    """Assignment 8's pick: above the block open, down, close, lift (top-down, yaw 0).
+
+    Args:
+        m: the model.
+        d: the simulation data.
+        viewer: as for ``move_to_pose`` (None when headless).
+        block_position: the block's centre (x, y, z) [m].
+        move_to_duration: [s] of the first move, to 3 cm above the block; the others take 1 s.
+    """
+    for cfg, duration in pick_up_moves(block_position, move_to_duration):
+        move_to_pose(m, d, viewer, cfg, duration)
+
+
+def place_block(m, d, viewer, target_position, move_to_duration: float) -> None:
+    """Assignment 8's place: above the target closed, down, open, back up (top-down, yaw 0).
+
+    Args:
+        m: the model.
+        d: the simulation data.
+        viewer: as for ``move_to_pose`` (None when headless).
+        target_position: where the block's centre goes (x, y, z) [m].
+        move_to_duration: [s] of the first move, to 3 cm above the target; the others take 1 s.
+    """
+    for cfg, duration in place_moves(target_position, move_to_duration):
+        move_to_pose(m, d, viewer, cfg, duration)

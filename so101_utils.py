@@ -38,21 +38,34 @@ Trims (the course's ``offset_config``): ``setup_motors(calibration, PORT,
 offset_config={"shoulder_lift": 2.0, "elbow_flex": -4.0})`` (or a trim file,
 or the course's ``offset_config`` function) adds each joint's trim [deg] to
 every goal written; at most 5 deg per joint (beyond that, recalibrate).
-``bus.sync_read("Present_Position")`` gives the servos' own readings.
+``offset_config(config)`` gives a configuration with those trims added, as
+the course's helper does. ``bus.sync_read("Present_Position")`` gives the
+servos' own readings.
+
+Assignment 8's ``pick_up_block(bus, block_position, move_to_duration)`` and
+``place_block(bus, target_position, move_to_duration)`` are here too: every
+configuration is solved before the arm moves, and each move is a
+``move_to_pose`` with its checks and endings.
 """
 
 from __future__ import annotations
+
+import math
 
 from so101_kinematics.hw.course import (  # noqa: F401 - the course's helpers and their settings
     AT_START_TOLERANCE_DEG,
     MISSING,
     START_MISMATCH,
     ScriptEnded,
+    course_guarded_call,
     course_hold_position,
     course_load_calibration,
     course_move_to_pose,
+    course_trims,
 )
 from so101_kinematics.hw.course import setup_motors as _setup_motors
+from so101_kinematics.ik.blocks import pick_up_moves, place_moves
+from so101_kinematics.motion import check_configuration
 
 
 def load_calibration(robot_name_or_path):
@@ -121,3 +134,57 @@ def hold_position(bus, duration):
         duration: [s].
     """
     course_hold_position(bus, duration)
+
+
+def offset_config(config):
+    """The course's trims helper: ``config`` with each joint's trim added ([deg], gripper [%]).
+
+    The trims are those given to :func:`setup_motors` as ``offset_config``
+    (none before it, or without them). ``move_to_pose`` adds them itself: call
+    this only for a goal written to the bus by hand.
+
+    Args:
+        config: joint name -> value ([deg], gripper 0-100); any subset of the joints.
+
+    Returns:
+        A new dict, the same joints, each plus its trim.
+    """
+    values = check_configuration(config, dict.fromkeys(config, (-math.inf, math.inf)),
+                                 "offset_config")
+    return course_trims().to_wire(values)
+
+
+def pick_up_block(bus, block_position, move_to_duration):
+    """Assignment 8's pick: 3 cm above the block gripper open (50), down, close (5), lift.
+
+    Args:
+        bus: from :func:`setup_motors`.
+        block_position: the block's centre (x, y, z) [m].
+        move_to_duration: [s] of the first move, to above the block; the others take 1 s.
+
+    Returns:
+        The bus (as the course's helper does).
+    """
+    moves = course_guarded_call(bus, "pick_up_block",
+                                lambda: pick_up_moves(block_position, move_to_duration))
+    for cfg, duration in moves:
+        move_to_pose(bus, cfg, duration)
+    return bus
+
+
+def place_block(bus, target_position, move_to_duration):
+    """Assignment 8's place: 3 cm above the target gripper closed (5), down, open (50), back up.
+
+    Args:
+        bus: from :func:`setup_motors`.
+        target_position: where the block's centre goes (x, y, z) [m].
+        move_to_duration: [s] of the first move, to above the target; the others take 1 s.
+
+    Returns:
+        The bus.
+    """
+    moves = course_guarded_call(bus, "place_block",
+                                lambda: place_moves(target_position, move_to_duration))
+    for cfg, duration in moves:
+        move_to_pose(bus, cfg, duration)
+    return bus

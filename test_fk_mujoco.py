@@ -81,7 +81,7 @@ def run_viewer(m: mujoco.MjModel, d: mujoco.MjData, position, rotation, seconds:
         viewer.sync()
         start = d.time
         try:
-            hold_position(m, d, viewer, seconds)
+            hold_position(m, d, viewer, seconds, raise_if_closed=True)
         except ViewerClosed:
             log.info("Viewer closed: the hold was cut short (%.1f of %.1f s).",
                      d.time - start, seconds)

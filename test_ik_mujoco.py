@@ -86,8 +86,8 @@ def reach_targets(m, d, viewer, targets, move_time: float = MOVE_TIME,
         joint_configuration = get_inverse_kinematics(desired_position, desired_orientation,
                                                      initial=get_command(m, d),
                                                      gripper=GRIPPER_OPEN)
-        move_to_pose(m, d, viewer, joint_configuration, move_time)
-        hold_position(m, d, viewer, joint_configuration, hold_time)
+        move_to_pose(m, d, viewer, joint_configuration, move_time, raise_if_closed=True)
+        hold_position(m, d, viewer, joint_configuration, hold_time, raise_if_closed=True)
         results.append(measure_target(m, d, target))
         log.info("target %d: %.2f mm, %.2f deg", len(results), results[-1].position_error_mm,
                  results[-1].yaw_error_deg)
@@ -198,7 +198,7 @@ def _run(args: argparse.Namespace) -> int:
             if mode == "viewer":
                 print("Done: close the viewer window to see the report.", file=sys.stderr)
                 while True:  # the arm keeps holding the last target, in real time
-                    hold_position(m, d, viewer, 0.1)
+                    hold_position(m, d, viewer, 0.1, raise_if_closed=True)
         except ViewerClosed:
             log.info("Viewer closed.")
         report = replace(report, sim_time_s=float(d.time),

@@ -32,6 +32,25 @@ typo (milliseconds for seconds) and would keep the simulator busy for hours.
 
 """Gripper opening at the user boundary [0, 100]: 0 closed end, 100 open end of its range."""
 
+LIMIT_TOLERANCE = 1e-5
+"""How far beyond a joint limit a value still counts as on it [deg] (gripper [%]): 10 micro-degrees.
+
+The model's ranges are radians written to six digits, so a limit that is a round
+number of degrees lands a little off it: shoulder_lift's -100 deg is
+-99.99999999999959, wrist_flex's 95 deg is 94.9999966 (3.4 micro-degrees
+inside). A configuration on a limit's round number, or copied from a message
+(:data:`LIMIT_DECIMALS`), is within it. Every joint-limit check compares
+through :func:`limit_excess`; a value accepted this way is clamped onto the limit.
+"""
+
+LIMIT_DECIMALS = 5
+"""Decimals of a joint limit in messages (:func:`format_limit`).
+
+Rounding to 5 decimals moves a limit by at most 5e-6, half of
+:data:`LIMIT_TOLERANCE`, so a limit as printed is always accepted, and a value
+refused (beyond by more than the tolerance) never prints equal to its limit.
+"""
+
 
 def unit(joint: str) -> str:
     """Unit of a joint's value at the user boundary: "deg" or "%" (gripper)."""
@@ -83,6 +102,36 @@ def format_range(low: float, high: float, unit: str = "", low_open: bool = False
     if math.isinf(high):
         text = (">" if low_open else ">=") + f" {low:g}"
     return f"{text} {unit}".rstrip()
+
+
+def format_limit(value: float) -> str:
+    """A joint limit or a refused value for a message, to the precision that decides.
+
+    Example:
+        >>> format_limit(-99.99999999999959), format_limit(96.82986737710912)
+        ('-100', '96.82987')
+    """
+    text = f"{value:.{LIMIT_DECIMALS}f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
+def limit_excess(value: float, lower: float, upper: float) -> float:
+    """How far ``value`` is beyond ``[lower, upper]`` (0 inside); refused when > LIMIT_TOLERANCE.
+
+    Example:
+        >>> limit_excess(-100.0, -99.99999999999959, 100.0) <= LIMIT_TOLERANCE
+        True
+    """
+    return lower - value if value < lower else value - upper if value > upper else 0.0
+
+
+def limit_message(joint: str, value: float, lower: float, upper: float,
+                  limits: str = "its limits") -> str:
+    """``"shoulder_lift = -180 deg is outside its limits [-100, 100] deg (beyond -100 by 80)"``."""
+    bound = lower if value < lower else upper
+    return (f"{joint} = {format_limit(value)} {unit(joint)} is outside {limits} "
+            f"[{format_limit(lower)}, {format_limit(upper)}] {unit(joint)} (beyond "
+            f"{format_limit(bound)} by {abs(value - bound):.3g})")
 
 
 def check_number(value, name: str, low: float = -math.inf, high: float = math.inf,
@@ -156,8 +205,8 @@ def check_configuration(cfg: Mapping[str, float], limits: Limits, where: str = "
 
     Raises:
         PlanError: a joint is missing, unknown, or not a finite number.
-        JointLimitError: a value is outside its limits (names joint, value,
-            limit and the fix).
+        JointLimitError: a value is beyond its limits by more than
+            :data:`LIMIT_TOLERANCE` (names joint, value, limit and the fix).
     """
     prefix = f"{where}: " if where else ""
     unknown = [name for name in cfg if name not in JOINTS]
@@ -174,20 +223,17 @@ def check_configuration(cfg: Mapping[str, float], limits: Limits, where: str = "
         value = cfg[joint]
         if not is_finite_number(value):
             lower, upper = limits[joint]
-            within = (f" within its limits [{lower:g}, {upper:g}] {unit(joint)}"
+            within = (f" within its limits [{format_limit(lower)}, {format_limit(upper)}] "
+                      f"{unit(joint)}"
                       if math.isfinite(lower) and math.isfinite(upper) else f" [{unit(joint)}]")
             raise PlanError(f"{prefix}joint '{joint}' must be a finite number{within}, got "
                             f"{describe_value(value)}. Fix: give {joint} a number"
                             + (" without quotes." if isinstance(value, str) else "."))
         lower, upper = limits[joint]
-        if not lower <= value <= upper:
-            bound = lower if value < lower else upper
-            raise JointLimitError(
-                f"{prefix}{joint} = {value:g} {unit(joint)} is outside its limits "
-                f"[{lower:g}, {upper:g}] {unit(joint)} (beyond {bound:g} by "
-                f"{abs(value - bound):.3g}). Fix: choose a {joint} within the limits."
-            )
-        out[joint] = float(value)
+        if limit_excess(value, lower, upper) > LIMIT_TOLERANCE:
+            raise JointLimitError(f"{prefix}{limit_message(joint, value, lower, upper)}. "
+                                  f"Fix: choose a {joint} within the limits.")
+        out[joint] = min(upper, max(lower, float(value)))  # on a limit within LIMIT_TOLERANCE
     return out
 
 

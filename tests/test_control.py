@@ -180,7 +180,7 @@ def test_the_first_move_from_beyond_the_calibrated_range_sends_nothing(calibrati
     """The first move ramps from the measured pose: outside the calibration, nothing is sent."""
     beyond = dict(HOME, shoulder_pan=PAN_LIMIT_DEG + 5.0)  # pushed past the range by hand
     session, bus = make_session(calibration, clock, pose=beyond)
-    with pytest.raises(JointLimitError, match=r"shoulder_pan = 115\.066 deg.*nothing was sent"):
+    with pytest.raises(JointLimitError, match=r"shoulder_pan = 115\.06582 deg.*nothing was sent"):
         session.move(HOME, 2.0)
     assert bus.goals == []
 

@@ -295,7 +295,8 @@ def test_joint_limit_names_joint_value_and_limit():
     assert error.value.reason == "joint_limit"
     assert error.value.joint in str(error.value)
     limits = ik.JOINT_LIMITS[error.value.joint]
-    assert any(f"{limit:.2f} deg" in str(error.value) for limit in limits)
+    printed = [f"{limit:.5f}".rstrip("0").rstrip(".") for limit in limits]  # to 5 decimals
+    assert any(f"beyond its limit {text} deg" in str(error.value) for text in printed)
 
 
 def test_unreachable_error_is_a_plan_error():

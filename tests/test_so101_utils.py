@@ -212,7 +212,8 @@ def test_a_configuration_outside_the_calibration_ends_the_script_released(arm, c
         move_to_pose(bus, dict(HOME, elbow_flex=upper + 10.0), 2.0)
     assert ended.value.code == 1
     err = capsys.readouterr().err
-    assert f"elbow_flex = {upper + 10.0:g} deg is outside" in err
+    printed = f"{upper + 10.0:.5f}".rstrip("0").rstrip(".")  # limits print to 5 decimals
+    assert f"elbow_flex = {printed} deg is outside" in err
     assert last_line(err) == "Back at the starting pose, torque off."
     assert not any(arm.torque_enabled().values())
     bus.disconnect(disable_torque=False)

@@ -27,6 +27,7 @@ import time
 from collections.abc import Callable, Mapping
 
 from so101_kinematics.calibration import calibrated_limits
+from so101_kinematics.checks import LIMIT_TOLERANCE, limit_excess, limit_message
 from so101_kinematics.errors import (  # noqa: F401 - the family, re-exported
     BusError,
     FreezeRequested,
@@ -183,10 +184,9 @@ class ArmSession:
         for joint in JOINTS:
             lower, upper = self.limits[joint]
             value = command[joint]
-            if not (lower - 1e-6 <= value <= upper + 1e-6):
-                raise JointLimitError(
-                    f"Command {joint} = {value:g} {unit(joint)} is outside the calibrated range "
-                    f"[{lower:g}, {upper:g}] {unit(joint)}; nothing was sent.")
+            if limit_excess(value, lower, upper) > LIMIT_TOLERANCE:
+                message = limit_message(joint, value, lower, upper, "the calibrated range")
+                raise JointLimitError(f"Command {message}; nothing was sent.")
             out[joint] = min(upper, max(lower, value))
         return out
 

@@ -67,7 +67,7 @@ from so101_kinematics.hw.run import (
     starting_pose,
 )
 from so101_kinematics.motion import Configuration
-from so101_kinematics.trims import as_trims
+from so101_kinematics.trims import Trims, as_trims
 
 logger = logging.getLogger("so101_utils")
 
@@ -331,3 +331,16 @@ def _end_forgotten_runs() -> None:
     """A script that ends without ``bus.disable_torque()`` gets the same ending as with it."""
     for run in list(_RUNS.values()):
         end_at_start(run, "The script ended without bus.disable_torque():")
+
+
+def course_trims() -> Trims:
+    """The trims of the arm :func:`setup_motors` set up (its ``offset_config``); none before."""
+    runs = [run for run in _RUNS.values() if run.ended is None]
+    return runs[-1].session.trims if runs else Trims()
+
+
+def course_guarded_call(bus, what: str, compute: Callable[[], Any]) -> Any:
+    """``compute()`` under the fault policy: an error in it ends the script as one in a move."""
+    out = []
+    _guarded(bus, what, lambda session: out.append(compute()))
+    return out[0]

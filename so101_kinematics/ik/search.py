@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from so101_kinematics.checks import format_limit
 from so101_kinematics.errors import UnreachableError
 from so101_kinematics.frames import (
     ARM_JOINTS,
@@ -217,8 +218,9 @@ class _Search:
             joint = ARM_JOINTS[i]
             return UnreachableError(
                 f"{what} needs {joint} = {math.degrees(value):.2f} deg, beyond its limit "
-                f"{math.degrees(limit):.2f} deg by {math.degrees(excess):.2f} deg (every other "
-                "solution is further off). Fix: move the target, or change the approach or yaw.",
+                f"{format_limit(math.degrees(limit))} deg by {math.degrees(excess):.2f} deg "
+                "(every other solution is further off). Fix: move the target, or change the "
+                "approach or yaw.",
                 "joint_limit", math.degrees(excess), joint)
         if self.reach_failures:
             reason, excess = min(self.reach_failures, key=lambda failure: failure[1])

@@ -276,8 +276,10 @@ def execute_plan(m: mujoco.MjModel, plan: Plan, report: Callable[[Execution], ob
         monitor = CubeMonitor(m, d, inner)
         try:
             run_plan(plan,
-                     lambda cfg, duration: stepping.move_to_pose(m, d, monitor, cfg, duration),
-                     lambda duration: stepping.hold_position(m, d, monitor, duration), initial,
+                     lambda cfg, duration: stepping.move_to_pose(m, d, monitor, cfg, duration,
+                                                                 raise_if_closed=True),
+                     lambda duration: stepping.hold_position(m, d, monitor, duration,
+                                                             raise_if_closed=True), initial,
                      on_step=note_reached)
             note_reached(None)
         except ViewerClosed:
@@ -293,7 +295,7 @@ def execute_plan(m: mujoco.MjModel, plan: Plan, report: Callable[[Execution], ob
             print("Done: close the viewer window to see the report.", file=sys.stderr)
             try:
                 while True:  # the arm keeps holding its pose, in real time
-                    stepping.hold_position(m, d, monitor, 0.1)
+                    stepping.hold_position(m, d, monitor, 0.1, raise_if_closed=True)
             except ViewerClosed:
                 pass
         finished = True

@@ -14,6 +14,7 @@ here and only here (:func:`to_radians`, :func:`from_radians`):
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Mapping
 from functools import lru_cache
@@ -22,11 +23,21 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from so101_kinematics.frames import GRIPPER_RANGE, JOINTS, TOOL_SITE
+from so101_kinematics.checks import (
+    LIMIT_TOLERANCE,
+    PlanError,
+    describe_value,
+    format_limit,
+    limit_excess,
+    unit,
+)
+from so101_kinematics.frames import GRIPPER_RANGE, JOINT_RANGES_RAD, JOINTS, TOOL_SITE
 from so101_kinematics.motion import Configuration, check_configuration
 from so101_kinematics.paths import MODEL_DIR, SCENE_PATH  # noqa: F401 - the scene's files
 from so101_kinematics.sim import actuation
 from so101_kinematics.sim.meshes import ensure_meshes
+
+logger = logging.getLogger(__name__)
 
 
 def load_model(path: str | Path = SCENE_PATH) -> mujoco.MjModel:
@@ -97,6 +108,67 @@ def from_radians(m: mujoco.MjModel, angles: Mapping[str, float]) -> Configuratio
     }
 
 
+def convert_to_dictionary(qpos) -> Configuration:
+    """The course's helper: joint angles [rad] in ``qpos`` order -> a configuration.
+
+    ``qpos``'s first six entries are the joints in ``JOINTS`` order (in every
+    scene of this project the arm comes first; cubes' free joints follow, and
+    are left out). Arm joints become [deg]; the gripper becomes [0, 100] by
+    the same mapping as :func:`gripper_from_radians` (linear over the
+    gripper's range, lerobot's RANGE_0_100), not the course's ``value * 100 /
+    pi``: so ``convert_to_dictionary(d.qpos)`` is :func:`get_configuration`,
+    and passing it to ``move_to_pose`` or ``set_initial_pose`` puts the
+    gripper where it is (with the course's mapping a gripper at 0 rad would
+    read 0, and go back to its fully closed -10 deg).
+
+    Raises:
+        PlanError: fewer than six angles, or an angle that is not a finite number.
+
+    Example:
+        >>> cfg = convert_to_dictionary([0.0, -1.75, 0.0, 0.0, 0.0, -0.17453297762778586])
+        >>> round(cfg["shoulder_lift"], 3), cfg["gripper"]
+        (-100.268, 0.0)
+    """
+    try:
+        angles = [qpos[i] for i in range(len(JOINTS))]
+    except (TypeError, IndexError, KeyError):
+        raise PlanError(f"convert_to_dictionary takes the six joint angles [rad] (d.qpos), got "
+                        f"{describe_value(qpos)}. Fix: pass d.qpos.") from None
+    angles = check_configuration(dict(zip(JOINTS, angles, strict=True)),
+                                 dict.fromkeys(JOINTS, (-math.inf, math.inf)),
+                                 "convert_to_dictionary")
+    lower, upper = JOINT_RANGES_RAD["gripper"]
+    out = {joint: math.degrees(angle) for joint, angle in angles.items()}
+    out["gripper"] = (angles["gripper"] - lower) / (upper - lower) * 100.0
+    return out
+
+
+def convert_to_list(cfg: Mapping[str, float]) -> list[float]:
+    """The course's helper: a configuration -> joint angles [rad] in ``JOINTS`` (qpos, ctrl) order.
+
+    The inverse of :func:`convert_to_dictionary` (the gripper's [0, 100]
+    linear over its range): ``d.ctrl[:] = convert_to_list(cfg)`` commands what
+    ``send_position_command(d, cfg)`` does. No limits are applied here.
+
+    Raises:
+        PlanError: a joint missing or unknown, a value that is not a finite number.
+
+    Example:
+        >>> [round(angle, 4) for angle in convert_to_list(
+        ...     {"shoulder_pan": 90.0, "shoulder_lift": 0.0, "elbow_flex": 0.0,
+        ...      "wrist_flex": 0.0, "wrist_roll": 0.0, "gripper": 100.0})]
+        [1.5708, 0.0, 0.0, 0.0, 0.0, 1.7453]
+    """
+    if not isinstance(cfg, Mapping):
+        raise PlanError(f"convert_to_list takes a configuration dict joint name -> value, got "
+                        f"{describe_value(cfg)}. Fix: e.g. {{'shoulder_pan': 0.0, ...}}.")
+    values = check_configuration(cfg, dict.fromkeys(JOINTS, (-math.inf, math.inf)),
+                                 "convert_to_list")
+    lower, upper = JOINT_RANGES_RAD["gripper"]
+    return [lower + (upper - lower) * value / 100.0 if joint == "gripper" else
+            math.radians(value) for joint, value in values.items()]
+
+
 def validate(m: mujoco.MjModel, cfg: Mapping[str, float], where: str = "") -> Configuration:
     """Check a full configuration against the model's joint limits.
 
@@ -105,6 +177,51 @@ def validate(m: mujoco.MjModel, cfg: Mapping[str, float], where: str = "") -> Co
         PlanError: missing, unknown or non-numeric joints.
     """
     return check_configuration(cfg, joint_limits(m), where)
+
+
+def held_at_limits(m: mujoco.MjModel, cfg: Mapping[str, float], where: str,
+                   partial: bool = False) -> Configuration:
+    """A configuration with each joint beyond the model's range held at its limit, with a warning.
+
+    The course's leniency in simulation: its utils write ``qpos`` and ``ctrl``
+    as given and MuJoCo holds a joint at its range (``ctrlrange`` clamps the
+    command, the joint limit stops the joint), so a pose copied from the
+    viewer (-1.75 rad is -100.27 deg, beyond -100) runs. Here it runs too,
+    with one warning line naming each joint held, its value and its limit.
+    The real arm refuses such a pose (``hw/``): its range is a physical stop.
+
+    Args:
+        m: the model.
+        cfg: joint name -> value ([deg], gripper [0, 100]).
+        where: the call, for the warning and errors (e.g. "move_to_pose target").
+        partial: joints may be left out (a command); otherwise all six are required.
+
+    Returns:
+        The configuration within the limits, keys in ``JOINTS`` order.
+
+    Raises:
+        PlanError: not a dict, missing or unknown joints, values that are not finite numbers.
+    """
+    if not isinstance(cfg, Mapping):
+        raise PlanError(f"{where} must be a dict joint name -> value ([deg], gripper [0, 100]), "
+                        f"got {describe_value(cfg)}. Fix: e.g. {{'shoulder_pan': 0.0, ...}}; "
+                        "convert_to_dictionary(d.qpos) makes one from the joint angles [rad].")
+    limits = joint_limits(m)
+    joints = [j for j in limits if j in cfg] if partial else list(limits)
+    out = check_configuration(cfg, dict.fromkeys(joints, (-math.inf, math.inf)), where)
+    held = []
+    for joint, value in out.items():
+        lower, upper = limits[joint]
+        if limit_excess(value, lower, upper) > LIMIT_TOLERANCE:
+            bound = lower if value < lower else upper
+            held.append(f"{joint} = {format_limit(value)} {unit(joint)} is beyond its limit "
+                        f"{format_limit(bound)} {unit(joint)}")
+        out[joint] = min(upper, max(lower, value))
+    if held:
+        logger.warning("%s: %s; held at the limit, as MuJoCo holds it (the real arm refuses "
+                       "this). Fix: keep each joint within its limits (joint_limits(m)).",
+                       where, "; ".join(held))
+    return out
 
 
 def get_configuration(m: mujoco.MjModel, d: mujoco.MjData) -> Configuration:

@@ -1,0 +1,119 @@
+"""Course-style scripts (tests/course_scripts/) run unchanged against the project's course files.
+
+Written here from the course's pages (weeks 6-9), in the students' shapes and
+with their usual mistakes: a pose copied from the viewer beyond a limit,
+round-number limits, radians from ``qpos`` used as degrees, the viewer
+closed mid-loop, the converters, week 8's trims and block helpers. Each runs
+in its own Python process, from the repository root as a student runs it:
+simulation scripts through ``run_headless.py`` (MuJoCo's passive viewer
+swapped for a headless one), hardware scripts against the virtual SO-101.
+Each must end as on the course's own utils: exit 0, no traceback.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+SCRIPTS = REPO / "tests" / "course_scripts"
+RUNNER = SCRIPTS / "run_headless.py"
+CALIBRATION_PATH = REPO / "calibration" / "virtual_so101.json"
+
+
+def run(script: str, env: dict[str, str] | None = None, headless: bool = True,
+        timeout: float = 120.0) -> subprocess.CompletedProcess:
+    command = [sys.executable] + ([str(RUNNER)] if headless else []) + [str(SCRIPTS / script)]
+    environment = {**os.environ, "PYTHONPATH": str(REPO), "MUJOCO_GL": "egl", **(env or {})}
+    if "COURSE_VIEWER_CLOSES_AFTER" not in (env or {}):
+        environment.pop("COURSE_VIEWER_CLOSES_AFTER", None)
+    done = subprocess.run(command, cwd=REPO, env=environment, capture_output=True, text=True,
+                          timeout=timeout)
+    assert "Traceback" not in done.stderr, done.stderr
+    assert done.returncode == 0, done.stderr
+    return done
+
+
+def warnings_in(stderr: str) -> list[str]:
+    return [line for line in stderr.splitlines() if "held at the limit" in line]
+
+
+def test_week6_fk_and_pick_and_place():
+    done = run("sim_week6_fk_pick_place.py")
+    assert "object frame: [0.2301 0.1903 0.013 ]" in done.stdout  # MODEL_NOTES: start pose
+    assert "final shoulder_pan: 45.0" in done.stdout
+    assert not warnings_in(done.stderr)
+
+
+def test_week7_ik_loop_ends_when_the_viewer_is_closed():
+    done = run("sim_week7_ik_loop_closed.py", {"COURSE_VIEWER_CLOSES_AFTER": "400"})
+    closed = re.search(r"viewer closed after (\d+) loop\(s\) at t = ([\d.]+) s", done.stdout)
+    assert closed, done.stdout
+    assert int(closed.group(1)) == 1  # closed inside the first pass of five targets
+    assert float(closed.group(2)) < 10.0  # the five targets take 15 s: it stopped part-way
+
+
+def test_week7_limit_mistakes_run_held_at_the_limits_with_a_word():
+    done = run("sim_week7_limits_and_qpos.py")
+    held = warnings_in(done.stderr)
+    assert len(held) == 2, done.stderr  # -100.268 and -180; the round numbers are within
+    assert "shoulder_lift = -100.268 deg is beyond its limit -100 deg" in held[0]
+    assert "shoulder_lift = -180 deg is beyond its limit -100 deg" in held[1]
+    assert "at the limits: [-110.    0.    0.   95.]" in done.stdout
+    assert done.stdout.strip().endswith("done")
+
+
+def test_week8_converters_behave_as_the_utils_do():
+    done = run("sim_week8_converters.py")
+    gripper = float(re.search(r"final gripper: ([-\d.]+)", done.stdout).group(1))
+    assert abs(gripper - 5.0) < 1.0  # d.ctrl = convert_to_list(closed): closed to 5
+    pan = re.search(r"final shoulder_pan: ([-\d.]+) \(IK: ([-\d.]+)\)", done.stdout)
+    assert abs(float(pan.group(1)) - float(pan.group(2))) < 0.5
+    assert "starting configuration is" not in done.stderr  # the measured start is no jump
+
+
+def test_week8_stacks_two_blocks_with_the_page_s_helpers():
+    done = run("sim_week8_stack_blocks.py")
+    assert "stacked in 21.0 s; gripper 50" in done.stdout  # 4 x (2 + 1 + 1 + 1) + 1 s
+
+
+def test_week9_student_s_own_cubic_loop():
+    done = run("sim_week9_cubic.py")
+    assert "back home: shoulder_lift 0.0 deg" in done.stdout
+
+
+@pytest.fixture
+def virtual_arm_env(course_arm, tmp_path):
+    """The virtual arm's port and a lerobot calibration folder holding it as 'follower-1'."""
+    folder = tmp_path / "lerobot_calibration" / "robots" / "so_follower"
+    folder.mkdir(parents=True)
+    shutil.copy(CALIBRATION_PATH, folder / "follower-1.json")
+    return {"SO101_PORT": course_arm.port,
+            "HF_LEROBOT_CALIBRATION": str(tmp_path / "lerobot_calibration")}
+
+
+@pytest.mark.hw
+@pytest.mark.slow
+def test_week8_hardware_ik_check_on_the_virtual_arm(virtual_arm_env, course_arm):
+    done = run("hw_week8_ik_check.py", virtual_arm_env, headless=False)
+    assert "home check, elbow_flex:" in done.stdout
+    elbow = float(re.search(r"home check, elbow_flex: ([-\d.]+)", done.stdout).group(1))
+    assert abs(elbow) < 2.0
+    assert done.stdout.strip().splitlines()[-1] == "Done: back at the starting pose, torque off."
+    assert not any(course_arm.torque_enabled().values())
+
+
+@pytest.mark.hw
+@pytest.mark.slow
+def test_week8_hardware_trims_and_stacking_on_the_virtual_arm(virtual_arm_env, course_arm):
+    done = run("hw_week8_stack_trims.py", virtual_arm_env, headless=False, timeout=180.0)
+    offsets = re.search(r"offsets: (\{.*\})", done.stdout).group(1)
+    assert "'shoulder_lift': 2.0" in offsets and "'elbow_flex': -4.0" in offsets  # the page's
+    assert done.stdout.strip().splitlines()[-1] == "Done: back at the starting pose, torque off."
+    assert not any(course_arm.torque_enabled().values())
