@@ -31,7 +31,7 @@ from so101_kinematics.hw.control import (
     speed_caps,
 )
 from so101_kinematics.hw.home_check import add_calibration_check_arguments, home_check
-from so101_kinematics.hw.log import CycleLog, plan_record, plot_log
+from so101_kinematics.hw.log import LOG_KIND, CycleLog, plan_record, plot_log, sidecar_path
 from so101_kinematics.hw.run import (
     RELEASE_HINT,
     MotionAborted,
@@ -46,7 +46,13 @@ from so101_kinematics.hw.run import (
 from so101_kinematics.hw.teach import format_configuration, format_plan, outcome_lines, teach
 from so101_kinematics.lab.sheet import PAPER_MM, write_sheet
 from so101_kinematics.motion import PROFILES, PlanError, check_number
-from so101_kinematics.outputs import check_output_path
+from so101_kinematics.outputs import (
+    JSON_REPORT,
+    PDF,
+    PNG,
+    add_overwrite_argument,
+    check_output_path,
+)
 from so101_kinematics.plans import default_plan, load_plan
 
 logger = logging.getLogger("pick_place_hw")
@@ -137,6 +143,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="write the placement sheet (print at 100 %%) and stop; no arm needed")
     parser.add_argument("--paper", choices=sorted(PAPER_MM), default="a4",
                         help="paper of the --sheet (default a4)")
+    add_overwrite_argument(parser)
     parser.add_argument("--verbose", "-v", action="store_true", help="debug logging")
     add_cartesian_arguments(parser)
     stacking.add_stack_arguments(parser)
@@ -234,7 +241,8 @@ def _main(args) -> int:
         load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold))
     if args.sheet is not None:
         validate_plan_for_arm(plan, None)
-        path = check_output_path(args.sheet, "--sheet", inputs=(args.plan,), suffixes=(".pdf",))
+        path = check_output_path(args.sheet, "--sheet", inputs=(args.plan, args.trims),
+                                 suffixes=(".pdf",), kind=PDF, overwrite=args.overwrite)
         origin = args.plan or ("--pick/--place" if args.pick else "the course's plan")
         print(write_sheet(plan, path, args.paper, source=str(origin), stack=stack,
                           base_height=args.base_height).summary())
@@ -250,9 +258,12 @@ def _main(args) -> int:
     validate_plan_for_arm(plan, calibration, str(source))
     if stack is not None:
         print(stack.describe())
-    for option, path in (("--log", args.log), ("--plot", args.plot)):
+    for option, path, kind in (("--log", args.log, LOG_KIND), ("--plot", args.plot, PNG),
+                               ("--log's sidecar", args.log and sidecar_path(args.log),
+                                JSON_REPORT)):
         if path is not None:
-            check_output_path(path, option, inputs=(source, args.plan))
+            check_output_path(path, option, inputs=(source, args.plan, args.trims), kind=kind,
+                              overwrite=args.overwrite)
     if args.dry_run:
         if calibration is None:
             logger.warning("No calibration given: checked against the model's limits only.")

@@ -176,13 +176,14 @@ def test_return_to_start_booleans_are_read_as_written(tmp_path, value):
 
 
 # --- --record, --json ---------------------------------------------------------------------
+OLD_VIDEO = b"\x00\x00\x00\x20ftypisom" + b"the old video"  # an MP4's head: ours to replace
 SHORT_PLAN = json.dumps({"steps": [{"name": "up", "configuration": UP, "duration": 0.1,
                                     "hold": 0.0}], "return_to_start": False})
 
 
 def test_ctrl_c_during_record_keeps_the_old_video(tmp_path, capsys, monkeypatch):
     video = tmp_path / "clip.mp4"
-    video.write_bytes(b"the old video")
+    video.write_bytes(OLD_VIDEO)
     plan = write_plan(tmp_path, SHORT_PLAN)
 
     def interrupted(*args, **kwargs):
@@ -193,13 +194,13 @@ def test_ctrl_c_during_record_keeps_the_old_video(tmp_path, capsys, monkeypatch)
                                  "--no-cube", "--no-progress"])
     assert code == 130
     assert "Interrupted" in one_line_error(err)
-    assert video.read_bytes() == b"the old video"
+    assert video.read_bytes() == OLD_VIDEO
     assert sorted(p.name for p in tmp_path.iterdir()) == ["clip.mp4", "plan.json"]
 
 
 def test_a_complete_recording_replaces_the_old_video(tmp_path, capsys):
     video = tmp_path / "clip.mp4"
-    video.write_bytes(b"the old video")
+    video.write_bytes(OLD_VIDEO)
     plan = write_plan(tmp_path, SHORT_PLAN)
     code, _ = run_sim(capsys, ["--record", str(video), "--plan", str(plan), "--size", "32x32",
                                "--no-cube", "--no-progress"])
