@@ -54,6 +54,7 @@ from so101_kinematics.outputs import (
     check_output_path,
 )
 from so101_kinematics.plans import default_plan, load_plan
+from so101_kinematics.trims import load_trims
 
 logger = logging.getLogger("pick_place_hw")
 
@@ -236,6 +237,7 @@ def _main(args) -> int:
     check_number(args.move_duration, "--move-duration", 0.0, MAX_MOVE_DURATION_S, "s")
     check_number(args.hold, "--hold", 0.0, MAX_MOVE_DURATION_S, "s")
     check_run_settings(args.rate, args.max_speed, args.tracking_tolerance)
+    trims = args.trims and load_trims(args.trims)  # a dry run checks them as a real run does
     stack = stacking.stack_from_arguments(args)
     plan = stack.plan if stack else plan_from_arguments(args) or (
         load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold))
@@ -255,7 +257,7 @@ def _main(args) -> int:
                                "lerobot-calibrate) or --calibration PATH.")
     if source is not None:
         logger.info("Calibration: %s", source)
-    validate_plan_for_arm(plan, calibration, str(source))
+    validate_plan_for_arm(plan, calibration, str(source), trims)
     if stack is not None:
         print(stack.describe())
     for option, path, kind in (("--log", args.log, LOG_KIND), ("--plot", args.plot, PNG),
