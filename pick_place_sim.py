@@ -29,6 +29,8 @@ from so101_kinematics.cli import (
     number,
     range_help,
     report_unexpected,
+    requires,
+    zero_duration_warning,
 )
 from so101_kinematics.lab.compare import LogError, compare_run, draw_report, sidecar_path
 from so101_kinematics.motion import MAX_DURATION, PlanError
@@ -180,6 +182,9 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
 
 def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     """Check the outputs and the plan, run, report (see :func:`main`)."""
+    if requires(args, "report", "compare"):
+        print(f"error: {requires(args, 'report', 'compare')}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     if args.compare is not None:
         return _compare(args)
     mode, video = choose_mode(args.headless, args.record, so101_display.has_display())
@@ -205,6 +210,8 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
                                 "--pick and --place too (--cube-turn perturbs any plan's cube).")
             plan = load_plan(args.plan, scene_limits()) if args.plan else default_plan(
                 args.move_duration, args.hold)
+            if not args.plan and zero_duration_warning(args.move_duration, args.hold):
+                print(zero_duration_warning(args.move_duration, args.hold), file=sys.stderr)
         if stack is not None:
             report = run_stack(stack, mode=mode, video=video, fps=args.fps, size=args.size,
                                camera=args.camera, quality=args.quality,

@@ -23,6 +23,7 @@ from so101_kinematics.cli import (
     number,
     range_help,
     report_unexpected,
+    zero_duration_warning,
 )
 from so101_kinematics.errors import KinematicsInputError, RenderError
 from so101_kinematics.motion import MAX_DURATION, PlanError
@@ -180,6 +181,8 @@ def _run(args: argparse.Namespace) -> int:
         targets = random_targets(args.targets or TARGETS, seed)
         print(f"{len(targets)} random targets, seed {seed} (repeat with --seed {seed})")
 
+    if zero_duration_warning(args.move_duration, args.hold):
+        print(zero_duration_warning(args.move_duration, args.hold), file=sys.stderr)
     mode = "record" if video else "headless" if args.headless else "viewer"
     if mode == "viewer" and not so101_display.has_display():
         print("No display found: running headless.", file=sys.stderr)
