@@ -169,3 +169,34 @@ def test_the_pan_axis_is_marked_38_8_mm_in_front_of_the_origin_as_printed(tmp_pa
     words = " ".join(texts(stream))
     assert "base frame origin" in words and "under the shoulder_pan axis" not in words
     assert "shoulder_pan axis: 38.8 mm in front of" in words
+
+
+def positioned_texts(stream):
+    """[(x, y) [mm] where each text starts (left end, baseline), its string]."""
+    found = []
+    for match in re.finditer(r"1 0 -?0 1 ([-\d.]+) ([-\d.]+) cm\s*BT.*?\[(.*?)\]\s*TJ", stream,
+                             re.S):
+        text = "".join(re.findall(r"\(((?:\\.|[^\\)])*)\)", match[3]))
+        found.append((float(match[1]) * MM_PER_PT, float(match[2]) * MM_PER_PT,
+                      text.replace("\\(", "(").replace("\\)", ")")))
+    return found
+
+
+def test_the_stacking_sheets_labels_stay_inside_the_drawing_of_their_page(tmp_path):
+    """Issue 28: every page printed every block's label, over the header and off the paper.
+
+    The drawing's window on the paper: 10 mm margins, a 17 mm header above it and
+    a 14 mm footer below it (the sheet's layout, measured here in the PDF).
+    """
+    pages = pdf_pages(make_sheet(tmp_path, "--stack", "0.15", "0.10"))
+    assert len(pages) > 1
+    labelled = set()
+    for (width, height), stream in pages:
+        left, right = 10.0, width - 10.0
+        bottom, top = 10.0 + 14.0, height - 10.0 - 17.0
+        for x, y, text in positioned_texts(stream):
+            if re.match(r"(block \d+ \(start\)|stack \(\d+ blocks\)): x = ", text):
+                labelled.add(text)
+                assert left <= x <= right and bottom <= y <= top, (x, y, text)
+    assert {t.split(":")[0] for t in labelled} == {"block 1 (start)", "block 2 (start)",
+                                                   "stack (2 blocks)"}

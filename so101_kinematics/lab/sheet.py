@@ -283,6 +283,23 @@ def write_sheet(plan: Plan, path: str | Path, paper: str = "a4",
     return SheetInfo(Path(path), paper, orientation, page, (rows, cols), cubes, base_height)
 
 
+def _label_inside(fig, ax, u: float, v: float, text: str) -> None:
+    """A cube's label centred under it at (u, v) [cm], moved just enough to stay in the window.
+
+    Text is not clipped to the drawing: a label hanging out of the window would
+    print over the header or the footer, or off the paper.
+    """
+    label = ax.text(u, v, text, ha="center", va="top", fontsize=7, color=CUBE_COLOR, zorder=4)
+    box = label.get_window_extent(fig.canvas.get_renderer()).transformed(
+        ax.transData.inverted())
+    (left, bottom), (right, top) = box.get_points()
+    (u_low, u_high), (v_low, v_high) = ax.get_xlim(), ax.get_ylim()
+    pad = 0.1  # [cm]
+    du = max(0.0, u_low + pad - left) - max(0.0, right - (u_high - pad))
+    dv = max(0.0, v_low + pad - bottom) - max(0.0, top - (v_high - pad))
+    label.set_position((u + du, v + dv))
+
+
 def _page(page, origin, window, cubes, marks, source, numbering, base_height=0.0):
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle, Polygon, Rectangle
@@ -327,8 +344,8 @@ def _page(page, origin, window, cubes, marks, source, numbering, base_height=0.0
                              edgecolor=CUBE_COLOR, lw=0.8, zorder=3))
         centre = to_paper([cube.x_cm, cube.y_cm])
         ax.plot(*centre, "+", color=CUBE_COLOR, ms=6, zorder=4)
-        ax.text(centre[0], corners[:, 1].min() - 0.4, cube.label, ha="center", va="top",
-                fontsize=7, color=CUBE_COLOR, zorder=4)
+        if u0 <= centre[0] <= u0 + w and v0 <= centre[1] <= v0 + h:  # its label on its page
+            _label_inside(fig, ax, centre[0], corners[:, 1].min() - 0.4, cube.label)
     for name, u, v in marks:
         if u0 <= u <= u0 + w and v0 <= v <= v0 + h:
             ax.add_patch(Circle((u, v), 0.4, fill=False, lw=0.8, zorder=5))
