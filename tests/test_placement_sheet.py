@@ -200,3 +200,11 @@ def test_the_stacking_sheets_labels_stay_inside_the_drawing_of_their_page(tmp_pa
                 assert left <= x <= right and bottom <= y <= top, (x, y, text)
     assert {t.split(":")[0] for t in labelled} == {"block 1 (start)", "block 2 (start)",
                                                    "stack (2 blocks)"}
+
+
+def test_paper_without_sheet_is_refused_in_one_line(capsys):
+    """Issue 28: an option that does nothing alone is refused, before anything runs."""
+    assert pick_place_hw.main(["--dry-run", "--paper", "letter"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["Refused, nothing moved: --paper works only with --sheet: alone it does "
+                   "nothing (nothing was run). Fix: add --sheet, or leave out --paper."]
