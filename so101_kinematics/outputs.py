@@ -69,10 +69,12 @@ def stamp(report, program: str):
 
 
 def _stamped(item) -> bool:
+    """A dict with our ``generator`` key (in Gradescope's results.json: under ``extra_data``)."""
     if not isinstance(item, dict):
         return False
-    generator = item.get("generator", (item.get("extra_data") or {}).get("generator")
-                         if isinstance(item.get("extra_data"), dict) else None)
+    extra = item.get("extra_data")
+    generator = item.get("generator") or (extra.get("generator") if isinstance(extra, dict)
+                                          else None)
     return isinstance(generator, str) and generator.startswith(GENERATOR)
 
 
