@@ -7,7 +7,7 @@ import logging
 import sys
 from pathlib import Path
 
-from so101_kinematics import stacking
+from so101_kinematics import outputs, stacking
 from so101_kinematics.calibration import (
     CalibrationError,
     HardwareError,
@@ -16,6 +16,7 @@ from so101_kinematics.calibration import (
     load_calibration,
 )
 from so101_kinematics.cartesian_plan import add_cartesian_arguments, plan_from_arguments
+from so101_kinematics.cli import requires
 from so101_kinematics.hw.bus import FIND_PORT_HINT, LerobotMissing, connect, disconnect, read_pose
 from so101_kinematics.hw.control import (
     DEFAULT_RATE_HZ,
@@ -31,7 +32,7 @@ from so101_kinematics.hw.control import (
     speed_caps,
 )
 from so101_kinematics.hw.home_check import add_calibration_check_arguments, home_check
-from so101_kinematics.hw.log import CycleLog, plan_record, plot_log
+from so101_kinematics.hw.log import LOG_KIND, CycleLog, plan_record, plot_log, sidecar_path
 from so101_kinematics.hw.run import (
     RELEASE_HINT,
     MotionAborted,
@@ -46,8 +47,8 @@ from so101_kinematics.hw.run import (
 from so101_kinematics.hw.teach import format_configuration, format_plan, outcome_lines, teach
 from so101_kinematics.lab.sheet import PAPER_MM, write_sheet
 from so101_kinematics.motion import PROFILES, PlanError, check_number
-from so101_kinematics.outputs import check_output_path
 from so101_kinematics.plans import default_plan, load_plan
+from so101_kinematics.trims import load_trims
 
 logger = logging.getLogger("pick_place_hw")
 
@@ -135,8 +136,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--plot", type=Path, help="PNG of commanded vs measured per joint")
     parser.add_argument("--sheet", type=Path, metavar="PATH.pdf",
                         help="write the placement sheet (print at 100 %%) and stop; no arm needed")
-    parser.add_argument("--paper", choices=sorted(PAPER_MM), default="a4",
+    parser.add_argument("--paper", choices=sorted(PAPER_MM),
                         help="paper of the --sheet (default a4)")
+    outputs.add_overwrite_argument(parser)
     parser.add_argument("--verbose", "-v", action="store_true", help="debug logging")
     add_cartesian_arguments(parser)
     stacking.add_stack_arguments(parser)
@@ -229,14 +231,19 @@ def _main(args) -> int:
     check_number(args.move_duration, "--move-duration", 0.0, MAX_MOVE_DURATION_S, "s")
     check_number(args.hold, "--hold", 0.0, MAX_MOVE_DURATION_S, "s")
     check_run_settings(args.rate, args.max_speed, args.tracking_tolerance)
+    if requires(args, "paper", "sheet"):
+        raise PlanError(requires(args, "paper", "sheet"))
+    trims = args.trims and load_trims(args.trims)  # a dry run checks them as a real run does
     stack = stacking.stack_from_arguments(args)
     plan = stack.plan if stack else plan_from_arguments(args) or (
         load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold))
     if args.sheet is not None:
         validate_plan_for_arm(plan, None)
-        path = check_output_path(args.sheet, "--sheet", inputs=(args.plan,), suffixes=(".pdf",))
+        path = outputs.check_output_path(args.sheet, "--sheet", inputs=(args.plan, args.trims),
+                                         suffixes=(".pdf",), kind=outputs.PDF,
+                                         overwrite=args.overwrite)
         origin = args.plan or ("--pick/--place" if args.pick else "the course's plan")
-        print(write_sheet(plan, path, args.paper, source=str(origin), stack=stack,
+        print(write_sheet(plan, path, args.paper or "a4", source=str(origin), stack=stack,
                           base_height=args.base_height).summary())
         return 0
     source = args.calibration or (find_calibration(args.robot_id, args.port)
@@ -247,12 +254,15 @@ def _main(args) -> int:
                                "lerobot-calibrate) or --calibration PATH.")
     if source is not None:
         logger.info("Calibration: %s", source)
-    validate_plan_for_arm(plan, calibration, str(source))
+    validate_plan_for_arm(plan, calibration, str(source), trims)
     if stack is not None:
         print(stack.describe())
-    for option, path in (("--log", args.log), ("--plot", args.plot)):
+    for option, path, kind in (("--log", args.log, LOG_KIND), ("--plot", args.plot, outputs.PNG),
+                               ("--log's sidecar", args.log and sidecar_path(args.log),
+                                outputs.JSON_REPORT)):
         if path is not None:
-            check_output_path(path, option, inputs=(source, args.plan))
+            outputs.check_output_path(path, option, inputs=(source, args.plan, args.trims),
+                                      kind=kind, overwrite=args.overwrite)
     if args.dry_run:
         if calibration is None:
             logger.warning("No calibration given: checked against the model's limits only.")

@@ -30,11 +30,22 @@ from so101_kinematics.cli import (
     number,
     range_help,
     report_unexpected,
+    requires,
     servo_from_arguments,
+    zero_duration_warning,
 )
-from so101_kinematics.lab.compare import LogError, compare_run, draw_report
+from so101_kinematics.lab.compare import LogError, compare_run, draw_report, sidecar_path
 from so101_kinematics.motion import MAX_DURATION, PlanError
-from so101_kinematics.outputs import OutputPathError, check_output_path, write_text_atomic
+from so101_kinematics.outputs import (
+    JSON_REPORT,
+    MP4,
+    PNG,
+    OutputPathError,
+    add_overwrite_argument,
+    check_output_path,
+    stamp,
+    write_text_atomic,
+)
 from so101_kinematics.paths import REPO
 from so101_kinematics.plans import default_plan, load_plan
 from so101_kinematics.sim.cube import (  # noqa: F401 - the scene, for the tests and notebooks
@@ -101,9 +112,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                                unless --record is given
   --record PATH.mp4            offscreen video (any machine; MUJOCO_GL=egl)
 
-Output files (--record, --json) are checked before the run and written beside
-the target, then renamed over it when complete: an interrupted run (Ctrl-C)
-leaves an existing file as it was.
+Output files (--record, --json, --report) are checked before the run (an
+existing file is replaced only when it is an MP4 / a JSON report / a PNG of
+ours, or with --overwrite) and written beside the target, then renamed over it
+when complete: an interrupted run (Ctrl-C) leaves an existing file as it was.
 
 Exit code: 0 done (even if the grasp failed, unless --strict), 1 the cube was
 not placed (with --strict) or an unexpected error (rerun with -v for the
@@ -149,6 +161,7 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
     parser.add_argument("--compare", type=Path, metavar="LOG.csv", help="replay a hardware log "
                         "(pick_place_hw.py --log) in the simulator and compare; needs --report")
     parser.add_argument("--report", type=Path, metavar="PATH.png", help="--compare's figure")
+    add_overwrite_argument(parser)
     parser.add_argument("--strict", action="store_true", help="exit 1 unless the cube is placed "
                         "within tolerance")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -172,6 +185,9 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
 
 def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     """Check the outputs and the plan, run, report (see :func:`main`)."""
+    if requires(args, "report", "compare"):
+        print(f"error: {requires(args, 'report', 'compare')}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     if args.compare is not None:
         return _compare(args)
     mode, video = choose_mode(args.headless, args.record, so101_display.has_display())
@@ -179,9 +195,11 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         json_path = None
         check_fps(args.fps, max_fps(scene_model()), "--fps")
         if mode == "record":
-            video = check_output_path(video, "--record", inputs=[args.plan], suffixes=(".mp4",))
+            video = check_output_path(video, "--record", inputs=[args.plan], suffixes=(".mp4",),
+                                      kind=MP4, overwrite=args.overwrite)
         if args.json is not None:
-            json_path = check_output_path(args.json, "--json", inputs=[args.plan])
+            json_path = check_output_path(args.json, "--json", inputs=[args.plan],
+                                          kind=JSON_REPORT, overwrite=args.overwrite)
             if video is not None and json_path == video:
                 raise OutputPathError(f"--json {args.json}: is the --record file too. Fix: "
                                       "give the report its own name, e.g. report.json.")
@@ -195,6 +213,8 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
                                 "--pick and --place too (--cube-turn perturbs any plan's cube).")
             plan = load_plan(args.plan, scene_limits()) if args.plan else default_plan(
                 args.move_duration, args.hold)
+            if not args.plan and zero_duration_warning(args.move_duration, args.hold):
+                print(zero_duration_warning(args.move_duration, args.hold), file=sys.stderr)
         if stack is not None:
             report = run_stack(stack, mode=mode, video=video, fps=args.fps, size=args.size,
                                camera=args.camera, quality=args.quality,
@@ -213,7 +233,8 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         return EXIT_BAD_INPUT
     print(report.summary())
     if json_path is not None:
-        write_text_atomic(json_path, json.dumps(asdict(report), indent=2) + "\n")
+        write_text_atomic(json_path, json.dumps(stamp(asdict(report), "pick_place_sim.py"),
+                                                 indent=2) + "\n")
     if args.strict and not report.success:
         return 1
     return 0
@@ -224,9 +245,11 @@ def _compare(args: argparse.Namespace) -> int:
     try:
         if args.report is None:
             raise OutputPathError("--compare needs --report PATH.png for the figure.")
-        report = check_output_path(args.report, "--report", inputs=[args.compare],
-                                   suffixes=(".png",))
-        json_path = args.json and check_output_path(args.json, "--json", inputs=[args.compare])
+        inputs = [args.compare, sidecar_path(args.compare)]
+        report = check_output_path(args.report, "--report", inputs=inputs, suffixes=(".png",),
+                                   kind=PNG, overwrite=args.overwrite)
+        json_path = args.json and check_output_path(args.json, "--json", inputs=inputs,
+                                                    kind=JSON_REPORT, overwrite=args.overwrite)
         result = compare_run(args.compare)
     except (LogError, OutputPathError) as error:
         print(f"error: {error}", file=sys.stderr)
@@ -234,7 +257,8 @@ def _compare(args: argparse.Namespace) -> int:
     print(result.summary())
     print(f"Report: {draw_report(result, report, f'{args.compare}: simulator vs arm')}")
     if json_path:
-        write_text_atomic(json_path, json.dumps(result.as_json(), indent=2) + "\n")
+        comparison = stamp(result.as_json(), "pick_place_sim.py --compare")
+        write_text_atomic(json_path, json.dumps(comparison, indent=2) + "\n")
     return 0
 
 

@@ -26,8 +26,11 @@ from so101_kinematics.cli import (
 )
 from so101_kinematics.motion import MAX_DURATION, PlanError
 from so101_kinematics.outputs import (
+    PNG,
     OutputPathError,
+    add_overwrite_argument,
     check_output_path,
+    text_kind,
     write_text_atomic,
 )
 from so101_kinematics.sim.fk_pictures import (  # noqa: F401 - the pictures, for the tests
@@ -95,8 +98,10 @@ def _shown(path: Path) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Run the FK test (viewer or headless), or draw the frames picture / the table."""
     parser = ArgumentParser(description=__doc__.splitlines()[0],
-                            epilog="Output files are checked before anything runs and written "
-                            "beside the target, then renamed over it. Exit code: 0 done, 1 an "
+                            epilog="Output files are checked before anything runs (an existing "
+                            "file is replaced only when it is this kind of output of ours, or "
+                            "with --overwrite) and written beside the target, then renamed over "
+                            "it. Exit code: 0 done, 1 an "
                             "unexpected error (rerun with -v for the traceback), 2 bad input.")
     parser.add_argument("--headless", action="store_true",
                         help="no viewer (automatic when there is no display)")
@@ -114,6 +119,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--table", type=Path, nargs="?", const=TABLE_PATH, metavar="PATH",
                         help="write the markdown table of the g_xx factors instead "
                              f"(default {_shown(TABLE_PATH)}; '-' prints it)")
+    add_overwrite_argument(parser)
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
     try:
@@ -136,14 +142,15 @@ def main(argv: list[str] | None = None) -> int:
 def _run(args) -> int:
     """Check the output paths, then do what ``args`` ask (see :func:`main`)."""
     inputs = [SCENE_PATH, MODEL_DIR / "so101.xml"]
-    png = (".png",)
+    png = {"suffixes": (".png",), "kind": PNG, "overwrite": args.overwrite}
     if args.table is not None and str(args.table) != "-":
-        args.table = check_output_path(args.table, "--table", inputs)
+        table_kind = text_kind(fk_table_markdown()[:40], "the FK table of test_fk_mujoco.py")
+        args.table = check_output_path(args.table, "--table", inputs, kind=table_kind,
+                                       overwrite=args.overwrite)
     if args.frames is not None:
-        args.frames = check_output_path(args.frames, "--frames", inputs, suffixes=png)
+        args.frames = check_output_path(args.frames, "--frames", inputs, **png)
     if args.screenshot is not None:
-        args.screenshot = check_output_path(args.screenshot, "--screenshot", inputs,
-                                            suffixes=png)
+        args.screenshot = check_output_path(args.screenshot, "--screenshot", inputs, **png)
     if args.table is not None:
         table = fk_table_markdown()
         if str(args.table) == "-":
@@ -172,7 +179,7 @@ def _run(args) -> int:
     headless = args.headless or not so101_display.has_display()
     screenshot = args.screenshot or (DEFAULT_SCREENSHOT if headless else None)
     if screenshot is not None:  # checked before the hold, not after it
-        screenshot = check_output_path(screenshot, "--screenshot", inputs, suffixes=png)
+        screenshot = check_output_path(screenshot, "--screenshot", inputs, **png)
     if headless:
         if not args.headless:
             log.info("No display found: running headless.")

@@ -25,10 +25,19 @@ from so101_kinematics.cli import (
     range_help,
     report_unexpected,
     servo_from_arguments,
+    zero_duration_warning,
 )
 from so101_kinematics.errors import KinematicsInputError, RenderError
 from so101_kinematics.motion import MAX_DURATION, PlanError
-from so101_kinematics.outputs import OutputPathError, check_output_path, write_text_atomic
+from so101_kinematics.outputs import (
+    JSON_REPORT,
+    MP4,
+    OutputPathError,
+    add_overwrite_argument,
+    check_output_path,
+    stamp,
+    write_text_atomic,
+)
 from so101_kinematics.sim import actuation
 from so101_kinematics.sim.ik_demo import (  # noqa: F401 - the pieces, for the tests
     POSITION_TOLERANCE,
@@ -110,8 +119,9 @@ measured STS3215 rests anywhere in its friction band (README, "What the real arm
 
 Modes: with a display, the interactive viewer (real time); --headless or no
 display: no viewer, as fast as possible; --record PATH.mp4: an offscreen video.
-Output files (--record, --json) are checked before the run and written beside
-the target, then renamed over it when complete.
+Output files (--record, --json) are checked before the run (an existing file is
+replaced only when it is an MP4 / a JSON report of ours, or with --overwrite)
+and written beside the target, then renamed over it when complete.
 
 Exit code: 0 every target reached, 1 a target missed (the lines say which and
 by how much) or an unexpected error (rerun with -v), 2 bad input, 130 Ctrl-C.""")
@@ -133,6 +143,7 @@ by how much) or an unexpected error (rerun with -v), 2 bad input, 130 Ctrl-C."""
                         "(default %(default)g)")
     parser.add_argument("--json", type=Path, metavar="PATH", help="write the report as JSON")
     add_servo_arguments(parser)
+    add_overwrite_argument(parser)
     parser.add_argument("--ui", action="store_true", help="viewer: show MuJoCo's side panels")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("-v", "--verbose", action="store_true",
@@ -159,9 +170,11 @@ def _run(args: argparse.Namespace) -> int:
     """Check the outputs and the targets, run, report (see :func:`main`)."""
     video = json_path = None
     if args.record is not None:
-        video = check_output_path(args.record, "--record", suffixes=(".mp4",))
+        video = check_output_path(args.record, "--record", suffixes=(".mp4",), kind=MP4,
+                                  overwrite=args.overwrite)
     if args.json is not None:
-        json_path = check_output_path(args.json, "--json")
+        json_path = check_output_path(args.json, "--json", kind=JSON_REPORT,
+                                      overwrite=args.overwrite)
         if json_path == video:
             raise OutputPathError(f"--json {args.json}: is the --record file too. Fix: give "
                                   "the report its own name, e.g. report.json.")
@@ -177,6 +190,8 @@ def _run(args: argparse.Namespace) -> int:
         targets = random_targets(args.targets or TARGETS, seed)
         print(f"{len(targets)} random targets, seed {seed} (repeat with --seed {seed})")
 
+    if zero_duration_warning(args.move_duration, args.hold):
+        print(zero_duration_warning(args.move_duration, args.hold), file=sys.stderr)
     mode = "record" if video else "headless" if args.headless else "viewer"
     if mode == "viewer" and not so101_display.has_display():
         print("No display found: running headless.", file=sys.stderr)
@@ -206,7 +221,8 @@ def _run(args: argparse.Namespace) -> int:
                          frames_written=getattr(viewer, "frames_written", 0))
     print(report.summary())
     if json_path is not None:
-        write_text_atomic(json_path, json.dumps(report.as_json(), indent=2) + "\n")
+        write_text_atomic(json_path, json.dumps(stamp(report.as_json(), "test_ik_mujoco.py"),
+                                                 indent=2) + "\n")
     if report.success:
         return 0
     for line in report.misses():

@@ -106,7 +106,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.write_default_calibration:
         try:
             path = check_output_path(args.write_default_calibration,
-                                     "--write-default-calibration", overwrite=args.force)
+                                     "--write-default-calibration", overwrite=args.force,
+                                     overwrite_option="--force")
         except OutputPathError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2

@@ -33,7 +33,13 @@ from benchmarks.bench_fk import bench_fk  # noqa: E402
 from benchmarks.bench_hw import bench_hw  # noqa: E402
 from benchmarks.bench_ik import bench_ik  # noqa: E402
 from benchmarks.bench_pick_place import bench_pick_place  # noqa: E402
-from so101_kinematics.outputs import check_output_path, write_text_atomic  # noqa: E402
+from so101_kinematics.outputs import (  # noqa: E402
+    JSON_REPORT,
+    add_overwrite_argument,
+    check_output_path,
+    stamp,
+    write_text_atomic,
+)
 
 BENCHMARKS: dict[str, Callable[[bool], dict]] = {
     "fk": bench_fk,
@@ -93,9 +99,11 @@ def main() -> int:
     parser.add_argument("--json", type=Path, help="write the results as JSON here")
     parser.add_argument("--only", nargs="+", choices=sorted(BENCHMARKS),
                         help="run only these groups")
+    add_overwrite_argument(parser)
     args = parser.parse_args()
     if args.json:  # checked before the minutes of measuring, not after
-        args.json = check_output_path(args.json, "--json")
+        args.json = check_output_path(args.json, "--json", kind=JSON_REPORT,
+                                      overwrite=args.overwrite)
 
     results: dict = {}
     started = time.perf_counter()
@@ -113,7 +121,7 @@ def main() -> int:
     }
     print(format_table(results))
     if args.json:
-        write_text_atomic(args.json, json.dumps(results, indent=2))
+        write_text_atomic(args.json, json.dumps(stamp(results, "benchmarks/run.py"), indent=2))
         print(f"wrote {args.json}", file=sys.stderr)
     return 0
 

@@ -26,6 +26,8 @@ _HERE = Path(__file__).resolve().parent
 REPO = _HERE.parent
 sys.path.insert(0, str(REPO))
 
+from so101_kinematics import outputs  # noqa: E402
+
 DONE = "Done: back at the starting pose, torque off."
 
 
@@ -77,15 +79,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--runs", type=int, default=20)
     parser.add_argument("--busy", type=int, default=2, help="spinning processes (default 2)")
     parser.add_argument("--json", type=Path, help="write the results as JSON")
+    outputs.add_overwrite_argument(parser)
     args = parser.parse_args(argv)
+    if args.json:  # checked before the minutes of runs, not after
+        try:
+            args.json = outputs.check_output_path(args.json, "--json", kind=outputs.JSON_REPORT,
+                                                  overwrite=args.overwrite)
+        except outputs.OutputPathError as error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
     results = soak(args.runs, args.busy)
     completed = sum(r["completed"] for r in results)
     print(f"{completed} of {len(results)} runs completed with {args.busy} busy processes; "
           f"{sum(r['outages'] for r in results)} outages ridden through.")
     if args.json:
-        from so101_kinematics.outputs import write_text_atomic
-
-        write_text_atomic(args.json, json.dumps({"busy": args.busy, "runs": results}, indent=2))
+        report = outputs.stamp({"busy": args.busy, "runs": results}, "benchmarks/soak_hw.py")
+        outputs.write_text_atomic(args.json, json.dumps(report, indent=2))
     return 0 if completed == len(results) else 1
 
 

@@ -22,6 +22,12 @@ sys.path.insert(0, str(REPO))
 
 import so101_inverse_kinematics as ik  # noqa: E402
 from so101_forward_kinematics import get_forward_kinematics  # noqa: E402
+from so101_kinematics.outputs import (  # noqa: E402
+    PNG,
+    OutputPathError,
+    add_overwrite_argument,
+    check_output_path,
+)
 from so101_kinematics.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION  # noqa: E402
 from so101_kinematics.stacking import (  # noqa: E402
     COURSE_BLOCK_HEIGHTS,
@@ -161,9 +167,16 @@ def main() -> int:
     parser.add_argument("--output", type=Path, default=OUTPUT, help="PNG to write")
     parser.add_argument("--step", type=float, default=GRID_STEP, help="IK grid spacing [m]")
     parser.add_argument("--draws", type=int, default=FK_DRAWS, help="random configurations for FK")
+    add_overwrite_argument(parser)
     args = parser.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    plot(args.output, args.step, args.draws)
+    try:  # before the minutes of IK, not after
+        output = check_output_path(args.output, "--output", suffixes=(".png",), kind=PNG,
+                                   overwrite=args.overwrite)
+    except OutputPathError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    plot(output, args.step, args.draws)
     return 0
 
 

@@ -80,6 +80,41 @@ def range_help(low: float, high: float, unit: str = "", low_open: bool = False) 
     return format_range(low, high, unit, low_open).replace("%", "%%")
 
 
+MIN_USEFUL_MOVE_S = 0.3
+"""A move shorter than this [s] is a jump the position servos cannot follow (a warning)."""
+
+
+def zero_duration_warning(move_duration: float, hold: float) -> str:
+    """A warning for moves too short to follow (``--move-duration 0``), or "".
+
+    Example:
+        >>> zero_duration_warning(2.0, 0.5)
+        ''
+    """
+    if move_duration >= MIN_USEFUL_MOVE_S:
+        return ""
+    held = " and no hold to catch up (--hold 0)" if hold == 0 else ""
+    return (f"warning: --move-duration {move_duration:g} s: each move is a jump{held}; the "
+            "servos cannot follow, so the arm lags the plan and the cube is likely missed (by "
+            "hundreds of mm). Fix: --move-duration 1 or more (the default is 2).")
+
+
+def requires(args, option: str, needed: str) -> str:
+    """A one-line refusal when ``--option`` is given without ``--needed``, or "".
+
+    Args:
+        args: the parsed command line.
+        option: the option that does nothing alone, e.g. "report".
+        needed: the option it works with, e.g. "compare".
+    """
+    attribute, other = option.replace("-", "_"), needed.replace("-", "_")
+    if getattr(args, attribute, None) in (None, False) or getattr(args, other, None) not in \
+            (None, False):
+        return ""
+    return (f"--{option} works only with --{needed}: alone it does nothing (nothing was run). "
+            f"Fix: add --{needed}, or leave out --{option}.")
+
+
 def report_unexpected(error: BaseException, verbose: bool) -> int:
     """Report an unexpected exception in one line (or re-raise it with ``-v``).
 

@@ -3,7 +3,11 @@
 Every script of the project that writes a file (a log, a plot, a video, a
 JSON report, a calibration) goes through here:
   - :func:`check_output_path` before anything runs: not a folder, its folder
-    creatable and writable, never one of the run's input files;
+    creatable and writable, never one of the run's input files, and an
+    existing file is replaced only when it is recognisably this kind of output
+    written by this project (an :class:`OutputKind`: a CSV log with its header,
+    a JSON report with its ``generator`` key, an MP4, a PNG, a PDF), or with
+    an explicit ``--overwrite``;
   - :func:`atomic_output`: the file is written under a temporary name in the
     same folder and renamed over the target only when complete, so an
     existing file is never replaced by a partial one.
@@ -11,13 +15,97 @@ JSON report, a calibration) goes through here:
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 from so101_kinematics.errors import OutputPathError as OutputPathError
+
+GENERATOR = "so101-kinematics"
+"""The ``generator`` key's value begins so in every JSON report this project writes."""
+
+MAX_RECOGNISED_JSON_BYTES = 64 * 1024 * 1024  # a larger .json is not one of our reports
+
+
+@dataclass(frozen=True)
+class OutputKind:
+    """What an output file is, and how an existing file of that kind written by us is recognised.
+
+    Attributes:
+        description: for messages, e.g. ``"an MP4 video"``.
+        recognise: True when the existing file at this path is such an output.
+    """
+
+    description: str
+    recognise: Callable[[Path], bool]
+
+
+def _head(path: Path, size: int) -> bytes:
+    try:
+        with path.open("rb") as handle:
+            return handle.read(size)
+    except OSError:
+        return b""
+
+
+def _magic(magic: bytes, offset: int = 0) -> Callable[[Path], bool]:
+    return lambda path: _head(path, offset + len(magic))[offset:] == magic
+
+
+def stamp(report, program: str):
+    """``report`` (a dict, or a list of dicts) with the ``generator`` key that marks it as ours.
+
+    Example:
+        >>> stamp({"score": 1}, "so101-check-fk")
+        {'generator': 'so101-kinematics so101-check-fk', 'score': 1}
+    """
+    if isinstance(report, list):
+        return [stamp(item, program) for item in report]
+    return {"generator": f"{GENERATOR} {program}", **report}
+
+
+def _stamped(item) -> bool:
+    """A dict with our ``generator`` key (in Gradescope's results.json: under ``extra_data``)."""
+    if not isinstance(item, dict):
+        return False
+    extra = item.get("extra_data")
+    generator = item.get("generator") or (extra.get("generator") if isinstance(extra, dict)
+                                          else None)
+    return isinstance(generator, str) and generator.startswith(GENERATOR)
+
+
+def _our_json(path: Path) -> bool:
+    try:
+        if path.stat().st_size > MAX_RECOGNISED_JSON_BYTES:
+            return False
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return _stamped(data) or (isinstance(data, list) and bool(data)
+                              and all(_stamped(item) for item in data))
+
+
+def csv_kind(header: Sequence[str], description: str) -> OutputKind:
+    """A CSV of ours: its first line is exactly ``header`` (comma-separated)."""
+    line = (",".join(header) + "\n").encode()
+    return OutputKind(description, lambda path: _head(path, len(line) + 1).replace(
+        b"\r\n", b"\n")[:len(line)] == line)
+
+
+def text_kind(first_words: str, description: str) -> OutputKind:
+    """A text file of ours: it begins with ``first_words``."""
+    return OutputKind(description, _magic(first_words.encode()))
+
+
+PNG = OutputKind("a PNG image", _magic(b"\x89PNG\r\n\x1a\n"))
+PDF = OutputKind("a PDF", _magic(b"%PDF-"))
+MP4 = OutputKind("an MP4 video", _magic(b"ftyp", offset=4))
+JSON_REPORT = OutputKind("a JSON report written by this project (its \"generator\" key)",
+                         _our_json)
 
 
 def _same_file(a: Path, b: Path) -> bool:
@@ -28,16 +116,25 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def check_output_path(path: str | Path, option: str, inputs: Iterable[str | Path | None] = (),
-                      overwrite: bool = True, suffixes: Iterable[str] = ()) -> Path:
+                      overwrite: bool = False, suffixes: Iterable[str] = (),
+                      kind: OutputKind | None = None,
+                      overwrite_option: str = "--overwrite") -> Path:
     """Check that ``path`` can be written, before anything runs; creates its folder.
+
+    An existing file is replaced only when ``kind`` recognises it as this kind
+    of output written by this project, or with ``overwrite``; never when it
+    is one of ``inputs``.
 
     Args:
         path: the output file.
         option: how the user named it (for the message), e.g. ``"--log"``.
         inputs: the run's input files; the output may not be one of them.
-        overwrite: False refuses an existing file (the message names ``--force``).
+        overwrite: the user asked to replace whatever is there (``overwrite_option``).
         suffixes: the file name must end in one of these (case-insensitive),
             e.g. ``(".mp4",)``; empty: any name.
+        kind: what the output is (:data:`PNG`, :data:`JSON_REPORT`, :func:`csv_kind`,
+            ...); None: an existing file is never replaced without ``overwrite``.
+        overwrite_option: the option that sets ``overwrite``, for the message.
 
     Returns:
         The path, absolute.
@@ -63,8 +160,13 @@ def check_output_path(path: str | Path, option: str, inputs: Iterable[str | Path
             raise OutputPathError(f"{option} {path}: is one of this run's input files; "
                                   "writing it would destroy it. Fix: choose another file name.")
     if target.exists() and not overwrite:
-        raise OutputPathError(f"{option} {path}: exists already. Fix: pass --force to replace "
-                              "it, or choose another file name.")
+        if kind is None:
+            raise OutputPathError(f"{option} {path}: exists already. Fix: choose another file "
+                                  f"name, or pass {overwrite_option} to replace it.")
+        if not kind.recognise(target):
+            raise OutputPathError(f"{option} {path}: exists and is not {kind.description}; "
+                                  "replacing it would destroy it (nothing was run). Fix: choose "
+                                  f"another file name, or pass {overwrite_option} to replace it.")
     folder = target.parent
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -78,6 +180,13 @@ def check_output_path(path: str | Path, option: str, inputs: Iterable[str | Path
         raise OutputPathError(f"{option} {path}: the file is read-only. Fix: choose another "
                               "file name.")
     return target.resolve()
+
+
+def add_overwrite_argument(parser) -> None:
+    """The ``--overwrite`` option every script with an output shares."""
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an existing output file even when it is not this kind of "
+                        "output written by this project (never one of the run's inputs)")
 
 
 def _suffix_hint(option: str) -> str:

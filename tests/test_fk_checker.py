@@ -57,6 +57,8 @@ def test_a_correct_module_gets_full_marks(checks):
     ("wrong_way_g23", "get_g23", "turns the wrong way"),
     ("wrong_order_g12", "get_g12", "composed in the wrong order"),
     ("degrees_as_radians_g34", "get_g34", "degrees passed where radians are expected"),
+    ("transposed_fixed_g12", "get_g12", "the fixed rotation is transposed (R_fixed.T"),
+    ("star_in_g45", "get_g45", "the rotations are multiplied element by element (*"),
 ])
 def test_each_planted_mistake_is_named_in_its_factor_only(checks, name, factor, cause):
     check = checks[name]
@@ -64,6 +66,41 @@ def test_each_planted_mistake_is_named_in_its_factor_only(checks, name, factor, 
     assert failing(check) == {factor, "get_forward_kinematics"}
     causes = test_by_name(check, factor)["causes"]
     assert len(causes) == 1 and cause in causes[0], causes
+
+
+def test_a_wrong_object_frame_never_passes_the_fk(checks):
+    """Issue 28: get_g5t the identity scored 90/100 with "get_forward_kinematics: ok".
+
+    The object frame then sits at frame 5's origin: |(5.1, -0.2, -107.5)| mm = 107.6 mm
+    from where the arm holds a cube (the upstream model's numbers, by hand).
+    """
+    check = checks["identity_g5t"]
+    assert check["verdict"] == "fail"
+    fk = test_by_name(check, "get_forward_kinematics")
+    assert fk["status"] == "wrong"
+    assert fk["max_error_mm"] == pytest.approx(107.6, abs=0.1)
+    assert any("object frame is 107.6 mm from this package's" in c for c in fk["causes"])
+    score = sum(t["score"] for t in report.score(check, report.DEFAULT_POINTS))
+    assert score <= 50  # the final pose (FK) and g5t both lost
+
+
+@pytest.mark.parametrize("name, cause", [
+    ("position_from_wrong_row", "the position is gwt's bottom row, gwt[3, 0:3]"),
+    ("star_for_matmul", "get_forward_kinematics multiplies the factors element by element (*)"),
+])
+def test_whole_fk_mistakes_are_named_in_the_fk(checks, name, cause):
+    check = checks[name]
+    assert failing(check) == {"get_forward_kinematics"}
+    causes = test_by_name(check, "get_forward_kinematics")["causes"]
+    assert len(causes) == 1 and causes[0].startswith(cause), causes
+
+
+def test_radians_everywhere_is_named_in_every_factor_and_once_for_all(checks):
+    check = checks["radians_everywhere"]
+    for function in compare.FACTORS:
+        causes = test_by_name(check, function)["causes"]
+        assert len(causes) == 1 and causes[0].startswith("degrees passed where radians"), causes
+    assert check["note"].startswith("Degrees are used as radians in 5 of 5 factors")
 
 
 def test_a_dropped_offset_names_its_value_and_the_upstream_body(checks):

@@ -449,3 +449,35 @@ def test_ik_script_command_lines_run_or_name_the_problem(argv):
                 if code != 0:
                     check_refusal(code, err, argv)
         assert not (Path(folder) / "out" / "report.json").exists()
+
+
+# --- existing output files (issue 28): replaced only when ours, or with --overwrite ---------
+OUR_HEADS = {"png": b"\x89PNG\r\n\x1a\n", "pdf": b"%PDF-1.4\n", "mp4": b"\x00\x00\x00\x20ftypisom",
+             "json": b'{"generator": "so101-kinematics fuzz"}'}
+
+
+@FUZZ
+@given(kind=st.sampled_from(sorted(OUR_HEADS)), ours=st.booleans(),
+       content=st.binary(max_size=200), overwrite=st.booleans())
+def test_an_existing_output_is_replaced_only_when_ours_or_overwritten(kind, ours, content,
+                                                                     overwrite):
+    from so101_kinematics import outputs
+
+    kinds = {"png": outputs.PNG, "pdf": outputs.PDF, "mp4": outputs.MP4,
+             "json": outputs.JSON_REPORT}
+    data = OUR_HEADS[kind] + (b"" if kind == "json" else content) if ours else content
+    with tempfile.TemporaryDirectory() as folder:
+        target = Path(folder) / f"out.{kind}"
+        target.write_bytes(data)
+        try:
+            outputs.check_output_path(target, "--out", kind=kinds[kind], overwrite=overwrite)
+            allowed = True
+        except outputs.OutputPathError as error:
+            allowed = False
+            assert "Fix:" in str(error) and "--overwrite" in str(error)
+        assert target.read_bytes() == data  # checking never touches the file
+        if ours or overwrite:
+            assert allowed
+        recognised = data.startswith(OUR_HEADS[kind]) if kind != "mp4" else data[4:8] == b"ftyp"
+        if not overwrite:
+            assert allowed == (ours if kind == "json" else recognised)

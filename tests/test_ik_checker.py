@@ -38,6 +38,7 @@ KNOWN_CAUSES = {
     "radians": "the angles are in radians",
     "tilt_sign": "the gripper mount's tilt is added with the wrong sign: the yaw is off by "
                  "-5.58 deg",
+    "yaw_transposed": "the yaw is read from the transposed rotation",
 }
 """Planted mistake (fixture name) -> the start of the cause the checker must name."""
 
@@ -187,6 +188,19 @@ def test_the_students_own_fk_beside_it_is_used(tmp_path):
     check = check_ik_file(wrong / "so101_inverse_kinematics.py", count=60)
     assert check["verdict"] == "fail"
     assert any(c.startswith("your IK inverts your own FK") for c in ik_test(check)["causes"])
+
+
+def test_an_ik_mistake_beside_a_correct_fk_is_blamed_on_the_ik(tmp_path):
+    """Issue 28: the yaw read from R.T, with a correct FK beside it, was blamed on the FK."""
+    folder = tmp_path / "student"
+    folder.mkdir()
+    shutil.copy(SUBMISSIONS / "yaw_transposed.py", folder / "so101_inverse_kinematics.py")
+    shutil.copy(FK_SUBMISSIONS / "correct.py", folder / "so101_forward_kinematics.py")
+    check = check_ik_file(folder / "so101_inverse_kinematics.py", count=60)
+    assert check["verdict"] == "fail"
+    causes = ik_test(check)["causes"]
+    assert not any("your FK" in c for c in causes), causes
+    assert known(causes) == {"yaw_transposed"}, causes
 
 
 def test_every_target_is_reachable_top_down_as_the_course_asks():

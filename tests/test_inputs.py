@@ -176,13 +176,14 @@ def test_return_to_start_booleans_are_read_as_written(tmp_path, value):
 
 
 # --- --record, --json ---------------------------------------------------------------------
+OLD_VIDEO = b"\x00\x00\x00\x20ftypisom" + b"the old video"  # an MP4's head: ours to replace
 SHORT_PLAN = json.dumps({"steps": [{"name": "up", "configuration": UP, "duration": 0.1,
                                     "hold": 0.0}], "return_to_start": False})
 
 
 def test_ctrl_c_during_record_keeps_the_old_video(tmp_path, capsys, monkeypatch):
     video = tmp_path / "clip.mp4"
-    video.write_bytes(b"the old video")
+    video.write_bytes(OLD_VIDEO)
     plan = write_plan(tmp_path, SHORT_PLAN)
 
     def interrupted(*args, **kwargs):
@@ -193,13 +194,13 @@ def test_ctrl_c_during_record_keeps_the_old_video(tmp_path, capsys, monkeypatch)
                                  "--no-cube", "--no-progress"])
     assert code == 130
     assert "Interrupted" in one_line_error(err)
-    assert video.read_bytes() == b"the old video"
+    assert video.read_bytes() == OLD_VIDEO
     assert sorted(p.name for p in tmp_path.iterdir()) == ["clip.mp4", "plan.json"]
 
 
 def test_a_complete_recording_replaces_the_old_video(tmp_path, capsys):
     video = tmp_path / "clip.mp4"
-    video.write_bytes(b"the old video")
+    video.write_bytes(OLD_VIDEO)
     plan = write_plan(tmp_path, SHORT_PLAN)
     code, _ = run_sim(capsys, ["--record", str(video), "--plan", str(plan), "--size", "32x32",
                                "--no-cube", "--no-progress"])
@@ -438,3 +439,28 @@ def test_fk_script_checks_its_outputs_before_the_hold(tmp_path, capsys, monkeypa
                                     ("--table", REPO / "model" / "scene.xml", "input files")):
         assert test_fk_mujoco.main(["--headless", option, str(value)]) == 2
         assert expected in one_line_error(capsys.readouterr().err)
+
+
+# --- options that do nothing alone, durations that cannot be followed (issue 28) -----------
+def test_report_without_compare_is_refused_before_anything_runs(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(pick_place_sim, "run_pick_place", lambda *a, **k: pytest.fail("ran"))
+    monkeypatch.chdir(tmp_path)
+    figure = tmp_path / "figure.png"
+    code, err = run_sim(capsys, ["--report", str(figure)])
+    assert code == 2
+    line = one_line_error(err)
+    assert "--report works only with --compare" in line and "Fix:" in line
+    assert list(tmp_path.iterdir()) == []  # no figure, no video
+
+
+def test_zero_move_durations_are_warned_before_the_run(capsys, monkeypatch):
+    def stop(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pick_place_sim, "run_pick_place", stop)
+    code, err = run_sim(capsys, ["--headless", "--move-duration", "0", "--hold", "0"])
+    assert code == 130
+    warning = next(line for line in err.splitlines() if line.startswith("warning:"))
+    assert "--move-duration 0 s" in warning and "--hold 0" in warning and "Fix:" in warning
+    code, err = run_sim(capsys, ["--headless"])  # the defaults: no warning
+    assert code == 130 and "warning" not in err

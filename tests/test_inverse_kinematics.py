@@ -244,6 +244,21 @@ def test_too_far_says_by_how_much():
     assert f"{far.value.distance * 1e3:.1f} mm" in str(far.value)
 
 
+@pytest.mark.parametrize("target, way, not_way", [
+    ((0.0, 0.0, 0.60), "lower (down)", "closer"),  # straight above the base, too high
+    ((0.1, 0.0, 0.60), "lower (down)", "closer"),
+    ((0.45, 0.0, 0.013), "closer to the base", "lower"),  # on the table, too far out
+    ((0.30, 0.0, 0.40), "lower and closer to the base", "higher"),  # both
+])
+def test_too_far_says_which_way_to_move_the_target(target, way, not_way):
+    """Issue 28: a target too high, even straight above the base, was told to come closer."""
+    with pytest.raises(ik.UnreachableError) as error:
+        ik.get_inverse_kinematics(target)
+    fix = str(error.value).split("Fix: ")[1]
+    assert error.value.reason == "too_far"
+    assert fix.startswith(f"move the target {way}") and not_way not in fix, fix
+
+
 def test_position_only_too_far():
     with pytest.raises(ik.UnreachableError, match="beyond the arm's reach") as error:
         ik.get_inverse_kinematics((0.70, 0.1, 0.2), approach=None)

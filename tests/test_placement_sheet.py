@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 import pick_place_hw
-from so101_forward_kinematics import get_forward_kinematics
-from so101_kinematics.lab.sheet import CUBE_COLOR, ORIGIN_COLOR, SCALE_BAR_COLOR
+from so101_forward_kinematics import get_forward_kinematics, get_gw1
+from so101_kinematics.lab.sheet import CUBE_COLOR, ORIGIN_COLOR, PAN_AXIS_COLOR, SCALE_BAR_COLOR
 from so101_kinematics.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION
 
 MM_PER_PT = 25.4 / 72.0
@@ -147,3 +147,64 @@ def test_a_sheet_needs_a_pdf_name_and_leaves_an_existing_file_when_refused(tmp_p
     out = tmp_path / "sheet.txt"
     assert pick_place_hw.main(["--sheet", str(out)]) == 2
     assert "--sheet" in capsys.readouterr().err and not out.exists()
+
+
+def test_the_pan_axis_is_marked_38_8_mm_in_front_of_the_origin_as_printed(tmp_path):
+    """The origin is the base frame's; the arm turns about a vertical 38.8 mm further in x.
+
+    A TA who centred the arm's axis on the origin would put every cube 3.9 cm off
+    (issue 28). 38.8 mm: the issue's measurement, and the course FK's g_w1 offset.
+    """
+    assert get_gw1(0.0)[:2, 3] * 1000.0 == pytest.approx([38.8, 0.0], abs=0.05)
+    assert get_gw1(70.0)[:2, 3] * 1000.0 == pytest.approx([38.8, 0.0], abs=0.05)  # the axis
+    out = make_sheet(tmp_path, "--pick", "0.16", "0.06", "0.013", "--place", "0.16", "-0.06",
+                     "0.013")
+    (_, stream), = pdf_pages(out)
+    marks = {name: [np.mean(path, axis=0) for _, fill, path, _ in painted_paths(stream)
+                    if fill == colour(rgb)] for name, rgb in (("origin", ORIGIN_COLOR),
+                                                               ("pan", PAN_AXIS_COLOR))}
+    (origin,), (pan,) = marks["origin"], marks["pan"]
+    right, up = pan - origin  # x is up the page
+    assert up == pytest.approx(38.8, abs=0.3) and right == pytest.approx(0.0, abs=0.3)
+    words = " ".join(texts(stream))
+    assert "base frame origin" in words and "under the shoulder_pan axis" not in words
+    assert "shoulder_pan axis: 38.8 mm in front of" in words
+
+
+def positioned_texts(stream):
+    """[(x, y) [mm] where each text starts (left end, baseline), its string]."""
+    found = []
+    for match in re.finditer(r"1 0 -?0 1 ([-\d.]+) ([-\d.]+) cm\s*BT.*?\[(.*?)\]\s*TJ", stream,
+                             re.S):
+        text = "".join(re.findall(r"\(((?:\\.|[^\\)])*)\)", match[3]))
+        found.append((float(match[1]) * MM_PER_PT, float(match[2]) * MM_PER_PT,
+                      text.replace("\\(", "(").replace("\\)", ")")))
+    return found
+
+
+def test_the_stacking_sheets_labels_stay_inside_the_drawing_of_their_page(tmp_path):
+    """Issue 28: every page printed every block's label, over the header and off the paper.
+
+    The drawing's window on the paper: 10 mm margins, a 17 mm header above it and
+    a 14 mm footer below it (the sheet's layout, measured here in the PDF).
+    """
+    pages = pdf_pages(make_sheet(tmp_path, "--stack", "0.15", "0.10"))
+    assert len(pages) > 1
+    labelled = set()
+    for (width, height), stream in pages:
+        left, right = 10.0, width - 10.0
+        bottom, top = 10.0 + 14.0, height - 10.0 - 17.0
+        for x, y, text in positioned_texts(stream):
+            if re.match(r"(block \d+ \(start\)|stack \(\d+ blocks\)): x = ", text):
+                labelled.add(text)
+                assert left <= x <= right and bottom <= y <= top, (x, y, text)
+    assert {t.split(":")[0] for t in labelled} == {"block 1 (start)", "block 2 (start)",
+                                                   "stack (2 blocks)"}
+
+
+def test_paper_without_sheet_is_refused_in_one_line(capsys):
+    """Issue 28: an option that does nothing alone is refused, before anything runs."""
+    assert pick_place_hw.main(["--dry-run", "--paper", "letter"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["Refused, nothing moved: --paper works only with --sheet: alone it does "
+                   "nothing (nothing was run). Fix: add --sheet, or leave out --paper."]

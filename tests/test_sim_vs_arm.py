@@ -83,3 +83,61 @@ def test_a_shoulder_pan_offset_shows_as_its_shift(hw_log, tmp_path):
         expected = float(np.linalg.norm(turned - planned))
         assert expected > 10.0
         assert report[key] == pytest.approx(expected, abs=clean[key] + 1.0)
+
+
+# --- any log the hardware script can write (issue 28, Deliver 5) ---------------------------
+def write_rows(path, rows, fieldnames):
+    with path.open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=fieldnames)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def read_rows(log):
+    with log.open(newline="") as handle:
+        reader = csv.DictReader(handle)
+        return list(reader), list(reader.fieldnames)
+
+
+def test_a_run_stopped_before_the_pick_is_compared(hw_log, tmp_path, capsys):
+    """Ctrl-C during the first move: the log has no cycle of the pick or the place step."""
+    from so101_kinematics.lab.compare import _plan
+    from so101_kinematics.plans import pick_and_place_steps
+
+    info = json.loads(sidecar_path(hw_log).read_text())
+    pick, _ = pick_and_place_steps(_plan(info["plan"]))
+    rows, fields = read_rows(hw_log)
+    first_pick = next(k for k, row in enumerate(rows) if row["step"] == pick.name)
+    stopped = tmp_path / "stopped.csv"
+    write_rows(stopped, rows[:first_pick], fields)
+    shutil.copy(sidecar_path(hw_log), sidecar_path(stopped))
+    report = compare(stopped, tmp_path)
+    assert report["pick_position_error_mm"] is None and report["place_position_error_mm"] is None
+    assert "pick: not reached in this log" in capsys.readouterr().out
+    assert all(report["sim_vs_arm_rms_deg"][j] < 1.0 for j in ARM_JOINTS)
+
+
+def test_a_partial_log_without_its_sidecar_is_compared(hw_log, tmp_path, capsys):
+    """A SIGKILL: the temporary CSV, its last row cut mid-line, and no sidecar written."""
+    text = hw_log.read_text()
+    partial = tmp_path / "partial.csv"
+    partial.write_text(text[:len(text) // 2].rsplit("\n", 1)[0] + "\n" + "12.5,12.6,sta")
+    report = compare(partial, tmp_path)
+    out = capsys.readouterr().out
+    assert "1 row(s) cut short" in out and "first measured pose" in out
+    assert all(report["sim_vs_arm_rms_deg"][j] < 1.0 for j in ARM_JOINTS)
+
+
+def test_a_start_just_past_the_elbow_limit_is_a_warning(hw_log, tmp_path, capsys):
+    """The virtual arm rests 0.05 deg past the model's elbow limit after a release."""
+    from so101_kinematics.sim.scene import joint_limits, load_model
+
+    low, _ = joint_limits(load_model())["elbow_flex"]
+    info = json.loads(sidecar_path(hw_log).read_text())
+    info["start_pose"]["elbow_flex"] = low - 0.05
+    past = tmp_path / "past.csv"
+    shutil.copy(hw_log, past)
+    sidecar_path(past).write_text(json.dumps(info))
+    compare(past, tmp_path)
+    out = capsys.readouterr().out
+    assert "warning: the measured start has elbow_flex" in out and "0.05 deg outside" in out

@@ -100,6 +100,36 @@ def test_pick_place_hw_refuses_a_big_trim_before_the_port_in_one_line(tmp_path, 
     assert "shoulder_lift = 8 deg is beyond the 5 deg" in err[-1] and "recalibrate" in err[-1]
 
 
+
+@pytest.mark.parametrize("name, text, words", [
+    (None, None, "No such file"),  # the file is missing
+    ("trims.json", '{"shoulder_lfit": 2.0}', "unknown joint 'shoulder_lfit'"),
+    ("trims.json", '{"shoulder_lift": 8.0}', "shoulder_lift = 8 deg is beyond the 5 deg"),
+])
+def test_the_dry_run_checks_the_trims_as_the_real_run(tmp_path, capsys, name, text, words):
+    """Issue 28: --dry-run ignored --trims, so a bad trim file failed only on lab day."""
+    import pick_place_hw as cli
+
+    trims = tmp_path / (name or "no_such_trims.json")
+    if text is not None:
+        trims.write_text(text)
+    rc = cli.main(["--dry-run", "--calibration", str(CALIBRATION_PATH), "--trims", str(trims)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2
+    assert err[-1].startswith("Refused, nothing moved:") and words in err[-1]
+    assert "Fix:" in err[-1] or "recalibrate" in err[-1]
+
+
+def test_the_dry_run_checks_the_plan_against_the_trimmed_limits(tmp_path, capsys):
+    """A trim moves the servo's range: the plan must fit the calibration minus the trim."""
+    import pick_place_hw as cli
+
+    trims = tmp_path / "trims.json"
+    trims.write_text('{"shoulder_lift": 2.0}')
+    assert cli.main(["--dry-run", "--calibration", str(CALIBRATION_PATH), "--trims",
+                     str(trims)]) == 0
+    assert "the plan is valid" in capsys.readouterr().out
+
 # --- on the (virtual) arm -----------------------------------------------------------------
 @pytest.fixture
 def arm(course_arm):

@@ -84,6 +84,19 @@ def test_shell_dispatch_table_and_errors(arm):
     assert arm.joint_positions()["elbow_flex"] == pytest.approx(60, abs=1.0)
 
 
+@pytest.mark.parametrize("line, quoted", [
+    ("pose foo=3", "unknown joint 'foo' in 'foo=3';"),
+    ("cube a b", "cube: 'a b': X Y [YAW] must be numbers"),
+    ("pose elbow_flex", "'elbow_flex': '' is not a number"),
+])
+def test_shell_errors_keep_their_quotes_balanced(line, quoted):
+    """Issue 28: the shell stripped quotes off each message's ends, unbalancing them."""
+    answer = shell.run_line(None, line)  # refused while parsing: no arm needed
+    assert answer.startswith("error ") and quoted in answer, answer
+    message = answer.split(" (usage:")[0]
+    assert message.count("'") % 2 == 0 and message.count('"') % 2 == 0, answer
+
+
 def test_the_bus_is_answered_while_the_hand_checks_a_long_path():
     """A full sweep's table check takes tens of ms; the servos go on answering meanwhile.
 

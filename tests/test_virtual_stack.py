@@ -65,6 +65,20 @@ def test_the_sensor_reports_each_cube_and_the_table_below_the_base():
     assert len(after) == 1
 
 
+def test_two_cubes_closer_than_their_size_are_refused_in_one_line(capsys):
+    """Issue 28: two --cube at one spot were accepted; the physics pushed them 13 mm apart."""
+    import virtual_so101
+    from so101_kinematics.virtual.cubes import check_cubes
+
+    code = virtual_so101.main(["--cube", "0.2", "0.05", "--cube", "0.2", "0.05"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1
+    assert "cube 2 at (0.2, 0.05) m is 0.0 mm from cube 1" in err[0] and "Fix:" in err[0]
+    with pytest.raises(CubePositionError, match="25.0 mm from cube 1"):
+        check_cubes([(0.2, 0.0), (0.2, 0.025)])
+    assert len(check_cubes([(0.2, 0.0), (0.2, 0.026)])) == 2  # side by side: 26 mm, touching
+
+
 def test_too_many_cubes_and_a_bad_base_height_are_refused():
     with pytest.raises(CubePositionError, match="at most"):
         VirtualSO101(cube=[(0.1 + 0.01 * i, 0.0) for i in range(cube_sensor.MAX_CUBES + 1)])

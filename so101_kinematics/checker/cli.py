@@ -15,7 +15,15 @@ from pathlib import Path
 from so101_kinematics.checker import compare, report, sandbox
 from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number, range_help
 from so101_kinematics.errors import OutputPathError
-from so101_kinematics.outputs import check_output_path, write_text_atomic
+from so101_kinematics.outputs import (
+    JSON_REPORT,
+    OutputKind,
+    add_overwrite_argument,
+    check_output_path,
+    csv_kind,
+    stamp,
+    write_text_atomic,
+)
 
 EXIT_PASS, EXIT_OUTSIDE, EXIT_UNCHECKED = 0, 1, 2
 
@@ -81,21 +89,29 @@ def add_tolerance_options(parser: ArgumentParser) -> None:
 
 
 def add_class_options(parser: ArgumentParser) -> None:
-    """``--jobs`` and ``--quiet``: shared by both checkers."""
+    """``--jobs``, ``--quiet`` and ``--overwrite``: shared by both checkers."""
     parser.add_argument("--jobs", type=number(1, 256, integer=True), default=os.cpu_count() or 1,
                         help="files checked at once (the number of cores)")
     parser.add_argument("-q", "--quiet", action="store_true",
                         help="one line per file, even for a single file")
+    add_overwrite_argument(parser)
 
 
-def check_outputs(args, options: tuple[str, ...], prog: str) -> dict | None:
-    """The output paths asked for, checked before anything runs; None after a one-line error."""
+def check_outputs(args, kinds: dict[str, OutputKind], prog: str) -> dict | None:
+    """The output paths asked for, checked before anything runs; None after a one-line error.
+
+    Args:
+        args: the parsed command line (the options named in ``kinds``, ``files``, ``overwrite``).
+        kinds: option name -> what it writes (an existing file of another kind is refused).
+        prog: the checker's name, for the message.
+    """
     outputs = {}
     try:
-        for option in options:
+        for option, kind in kinds.items():
             if getattr(args, option):
                 outputs[option] = check_output_path(getattr(args, option), f"--{option}",
-                                                    inputs=args.files)
+                                                    inputs=args.files, kind=kind,
+                                                    overwrite=args.overwrite)
     except OutputPathError as error:
         print(f"{prog}: error: {error}", file=sys.stderr)
         return None
@@ -170,7 +186,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.gradescope and len(args.files) > 1:
         parser.error("--gradescope writes one submission's results.json; got "
                      f"{len(args.files)} files. Fix: run once per submission, or use --csv")
-    outputs = check_outputs(args, ("json", "gradescope", "csv"), "so101-check-fk")
+    outputs = check_outputs(args, {"json": JSON_REPORT, "gradescope": JSON_REPORT,
+                                   "csv": csv_kind(report.CSV_COLUMNS, "a CSV of so101-check-fk")},
+                            "so101-check-fk")
     if outputs is None:
         return EXIT_BAD_INPUT
     tolerance = (args.tolerance_mm, args.tolerance_deg)
@@ -178,12 +196,13 @@ def main(argv: list[str] | None = None) -> int:
         args.files, lambda path: check_file(path, tolerance, args.timeout, args.random),
         lambda check: report.text_report(check, points), args.jobs, args.quiet)
     if "json" in outputs:
-        write_text_atomic(outputs["json"], report.json_report(checks))
+        write_text_atomic(outputs["json"], report.json_report(stamp(checks, "so101-check-fk")))
     if "gradescope" in outputs:
         import json
 
-        write_text_atomic(outputs["gradescope"],
-                          json.dumps(report.gradescope_results(checks[0], points), indent=1))
+        results = report.gradescope_results(checks[0], points)
+        results["extra_data"] = stamp(results.get("extra_data", {}), "so101-check-fk")
+        write_text_atomic(outputs["gradescope"], json.dumps(results, indent=1))
     if "csv" in outputs:
         write_text_atomic(outputs["csv"], report.csv_report(checks, points))
     return exit_status(checks)

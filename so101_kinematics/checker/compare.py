@@ -2,9 +2,12 @@
 
 Reference values: each factor is :func:`so101_kinematics.frames.joint_transform`, the
 object frame is :func:`so101_kinematics.fast_fk.forward_kinematics_batch`. The chain up
-to frame 5 is judged apart from ``get_g5t``: the student's FK is compared with this
-package's ``g_w5`` times the student's own ``g_5t``, because where the tool frame sits
-is a convention (:func:`~so101_kinematics.checker.diagnose.tool_convention`).
+to frame 5 is judged apart from ``get_g5t`` when the student's ``g_5t`` is this package's
+or a known convention (:func:`~so101_kinematics.checker.diagnose.tool_convention`): the
+student's FK is then compared with this package's ``g_w5`` times the student's own
+``g_5t``. A ``g_5t`` that is neither (the identity: the object frame 107.6 mm off) is a
+wrong final pose, and the FK is judged against this package's object frame: the pose
+the arm reaches dominates the grade.
 """
 
 from __future__ import annotations
@@ -228,10 +231,18 @@ def compare_fk(results: dict, tool: dict, tolerance, rows: np.ndarray) -> dict:
     course = len(COURSE_CONFIGURATIONS)
     causes = [problem] if problem else []
     causes += _fk_causes(results, positions, rotations, chain_p, chain_r, student_tool)
+    judged = "chain"
+    if tool.get("status") not in ("ok", "convention") and np.median(raw_mm) > tolerance[0]:
+        chain_mm, chain_deg = raw_mm, raw_deg  # a wrong object frame: the final pose is judged
+        judged = "object frame"
+        causes.append(f"the object frame is {np.median(raw_mm):.1f} mm from this package's "
+                      "(median): your get_g5t is wrong and is not a known convention, so the "
+                      "pose the arm reaches is wrong; judged against this package's object "
+                      "frame")
     ok = (not problem and chain_mm.max() <= tolerance[0] and chain_deg.max() <= tolerance[1])
     return {
         "function": "get_forward_kinematics", "status": "ok" if ok else "wrong",
-        "causes": causes,
+        "causes": causes, "judged_against": judged,
         "course": [{"name": name, "error_mm": float(chain_mm[i]), "error_deg": float(chain_deg[i]),
                     "position_m": positions[i].tolist(),
                     "package_position_m": package_p[i].tolist(),
@@ -253,23 +264,54 @@ def _fk_causes(results, positions, rotations, chain_p, chain_r, student_tool) ->
             not np.allclose(rotations, chain_r, atol=1e-4):
         causes.append("the rotation is transposed (R.T): return gwt[0:3, 0:3]")
     products = results.get("products") or []
-    worst = 0.0
+    worst = star = 0.0
+    wrong_part = _position_part(positions, chain_p, chain_r)
     for index, row in enumerate(products):
         matrices = [row[name] for name in FACTORS]
         if any("error" in m or tuple(m["shape"]) != (4, 4) for m in matrices):
             return causes
-        product = np.eye(4)
-        for matrix in matrices:
-            product = product @ np.asarray(matrix["value"], dtype=float)
-        product = product @ student_tool
+        factors = [np.asarray(matrix["value"], dtype=float) for matrix in matrices]
+        product = functools.reduce(np.matmul, factors) @ student_tool
+        elementwise = functools.reduce(np.multiply, factors) * student_tool
         mine = np.eye(4)
         mine[:3, :3], mine[:3, 3] = rotations[index], positions[index]
-        worst = max(worst, *pose_error(mine, product))
-    if worst > 0.01:
+        worst = max(worst, _apart(mine, product))
+        star = max(star, _apart(mine, elementwise))
+    if worst > 0.01 and star <= 1e-6:
+        causes.append("get_forward_kinematics multiplies the factors element by element (*): "
+                      "numpy's * is not the matrix product. Fix: gwt = gw1 @ g12 @ g23 @ g34 @ "
+                      "g45 @ g5t")
+    elif wrong_part:
+        causes.append(f"the position is {wrong_part}, not gwt's last column. Fix: position = "
+                      "gwt[0:3, 3] (rows 0-2 of column 3)")
+    elif worst > 0.01:
         causes.append("get_forward_kinematics is not the product gw1 @ g12 @ g23 @ g34 @ g45 @ "
                       f"g5t of your own factors (up to {worst:.2f} mm/deg apart): check the "
                       "order of the product and which joint goes to which factor")
     return causes
+
+
+def _apart(a: np.ndarray, b: np.ndarray) -> float:
+    """How far two 4x4 matrices are apart: [mm] for the position, [deg]-like for the 3x3.
+
+    Element by element (not as poses): either may not be a rigid transform.
+    """
+    return float(max(np.linalg.norm(a[:3, 3] - b[:3, 3]) * 1000,
+                     np.degrees(np.abs(a[:3, :3] - b[:3, :3]).max())))
+
+
+def _position_part(positions, chain_p, chain_r) -> str:
+    """Which other part of gwt the FK returned as its position ('' if none matches)."""
+    if len(positions) == 0 or np.allclose(positions, chain_p, atol=1e-4):
+        return ""
+    if np.allclose(positions, 0.0, atol=1e-9):
+        return "gwt's bottom row, gwt[3, 0:3] (always 0, 0, 0)"
+    for index in range(3):
+        if np.allclose(positions, chain_r[:, index, :], atol=1e-6):
+            return f"a row of the rotation, gwt[{index}, 0:3]"
+        if np.allclose(positions, chain_r[:, :, index], atol=1e-6):
+            return f"a column of the rotation, gwt[0:3, {index}] (the tool's {'xyz'[index]} axis)"
+    return ""
 
 
 def _gripper_note(results: dict) -> str:
@@ -298,8 +340,8 @@ def compare_all(results: dict, tolerance, count: int = RANDOM_COUNT) -> dict:
             if close:
                 test["causes"] = [f"not defined; {close!r} looks like it: name it "
                                   f"{test['function']} (the course's name)"]
-    return {"tests": tests, "note": diagnose.diagram_note(
-        {FACTORS[t["function"]][0]: t["causes"] for t in tests if t["function"] in FACTORS})}
+    causes = {FACTORS[t["function"]][0]: t["causes"] for t in tests if t["function"] in FACTORS}
+    return {"tests": tests, "note": diagnose.diagram_note(causes) or diagnose.units_note(causes)}
 
 
 def _close_names(wanted: str, names: list[str]) -> str:

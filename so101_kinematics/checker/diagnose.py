@@ -10,6 +10,7 @@ as radians, the gripper mount's tilt left out), at every test angle.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -109,6 +110,10 @@ def _rotation_hypotheses(name: str):
     hypotheses = [
         ("the joint turns the wrong way: use R_fixed @ Rz(+theta)",
          lambda t: fixed @ joint(-t)),
+        (f"the fixed rotation is transposed (R_fixed.T, the inverse): use R_fixed = "
+         f"{_fixed_text(steps)}, then @ Rz(theta)", lambda t: fixed.T @ joint(t)),
+        ("the rotation is transposed ((R_fixed @ Rz(theta)).T): put R_fixed @ Rz(theta) "
+         "itself in the top-left 3x3", lambda t: (fixed @ joint(t)).T),
         ("rotations composed in the wrong order: the joint rotation comes after the fixed "
          f"one, R_fixed @ Rz(theta) with R_fixed = {_fixed_text(steps)}",
          lambda t: joint(t) @ fixed),
@@ -158,6 +163,9 @@ def rotation_causes(name: str, angles, rotations) -> list[str]:
     fixed = _sequence(FIXED_TRANSFORMS[name][1])
     if _matches(lambda t: fixed @ Rz(math.remainder(t, 360.0)), angles, rotations):
         return []
+    star = elementwise_cause(name, angles, rotations)
+    if star:
+        return [star]
     for rotation in rotations:
         if abs(np.linalg.det(rotation) - 1.0) > 1e-3 or \
                 np.abs(rotation.T @ rotation - np.eye(3)).max() > 1e-3:
@@ -179,6 +187,25 @@ def rotation_causes(name: str, angles, rotations) -> list[str]:
     return ["the rotation error changes with the joint angle and matches no known mistake: "
             "check which axis the joint turns about (the model's joints all turn about their "
             "own z) and the fixed rotation " + _fixed_text(FIXED_TRANSFORMS[name][1])]
+
+
+def elementwise_cause(name: str, angles, rotations) -> str:
+    """The rotations multiplied element by element (``*`` for ``@``), or ''.
+
+    Tried: every product ``*`` (the fixed rotations and the joint's), and only the
+    joint's (``R_fixed * Rz(theta)``).
+    """
+    steps = FIXED_TRANSFORMS[name][1]
+    matrices = [_AXIS[axis](angle) for axis, angle in steps]
+    every = functools.reduce(np.multiply, matrices)
+    fixed = _sequence(steps)
+    for product, where in ((every, "every product"), (fixed, "the joint's rotation")):
+        if all(np.abs(product * Rz(math.remainder(angle, 360.0)) - rotation).max() <= 1e-6
+               for angle, rotation in zip(angles, rotations, strict=True)):
+            return (f"the rotations are multiplied element by element (* in {where}): "
+                    f"numpy's * is not the matrix product. Fix: use @, R_fixed @ Rz(theta) with "
+                    f"R_fixed = {_fixed_text(steps)}")
+    return ""
 
 
 def _offset_name(name: str, index: int) -> str:
@@ -286,6 +313,17 @@ def tool_convention(matrix: np.ndarray) -> dict:
         turn, turn_ok = f"the axes differ by {angle:.2f} deg {axis_text}", False
     return {"accepted": bool(named) and turn_ok, "text": f"{where}; {turn}",
             "distance_mm": float(distance_mm), "angle_deg": float(angle)}
+
+
+def units_note(causes_by_transform: dict[str, list[str]]) -> str:
+    """One sentence when degrees are used as radians in several factors (one mistake), else ''."""
+    factors = [f"g{name}" for name, causes in causes_by_transform.items()
+               if any(cause.startswith("degrees passed where radians") for cause in causes)]
+    if len(factors) < 2:
+        return ""
+    return (f"Degrees are used as radians in {len(factors)} of 5 factors ({', '.join(factors)}): "
+            "one mistake, in the rotation helpers or where the angles go in. Fix: convert "
+            "degrees to radians once (np.deg2rad) before cos/sin.")
 
 
 def diagram_note(causes_by_transform: dict[str, list[str]]) -> str:

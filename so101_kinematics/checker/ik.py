@@ -32,7 +32,7 @@ from so101_kinematics.checker.cli import (
     run_check,
 )
 from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number
-from so101_kinematics.outputs import write_text_atomic
+from so101_kinematics.outputs import JSON_REPORT, csv_kind, stamp, write_text_atomic
 
 
 def check_ik_file(path: str | Path, tolerance=(1.0, 1.0),
@@ -184,7 +184,9 @@ def build_parser() -> ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run the checker; returns the exit status."""
     args = build_parser().parse_args(argv)
-    outputs = check_outputs(args, ("json", "csv"), "so101-check-ik")
+    outputs = check_outputs(args, {"json": JSON_REPORT,
+                                   "csv": csv_kind(CSV_COLUMNS, "a CSV of so101-check-ik")},
+                            "so101-check-ik")
     if outputs is None:
         return EXIT_BAD_INPUT
     tolerance = (args.tolerance_mm, args.tolerance_deg)
@@ -192,7 +194,8 @@ def main(argv: list[str] | None = None) -> int:
         args.files, lambda path: check_ik_file(path, tolerance, args.timeout, args.targets),
         text_report, args.jobs, args.quiet)
     if "json" in outputs:
-        write_text_atomic(outputs["json"], json.dumps(checks[0] if len(checks) == 1 else checks,
+        stamped = stamp(checks, "so101-check-ik")
+        write_text_atomic(outputs["json"], json.dumps(stamped[0] if len(stamped) == 1 else stamped,
                                                       indent=1))
     if "csv" in outputs:
         write_text_atomic(outputs["csv"], csv_report(checks))

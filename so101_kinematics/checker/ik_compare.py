@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from so101_kinematics.checker import ik_targets
+from so101_kinematics.checker.ik_own_fk import own_fk_note
 from so101_kinematics.fast_fk import forward_kinematics_batch
 from so101_kinematics.frames import (
     ARM_JOINTS,
@@ -215,6 +216,9 @@ def causes(targets, angles, yaw_error, ok, tolerance) -> list[str]:
         ("wrist_roll has the wrong sign relative to shoulder_pan (wrist_roll = -shoulder_pan "
          "+ ...): the yaw is off by -2 x shoulder_pan" + _TURNED + ". Fix: wrist_roll = "
          f"shoulder_pan + yaw + {-tilt:.2f} deg", -2.0 * angles[:, 0]),
+        ("the yaw is read from the transposed rotation (atan2(R[0, 1], R[0, 0]) is minus the "
+         "yaw): the yaw is off by -2 x the asked yaw" + _TURNED + ". Fix: yaw = "
+         "atan2(R[1, 0], R[0, 0]) (row 1, column 0)", -2.0 * np.degrees(targets[:, 3])),
         ("the asked orientation is ignored (always yaw 0): the yaw is off by the asked yaw"
          + _TURNED + ". Fix: read the yaw from target_orientation (atan2(R[1, 0], R[0, 0])) "
          "and add it to wrist_roll", -np.degrees(targets[:, 3])),
@@ -248,24 +252,6 @@ def close_name(names: list[str], wanted: str = "get_inverse_kinematics") -> str:
         return lowered[wanted.replace("_", "")]
     close = difflib.get_close_matches(wanted, names, n=1, cutoff=0.75)
     return close[0] if close else ""
-
-
-def _own_fk_note(results: dict, targets: np.ndarray, failing: np.ndarray, tolerance) -> str:
-    """Whether the failing answers are right by the student's own FK (then the FK is off)."""
-    own = results.get("own_fk")
-    if not own or not failing.any():
-        return ""
-    errors = []
-    for i in np.flatnonzero(failing):
-        parts = (own[i] or {}).get("parts") or []
-        if len(parts) < 1 or "error" in parts[0] or np.size(parts[0]["value"]) != 3:
-            return ""
-        errors.append(np.linalg.norm(np.ravel(parts[0]["value"]) - targets[i, :3]) * 1000)
-    if np.mean(np.array(errors) <= tolerance[0]) >= MATCH_FRACTION:
-        return (f"your IK inverts your own FK (with your so101_forward_kinematics the answers "
-                f"land within {max(errors):.2f} mm of the targets): the difference is in your "
-                "FK; check it with so101-check-fk")
-    return ""
 
 
 def _tally(labels: list[str], failing: np.ndarray) -> list[dict]:
@@ -317,7 +303,7 @@ def compare_ik(results: dict, tolerance, count: int = ik_targets.TARGET_COUNT) -
     branches = _branches(targets, angles)
     regions = [ik_targets.region(*target[:3]) for target in targets]
     found = causes(targets[answered], angles[answered], yaw[answered], ok[answered], tolerance)
-    note = _own_fk_note(results, targets, failing & answered, tolerance)
+    note = own_fk_note(results, targets, angles, failing & answered, tolerance, MATCH_FRACTION)
     found += [note] if note else []
     for joint_index, joint in enumerate(ARM_JOINTS):
         hits = beyond[:, joint_index] & answered

@@ -55,7 +55,9 @@ def test_text(test: dict) -> str:
              + (f", {_errors(test)}" if _errors(test) else "")]
     lines += [f"  {cause}" for cause in test.get("causes", [])]
     if test["function"] == "get_forward_kinematics" and "course" in test:
-        lines.append("  judged as this package's chain up to frame 5 followed by your g5t;")
+        lines.append("  judged against this package's object frame (your g5t is wrong);"
+                     if test.get("judged_against") == "object frame" else
+                     "  judged as this package's chain up to frame 5 followed by your g5t;")
         for row in test["course"]:
             lines.append(f"  at {row['name']}: {row['error_mm']:.2f} mm, "
                          f"{row['error_deg']:.2f} deg")

@@ -18,7 +18,13 @@ from pathlib import Path
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.control import ArmSession, Cycle
 from so101_kinematics.motion import Plan, unit
-from so101_kinematics.outputs import atomic_output, temporary_beside, write_text_atomic
+from so101_kinematics.outputs import (
+    atomic_output,
+    csv_kind,
+    stamp,
+    temporary_beside,
+    write_text_atomic,
+)
 from so101_kinematics.trims import Trims
 
 FLUSH_EVERY_S = 0.5  # the log reaches the disk at least this often [s of run time]
@@ -27,6 +33,8 @@ HEADER = (["t_s", "wall_s", "step"] + [f"cmd_{j}" for j in JOINTS]
 """CSV columns: scheduled and actual cycle start [s], step, commanded and measured joints, and
 each joint's trim (the course's offset_config: the servo got cmd + trim and read meas + trim;
 cmd and meas are the model's angles)."""
+LOG_KIND = csv_kind(HEADER, "a CSV log of pick_place_hw.py (its header row)")
+"""How an existing log of ours is recognised (``outputs.check_output_path``)."""
 
 
 def sidecar_path(path: str | Path) -> Path:
@@ -103,7 +111,8 @@ class CycleLog:
             self._handle.close()
             os.replace(self.temporary, self.path)
             if self.run_info is not None:
-                write_text_atomic(sidecar_path(self.path), json.dumps(self.run_info, indent=1))
+                info = stamp(self.run_info, "pick_place_hw.py --log")
+                write_text_atomic(sidecar_path(self.path), json.dumps(info, indent=1))
         return self.path
 
 

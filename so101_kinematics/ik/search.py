@@ -85,7 +85,8 @@ def _planar(rel: tuple, theta1: float, alpha: float, psi: float, elbow: float):
         elbow: +1.0 or -1.0, the two elbow branches.
 
     Returns:
-        ``((theta2, theta3, theta4), None)`` or ``(None, (reason, excess [m]))``.
+        ``((theta2, theta3, theta4), None)`` or ``(None, (reason, excess [m], (forward,
+        up) [m]))``: where the wrist_flex axis would be from the shoulder_lift axis.
     """
     h = math.cos(theta1) * rel[0] - math.sin(theta1) * rel[1]  # forward, in the arm's plane
     across = _ACROSS0 - (_T[0] * math.cos(alpha) - _T[1] * math.sin(alpha))
@@ -96,9 +97,9 @@ def _planar(rel: tuple, theta1: float, alpha: float, psi: float, elbow: float):
     dist2 = wx * wx + wy * wy
     cos_q = (dist2 - _LEN_A * _LEN_A - _LEN_B * _LEN_B) / (2.0 * _LEN_A * _LEN_B)
     if cos_q > 1.0:
-        return None, ("too_far", math.sqrt(dist2) - _REACH_MAX)
+        return None, ("too_far", math.sqrt(dist2) - _REACH_MAX, (-wy, -wx))
     if cos_q < -1.0:
-        return None, ("too_close", _REACH_MIN - math.sqrt(dist2))
+        return None, ("too_close", _REACH_MIN - math.sqrt(dist2), (-wy, -wx))
     theta3 = elbow * math.acos(cos_q) - _KINK
     c3, s3 = math.cos(theta3), math.sin(theta3)
     ex = _A[0] + c3 * _B[0] - s3 * _B[1]
@@ -117,21 +118,22 @@ def _pitch_windows(rel: tuple, theta1: float, alpha: float):
 
     Returns:
         ``(windows, failure)``: (lowest, highest) pitch intervals [rad], and
-        the reach failure ("too_far" or "too_close", excess [m]) if there are none.
+        the reach failure ("too_far" or "too_close", excess [m], (forward, up) [m] of the
+        target from the shoulder_lift axis) if there are none.
     """
     h = math.cos(theta1) * rel[0] - math.sin(theta1) * rel[1]
     qx, qy = _Z0 - rel[2], _H0 - h
     vx, vy = _ACROSS0 - (_T[0] * math.cos(alpha) - _T[1] * math.sin(alpha)), _ALONG
     n_q, n_v = math.hypot(qx, qy), math.hypot(vx, vy)
     if n_q < 1e-12:
-        return [], ("too_close", _REACH_MIN)
+        return [], ("too_close", _REACH_MIN, (0.0, 0.0))
     # |W|^2 = |Q|^2 + |v|^2 - 2 |Q| |v| cos(delta), delta = psi + angle(v) - angle(Q).
     lo_c = (n_q * n_q + n_v * n_v - _REACH_MAX ** 2) / (2.0 * n_q * n_v)
     hi_c = (n_q * n_q + n_v * n_v - _REACH_MIN ** 2) / (2.0 * n_q * n_v)
     if lo_c > 1.0:
-        return [], ("too_far", abs(n_q - n_v) - _REACH_MAX)
+        return [], ("too_far", abs(n_q - n_v) - _REACH_MAX, (-qy, -qx))
     if hi_c < -1.0:
-        return [], ("too_close", _REACH_MIN - (n_q + n_v))
+        return [], ("too_close", _REACH_MIN - (n_q + n_v), (-qy, -qx))
     d_lo, d_hi = math.acos(min(hi_c, 1.0)), math.acos(max(lo_c, -1.0))
     margin = min(math.radians(0.5), 0.25 * (d_hi - d_lo))
     d_lo, d_hi = d_lo + margin, d_hi - margin
@@ -159,6 +161,33 @@ def _pitch_candidates(windows, psi0: float, step: float = math.radians(2.0)):
     yield from sorted(candidates, key=lambda psi: abs(_wrap(psi - psi0)))
 
 
+def reach_fix(forward: float, up: float, too_far: bool) -> str:
+    """Which way to move a target out of reach, from where the wrist would be.
+
+    Args:
+        forward: the wrist_flex axis from the shoulder_lift axis, along the arm [m].
+        up: the same, upwards [m].
+        too_far: beyond the links' reach (move towards the shoulder), else too close.
+
+    Returns:
+        e.g. "lower (down)", "closer to the base", "lower and closer to the base".
+
+    Example:
+        >>> reach_fix(0.02, 0.5, True), reach_fix(0.4, -0.05, True)
+        ('lower (down)', 'closer to the base')
+    """
+    sign = -1.0 if too_far else 1.0  # too far: towards the shoulder; too close: away
+    norm = math.hypot(forward, up) or 1.0
+    words = []
+    if abs(up) >= 0.4 * norm:
+        words.append("higher (up)" if sign * up > 0 else "lower (down)")
+    if abs(forward) >= 0.4 * norm:
+        words.append("away from the base" if sign * forward > 0 else "closer to the base")
+    if len(words) == 2:
+        words[0] = words[0].split(" (")[0]
+    return " and ".join(words) or ("closer to the base" if too_far else "away from the base")
+
+
 class _Search:
     """Collects in-limit solutions (keeping the one nearest the reference) and the failures."""
 
@@ -166,7 +195,7 @@ class _Search:
         self.reference = reference
         self.best: list[float] | None = None
         self.best_cost = math.inf
-        self.reach_failures: list[tuple[str, float]] = []
+        self.reach_failures: list[tuple[str, float, tuple[float, float]]] = []
         self.axis_failures: list[tuple[str, float]] = []
         self.limit_failures: list[tuple[float, int, float, float, list[float]]] = []
 
@@ -223,16 +252,19 @@ class _Search:
                 "approach or yaw.",
                 "joint_limit", math.degrees(excess), joint)
         if self.reach_failures:
-            reason, excess = min(self.reach_failures, key=lambda failure: failure[1])
+            reason, excess, (forward, up) = min(self.reach_failures,
+                                                key=lambda failure: failure[1])
             if reason == "too_far":
                 return UnreachableError(
                     f"{what} is {excess * 1e3:.1f} mm beyond the arm's reach (the two links span "
                     f"at most {_REACH_MAX * 1e3:.1f} mm from the shoulder_lift axis to the "
-                    "wrist_flex axis). Fix: move the target closer to the base.", "too_far", excess)
+                    f"wrist_flex axis). Fix: move the target {reach_fix(forward, up, True)}.",
+                    "too_far", excess)
             excess = max(excess, 0.0)
             return UnreachableError(
                 f"{what} is {excess * 1e3:.1f} mm too close to the shoulder for the arm to fold "
-                "onto. Fix: move the target away from the base.", "too_close", excess)
+                f"onto. Fix: move the target {reach_fix(forward, up, False)}.", "too_close",
+                excess)
         _, excess = min(self.axis_failures, key=lambda failure: failure[1])
         return UnreachableError(
             f"{what} is {excess * 1e3:.3f} mm too close to the shoulder_pan axis: the arm's plane "

@@ -262,7 +262,7 @@ def _worth_fine_search(search: _Search) -> bool:
     (a few degrees of joint angle unless the target is near the pan axis).
     """
     return (bool(search.axis_failures)
-            or any(excess < 0.006 for _, excess in search.reach_failures)
+            or any(failure[1] < 0.006 for failure in search.reach_failures)
             or any(failure[0] < math.radians(10.0) for failure in search.limit_failures))
 
 

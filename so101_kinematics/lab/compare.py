@@ -11,6 +11,14 @@ steps) against where the plan puts it. :func:`draw_report` draws it all.
 The trims the run applied (``--trims``, the log's ``trim_*`` columns) are
 reported: the commanded and measured angles are the model's, the servos got
 the commands plus the trims.
+
+It reads any log the hardware script can write: a run stopped by Ctrl-C or
+an abort before the pick or the place (that position is reported as not
+reached), a partial log (a last row cut short, cycles whose read failed, a
+log without its sidecar: the replay then starts at the first measured pose),
+and a measured start outside the model's limits (as the arm may rest just
+past one after a release: the replay starts at the nearest pose inside, with
+a warning, as the hardware run itself does).
 """
 
 from __future__ import annotations
@@ -32,6 +40,8 @@ from so101_kinematics.outputs import atomic_output
 from so101_kinematics.plans import pick_and_place_steps
 
 SETTLE_WINDOW_S = 0.2  # the pick/place pose: mean measured pose over the step's last [s]
+COLUMNS = ("t_s", "step", *(f"{kind}_{j}" for kind in ("cmd", "meas") for j in JOINTS))
+"""The columns a replay needs (``hw/log.py``'s HEADER has them all)."""
 
 
 class LogError(InputError):
@@ -52,23 +62,35 @@ class Comparison:
     pick_position_error_mm: float = math.nan
     place_position_error_mm: float = math.nan
     trims_deg: dict[str, float] = field(default_factory=lambda: dict.fromkeys(JOINTS, 0.0))
+    notes: list[str] = field(default_factory=list)  # what the log lacked, and what was done
 
     def as_json(self) -> dict:
-        """The report's numbers (gripper values are in [%], the rest in the keys' units)."""
+        """The report's numbers (gripper values are in [%], the rest in the keys' units).
+
+        A position the run did not reach (stopped before its step) is null.
+        """
+        def number(value: float) -> float | None:
+            return None if math.isnan(value) else value
+
         return {"max_tracking_error_deg": self.max_tracking_error_deg,
                 "sim_vs_arm_rms_deg": self.sim_vs_arm_rms_deg,
-                "pick_position_error_mm": self.pick_position_error_mm,
-                "place_position_error_mm": self.place_position_error_mm,
-                "positions_mm": self.positions_mm, "trims_deg": self.trims_deg}
+                "pick_position_error_mm": number(self.pick_position_error_mm),
+                "place_position_error_mm": number(self.place_position_error_mm),
+                "positions_mm": self.positions_mm, "trims_deg": self.trims_deg,
+                "notes": self.notes}
 
     def summary(self) -> str:
         """A few lines for the terminal."""
-        lines = [f"trims (added to every goal sent to the arm): {self.describe_trims()}",
-                 "joint           max |cmd - arm|   rms |sim - arm|"]
+        lines = [f"warning: {note}" for note in self.notes]
+        lines += [f"trims (added to every goal sent to the arm): {self.describe_trims()}",
+                  "joint           max |cmd - arm|   rms |sim - arm|"]
         lines += [f"  {j:<14}{self.max_tracking_error_deg[j]:>10.2f}"
                   f"{self.sim_vs_arm_rms_deg[j]:>17.2f}" for j in JOINTS]
         for role in ("pick", "place"):
-            p = self.positions_mm[role]
+            p = self.positions_mm.get(role)
+            if p is None:
+                lines.append(f"{role}: not reached in this log (the run ended before its step)")
+                continue
             lines.append(f"{role}: planned x, y, z = {_xyz(p['planned'])} mm, from the arm's "
                          f"angles {_xyz(p['measured'])} mm: "
                          f"{getattr(self, role + '_position_error_mm'):.1f} mm apart")
@@ -85,21 +107,64 @@ def _xyz(v) -> str:
 
 
 def read_log(path: str | Path) -> tuple[list[dict[str, str]], dict]:
-    """The CSV rows and the sidecar of a hardware log."""
+    """The CSV rows and the sidecar of a hardware log (``{}`` when the sidecar is missing)."""
     path = Path(path)
-    side = sidecar_path(path)
     try:
         with path.open(newline="", encoding="utf-8") as handle:
-            rows = list(csv.DictReader(handle))
-        info = json.loads(side.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as error:
-        raise LogError(f"--compare {path}: cannot read the log or its sidecar {side.name} "
-                       f"({error}). Fix: give a CSV written by pick_place_hw.py --log, with "
-                       "its .run.json beside it.") from None
-    if not rows or "start_pose" not in info or "plan" not in info:
-        raise LogError(f"--compare {path}: the log has no cycles or its sidecar no plan and "
-                       "starting pose (the run was refused before it moved?).")
-    return rows, info
+            reader = csv.DictReader(handle)
+            rows = list(reader)
+            missing = [c for c in COLUMNS if c not in (reader.fieldnames or ())]
+    except (OSError, ValueError, csv.Error) as error:
+        raise LogError(f"--compare {path}: cannot read the log ({error}). Fix: give a CSV "
+                       "written by pick_place_hw.py --log.") from None
+    if missing:
+        raise LogError(f"--compare {path}: not a log of pick_place_hw.py (no column "
+                       f"{missing[0]!r}). Fix: give a CSV written by pick_place_hw.py --log.")
+    try:
+        info = json.loads(sidecar_path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        info = {}
+    return rows, info if isinstance(info, dict) else {}
+
+
+def usable_rows(rows: list[dict[str, str]]) -> tuple[list[dict[str, float | str]], int]:
+    """The cycles a replay can use (parsed), and how many were cut short or unreadable.
+
+    A cycle whose read failed (empty measured columns) is left out silently, as
+    the run itself logged it; a row cut short (the last one after a kill) or
+    with a non-number is counted.
+    """
+    usable, broken = [], 0
+    for row in rows:
+        if row.get(f"meas_{JOINTS[0]}") == "" and row.get("t_s"):
+            continue
+        try:
+            parsed = {c: float(row[c]) for c in COLUMNS if c != "step"}
+        except (TypeError, ValueError, KeyError):
+            broken += 1
+            continue
+        if all(math.isfinite(v) for v in parsed.values()):
+            usable.append({**parsed, "step": row["step"]})
+        else:
+            broken += 1
+    return usable, broken
+
+
+def start_inside_limits(start: dict[str, float], notes: list[str]) -> dict[str, float]:
+    """``start`` moved into the model's limits; each move is a note (and a warning)."""
+    from so101_kinematics.sim.scene import joint_limits, load_model
+
+    limits = joint_limits(load_model())
+    inside = {}
+    for joint in JOINTS:
+        low, high = limits[joint]
+        inside[joint] = min(high, max(low, float(start[joint])))
+        if inside[joint] != start[joint]:
+            unit = "%" if joint == "gripper" else "deg"
+            notes.append(f"the measured start has {joint} = {start[joint]:g} {unit}, "
+                         f"{abs(start[joint] - inside[joint]):.2g} {unit} outside the model's "
+                         f"[{low:g}, {high:g}] {unit}: the replay starts at {inside[joint]:g}")
+    return inside
 
 
 def _plan(record: dict) -> Plan:
@@ -145,20 +210,40 @@ def replay(t: np.ndarray, commands: dict[str, np.ndarray], start: dict[str, floa
 
 def compare_run(path: str | Path) -> Comparison:
     """Replay the hardware log ``path`` in the simulator and compare (see the module)."""
-    rows, info = read_log(path)
-    rows = [r for r in rows if r[f"meas_{JOINTS[0]}"] != ""]  # cycles whose read succeeded
-    t = np.array([float(r["t_s"]) for r in rows])
-    commanded = {j: np.array([float(r[f"cmd_{j}"]) for r in rows]) for j in JOINTS}
-    measured = {j: np.array([float(r[f"meas_{j}"]) for r in rows]) for j in JOINTS}
-    simulated = replay(t, commanded, info["start_pose"], info.get("servo"))
+    raw, info = read_log(path)
+    rows, broken = usable_rows(raw)
+    if not rows:
+        raise LogError(f"--compare {path}: the log has no cycle with a measured pose (the run "
+                       "was refused before it moved?). Fix: give the log of a run that moved.")
+    notes = []
+    if broken:
+        notes.append(f"{broken} row(s) cut short or unreadable were left out (a partial log)")
+    if not isinstance(info.get("start_pose"), dict):
+        notes.append(f"no sidecar {sidecar_path(path).name} with the starting pose: the replay "
+                     "starts at the first measured pose")
+        info["start_pose"] = {j: rows[0][f"meas_{j}"] for j in JOINTS}
+    start = start_inside_limits(info["start_pose"], notes)
+    t = np.array([r["t_s"] for r in rows])
+    commanded = {j: np.array([r[f"cmd_{j}"] for r in rows]) for j in JOINTS}
+    measured = {j: np.array([r[f"meas_{j}"] for r in rows]) for j in JOINTS}
+    simulated = replay(t, commanded, start, info.get("servo"))
     result = Comparison(
         t, commanded, measured, simulated,
         {j: float(np.max(np.abs(commanded[j] - measured[j]))) for j in JOINTS},
         {j: float(np.sqrt(np.mean((simulated[j] - measured[j]) ** 2))) for j in JOINTS})
-    result.trims_deg = {j: float(rows[0].get(f"trim_{j}") or 0.0) for j in JOINTS}
+    try:
+        result.trims_deg = {j: float(raw[0].get(f"trim_{j}") or 0.0) for j in JOINTS}
+    except (TypeError, ValueError):
+        result.notes.append("the trims of the first row are unreadable: taken as none")
+    result.notes = notes
     steps = np.array([r["step"] for r in rows])
-    for role, step in zip(("pick", "place"), pick_and_place_steps(_plan(info["plan"])),
-                          strict=True):
+    try:
+        roles = pick_and_place_steps(_plan(info["plan"]))
+    except Exception:  # noqa: BLE001 - no sidecar, or a plan without its pick and place
+        roles = ()
+        result.notes.append("no plan in the sidecar with a pick and a place: their positions "
+                            "are not compared")
+    for role, step in zip(("pick", "place"), roles, strict=False):
         planned = _position_mm(step.configuration)
         inside = np.flatnonzero(steps == step.name)
         if inside.size == 0:

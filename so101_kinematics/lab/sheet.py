@@ -1,8 +1,9 @@
 """The placement sheet: a PDF to print at 100 % that shows where the cubes go, at 1:1.
 
-:func:`write_sheet` draws, in the robot's base frame (the FK's frame, its
-origin on the table under the shoulder_pan axis): a 1 cm grid, the origin and
-the x/y axes, the outline of the base's footprint (the bottom of the model's
+:func:`write_sheet` draws, in the robot's base frame (the FK's frame): a 1 cm
+grid, the base frame's origin and its x/y axes, the shoulder_pan axis (the
+vertical the arm turns about, ``PAN_AXIS_CM`` in front of the origin, from the
+FK's ``g_w1``: not under the origin), the outline of the base's footprint (the bottom of the model's
 base mesh, as MuJoCo places it), and the pick and place cubes' 26 mm
 footprints at the FK positions of the plan's pick and place steps, turned by
 the cube's yaw there (the grasp's jaw axis, as ``cartesian_plan`` defines
@@ -31,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from so101_kinematics.fast_fk import forward_kinematics
-from so101_kinematics.frames import ARM_JOINTS
+from so101_kinematics.frames import ARM_JOINTS, FIXED_TRANSFORMS
 from so101_kinematics.motion import Plan
 from so101_kinematics.outputs import atomic_output
 from so101_kinematics.plans import pick_and_place_steps
@@ -52,6 +53,9 @@ CUBE_COLOR = (0.85, 0.1, 0.1)
 SCALE_BAR_COLOR = (0.0, 0.0, 0.55)
 FOOTPRINT_COLOR = (0.1, 0.45, 0.1)
 ORIGIN_COLOR = (0.55, 0.0, 0.55)
+PAN_AXIS_COLOR = (0.0, 0.4, 0.6)
+PAN_AXIS_CM = tuple(float(v) * 100.0 for v in FIXED_TRANSFORMS["w1"][0][:2])
+"""Where the shoulder_pan axis meets the table, (x, y) [cm] in the base frame (g_w1's offset)."""
 RULER_LINE = ("Print at 100 % (actual size, no 'fit to page'), then check with a ruler: the bar "
               "below must measure 10.0 cm and each cube square 2.6 cm.")
 
@@ -279,6 +283,23 @@ def write_sheet(plan: Plan, path: str | Path, paper: str = "a4",
     return SheetInfo(Path(path), paper, orientation, page, (rows, cols), cubes, base_height)
 
 
+def _label_inside(fig, ax, u: float, v: float, text: str) -> None:
+    """A cube's label centred under it at (u, v) [cm], moved just enough to stay in the window.
+
+    Text is not clipped to the drawing: a label hanging out of the window would
+    print over the header or the footer, or off the paper.
+    """
+    label = ax.text(u, v, text, ha="center", va="top", fontsize=7, color=CUBE_COLOR, zorder=4)
+    box = label.get_window_extent(fig.canvas.get_renderer()).transformed(
+        ax.transData.inverted())
+    (left, bottom), (right, top) = box.get_points()
+    (u_low, u_high), (v_low, v_high) = ax.get_xlim(), ax.get_ylim()
+    pad = 0.1  # [cm]
+    du = max(0.0, u_low + pad - left) - max(0.0, right - (u_high - pad))
+    dv = max(0.0, v_low + pad - bottom) - max(0.0, top - (v_high - pad))
+    label.set_position((u + du, v + dv))
+
+
 def _page(page, origin, window, cubes, marks, source, numbering, base_height=0.0):
     import matplotlib.pyplot as plt
     from matplotlib.patches import Circle, Polygon, Rectangle
@@ -307,7 +328,12 @@ def _page(page, origin, window, cubes, marks, source, numbering, base_height=0.0
     ax.text(0.25, 5.0, "x", fontsize=11, weight="bold", va="top")
     ax.text(-5.0, 0.25, "y", fontsize=11, weight="bold")
     ax.add_patch(Circle((0.0, 0.0), 0.15, color=ORIGIN_COLOR, lw=0, zorder=4))
-    ax.text(0.25, -0.6, "origin (base frame,\nunder the shoulder_pan axis)", fontsize=6)
+    ax.text(0.25, -0.6, "base frame origin", fontsize=6, color=ORIGIN_COLOR)
+    pan = to_paper(PAN_AXIS_CM)
+    ax.add_patch(Circle(pan, 0.12, color=PAN_AXIS_COLOR, lw=0, zorder=4))
+    ax.text(pan[0] + 0.25, pan[1] - 0.05, f"shoulder_pan axis: {PAN_AXIS_CM[0] * 10:.1f} mm "
+            "in front of\nthe origin (not the origin)", fontsize=6, va="top",
+            color=PAN_AXIS_COLOR)
     ax.add_patch(Polygon(to_paper(base_footprint_cm()), closed=True, fill=False, lw=1.6,
                          color=FOOTPRINT_COLOR, ls="--"))
     ax.text(*to_paper(base_footprint_cm()).min(axis=0) + [0.0, -0.5], "robot base: align its "
@@ -318,8 +344,8 @@ def _page(page, origin, window, cubes, marks, source, numbering, base_height=0.0
                              edgecolor=CUBE_COLOR, lw=0.8, zorder=3))
         centre = to_paper([cube.x_cm, cube.y_cm])
         ax.plot(*centre, "+", color=CUBE_COLOR, ms=6, zorder=4)
-        ax.text(centre[0], corners[:, 1].min() - 0.4, cube.label, ha="center", va="top",
-                fontsize=7, color=CUBE_COLOR, zorder=4)
+        if u0 <= centre[0] <= u0 + w and v0 <= centre[1] <= v0 + h:  # its label on its page
+            _label_inside(fig, ax, centre[0], corners[:, 1].min() - 0.4, cube.label)
     for name, u, v in marks:
         if u0 <= u <= u0 + w and v0 <= v <= v0 + h:
             ax.add_patch(Circle((u, v), 0.4, fill=False, lw=0.8, zorder=5))

@@ -84,7 +84,7 @@ class VideoRecorder:
         fps = check_fps(fps, max_fps(m))
         width, height = check_frame_size(size, "Video size")
         try:
-            path = check_output_path(path, "video")
+            path = check_output_path(path, "video", overwrite=True)  # the caller decided
         except OutputPathError as error:
             raise RenderSettingError(str(error)) from None
         self.d, self.fps, self.path = d, fps, path

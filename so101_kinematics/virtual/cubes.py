@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import math
+
 from so101_kinematics.checks import check_number
+from so101_kinematics.constants import CUBE_SIZE
 from so101_kinematics.cube_sensor import MAX_CUBES
 from so101_kinematics.errors import CubePositionError
 
@@ -29,7 +32,8 @@ def check_cubes(cube) -> list[tuple[float, float, float]]:
     """One cube (x, y[, yaw]) or a list of them, each checked; at most ``MAX_CUBES``.
 
     Raises:
-        CubePositionError: a bad position, or too many cubes.
+        CubePositionError: a bad position, too many cubes, or two cubes whose centres
+            are closer than a cube's size (they would overlap: the physics pushes them apart).
     """
     if cube is None:
         return []
@@ -37,7 +41,17 @@ def check_cubes(cube) -> list[tuple[float, float, float]]:
     if len(cubes) > MAX_CUBES:
         raise CubePositionError(f"{len(cubes)} cubes: the virtual table takes at most "
                                 f"{MAX_CUBES}. Fix: give fewer --cube options.")
-    return [check_cube_position(c) for c in cubes]
+    checked = [check_cube_position(c) for c in cubes]
+    for second, (x2, y2, _) in enumerate(checked):
+        for first, (x1, y1, _) in enumerate(checked[:second]):
+            apart = math.hypot(x2 - x1, y2 - y1)
+            if apart < CUBE_SIZE:
+                raise CubePositionError(
+                    f"cube {second + 1} at ({x2:g}, {y2:g}) m is {apart * 1e3:.1f} mm from cube "
+                    f"{first + 1} at ({x1:g}, {y1:g}) m: cubes closer than their size "
+                    f"({CUBE_SIZE * 1e3:g} mm) overlap. Fix: put their centres at least "
+                    f"{CUBE_SIZE * 1e3:g} mm apart.")
+    return checked
 
 
 def check_base_height(value) -> float:

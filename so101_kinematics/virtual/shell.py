@@ -90,7 +90,10 @@ def run_line(arm, line: str) -> str:
     try:
         text = spec.handler(arm, words[1:])
     except (ValueError, KeyError, OSError) as exc:
-        message = str(exc).strip().strip("'\"").replace("\n", " ")
+        # A KeyError's str() is its message's repr: take the message itself. Never strip
+        # quotes off a message's ends: that unbalances the quotes inside it.
+        message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
+        message = " ".join(str(message).split())
         return f"error {words[0]}: {message} (usage: {spec.usage})"
     return f"ok {text}".rstrip()
 
