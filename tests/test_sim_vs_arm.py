@@ -58,6 +58,10 @@ def test_on_the_virtual_arm_simulator_and_arm_agree(hw_log, tmp_path):
     assert report["pick_position_error_mm"] < 6.0
     assert report["place_position_error_mm"] < 6.0
     assert all(report["max_tracking_error_deg"][j] >= 0.0 for j in ARM_JOINTS)
+    # the report says which servo it replayed and the sag the feed-forward took out: at the
+    # pick the shoulder holds the reaching arm (gravity torque / stiffness: several degrees)
+    assert report["servo"] == "STS3215 at P = 16 on 5.0 V, with the gravity feed-forward"
+    assert 1.0 < abs(report["predicted_sag_deg"]["pick"]["shoulder_lift"]) < 9.0
 
 
 def test_a_shoulder_pan_offset_shows_as_its_shift(hw_log, tmp_path):

@@ -34,10 +34,12 @@ import numpy as np
 from so101_kinematics.errors import InputError
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
+from so101_kinematics.gravity import feedforward
 from so101_kinematics.hw.log import sidecar_path
 from so101_kinematics.motion import Plan, Step
 from so101_kinematics.outputs import atomic_output
 from so101_kinematics.plans import pick_and_place_steps
+from so101_kinematics.servo import LEROBOT
 
 SETTLE_WINDOW_S = 0.2  # the pick/place pose: mean measured pose over the step's last [s]
 COLUMNS = ("t_s", "step", *(f"{kind}_{j}" for kind in ("cmd", "meas") for j in JOINTS))
@@ -63,6 +65,8 @@ class Comparison:
     place_position_error_mm: float = math.nan
     trims_deg: dict[str, float] = field(default_factory=lambda: dict.fromkeys(JOINTS, 0.0))
     notes: list[str] = field(default_factory=list)  # what the log lacked, and what was done
+    servo: str = ""  # the arm's servos as the log records them (hw/log.py), replayed so
+    sag_deg: dict[str, dict[str, float]] = field(default_factory=dict)  # role -> joint -> [deg]
 
     def as_json(self) -> dict:
         """The report's numbers (gripper values are in [%], the rest in the keys' units).
@@ -74,6 +78,7 @@ class Comparison:
 
         return {"max_tracking_error_deg": self.max_tracking_error_deg,
                 "sim_vs_arm_rms_deg": self.sim_vs_arm_rms_deg,
+                "servo": self.servo, "predicted_sag_deg": self.sag_deg,
                 "pick_position_error_mm": number(self.pick_position_error_mm),
                 "place_position_error_mm": number(self.place_position_error_mm),
                 "positions_mm": self.positions_mm, "trims_deg": self.trims_deg,
@@ -94,6 +99,11 @@ class Comparison:
             lines.append(f"{role}: planned x, y, z = {_xyz(p['planned'])} mm, from the arm's "
                          f"angles {_xyz(p['measured'])} mm: "
                          f"{getattr(self, role + '_position_error_mm'):.1f} mm apart")
+        if self.servo:
+            lines.append(f"servo: {self.servo}")
+        for role, sag in self.sag_deg.items():
+            joints = ", ".join(f"{j} {v:.1f}" for j, v in sag.items() if abs(v) >= 0.05)
+            lines.append(f"  without the feed-forward it sags at the {role}: {joints} deg")
         return "\n".join(lines)
 
     def describe_trims(self) -> str:
@@ -253,7 +263,23 @@ def compare_run(path: str | Path) -> Comparison:
         seen = _position_mm(pose)
         result.positions_mm[role] = {"planned": planned.tolist(), "measured": seen.tolist()}
         setattr(result, f"{role}_position_error_mm", float(np.linalg.norm(seen - planned)))
+    _describe_servo(result, info.get("servo"), roles)
     return result
+
+
+def _describe_servo(result: Comparison, servo: dict | None, roles) -> None:
+    """The servo the log records, and the sag the model predicts at the pick and the place."""
+    if not isinstance(servo, dict):
+        result.servo = "not recorded (a log from before the servo model): replayed as STS3215 " \
+                       "at lerobot's P = 16 on 5 V, without the feed-forward"
+        servo = {}
+    volts, p = float(servo.get("supply_v", 5.0)), int(servo.get("p", 16))
+    if not result.servo:
+        with_ff = "with" if servo.get("gravity_ff") else "without"
+        result.servo = f"STS3215 at P = {p} on {volts:.1f} V, {with_ff} the gravity feed-forward"
+    for role, step in zip(("pick", "place"), roles, strict=False):
+        offsets = feedforward(step.configuration, LEROBOT.with_(p=p), volts)
+        result.sag_deg[role] = {j: round(-offsets[j], 2) for j in ARM_JOINTS}
 
 
 def _position_mm(cfg) -> np.ndarray:
