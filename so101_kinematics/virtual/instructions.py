@@ -82,19 +82,16 @@ class BusInstructions:
             return
         listening = self.listening
         broadcast = target == BROADCAST_ID
-        if broadcast:
-            addressed = [s for _, group in sorted(listening.items()) for s in group]
-        else:
-            addressed = list(listening.get(target, ()))
         replies: list[list[tuple]] = []  # groups of (servo, reply id, params) answering at once
         if inst == INST_PING:
             if broadcast:
                 replies = [[(s, i, b"") for s in group] for i, group in sorted(listening.items())]
-            elif addressed:
-                replies = [[(s, target, b"") for s in addressed]]
+            elif target in listening:
+                replies = [[(s, target, b"") for s in listening[target]]]
         elif inst == INST_READ:
-            if len(params) == 2 and addressed and not broadcast:
-                replies = [[(s, target, self.read(s, params[0], params[1])) for s in addressed]]
+            if len(params) == 2 and target in listening:
+                replies = [[(s, target, self.read(s, params[0], params[1]))
+                            for s in listening[target]]]
         elif inst == INST_SYNC_READ:
             if broadcast and len(params) >= 2:
                 addr, size = params[0], params[1]
@@ -114,6 +111,10 @@ class BusInstructions:
             if obey is None:  # not an instruction an STS3215 knows, or malformed: ignored
                 logger.debug("instruction 0x%02x to %d ignored", inst, target)
                 return
+            if broadcast:
+                addressed = [s for _, group in sorted(listening.items()) for s in group]
+            else:
+                addressed = list(listening.get(target, ()))
             answering = [] if broadcast or inst == INST_RESTART else \
                 [(s, target, b"") for s in addressed if s.regs[8] != 0]
             for servo in addressed:
