@@ -194,24 +194,12 @@ class BusInstructions:
         t_ready = t_end
         out = []
         for group in replies:
-            packets, delay = [], 0.0
-            for servo, reply_id, params in group:
-                if servo.drop:
-                    servo.drop -= 1
-                    continue
-                if servo.removed:
-                    continue
-                packet = status_packet(reply_id, self.error_byte(servo), params)
-                if servo.corrupt:
-                    servo.corrupt -= 1
-                    packet = packet[:-1] + bytes(((packet[-1] + 1) & 0xFF,))
-                packets.append(packet)
-                delay = servo.return_delay
+            packets = [p for p in (self._status(*reply) for reply in group) if p is not None]
             if not packets:
                 continue
             packet = packets[0] if len(packets) == 1 else \
                 collide(packets, self.host_baud, COLLISION_SKEW_S)
-            t_ready += delay + len(packet) * tpb
+            t_ready += group[0][0].return_delay + len(packet) * tpb
             out.append((t_ready, packet))
         if not out:
             return
@@ -230,6 +218,19 @@ class BusInstructions:
             now = time.perf_counter()
             self._emit(b"".join(p for _, p in out), t_end, t_end, now)
             self.replies += len(out) - 1
+
+    def _status(self, servo, reply_id: int, params: bytes) -> bytes | None:
+        """One servo's status packet, or None when a fault drops it."""
+        if servo.drop:
+            servo.drop -= 1
+            return None
+        if servo.removed:
+            return None
+        packet = status_packet(reply_id, self.error_byte(servo), params)
+        if servo.corrupt:
+            servo.corrupt -= 1
+            packet = packet[:-1] + bytes(((packet[-1] + 1) & 0xFF,))
+        return packet
 
     def _emit(self, data: bytes, deadline: float, t_end: float, now: float | None = None) -> None:
         try:
