@@ -54,8 +54,25 @@ def test_sign_magnitude_round_trips_with_lerobots_own_encoder():
             assert decode_sign_magnitude(raw, bit) == encoding.decode_sign_magnitude(raw, bit)
 
 
-def test_model_number_resolution_and_baud_rates_match():
+def test_model_number_and_resolution_match():
     assert tables.MODEL_NUMBER_TABLE[MODEL] == MODEL_NUMBER
     assert tables.MODEL_RESOLUTION[MODEL] == RESOLUTION
-    assert {rate: code for code, rate in BAUD_RATES.items()} == \
-        tables.MODEL_BAUDRATE_TABLE[MODEL]
+
+
+# Baud_Rate codes 5-7 of the STS3215 per Feetech (its memory table, address 6, and its SDK's
+# SMS_STS.h: SMS_STS_76800 5, SMS_STS_57600 6, SMS_STS_38400 7), written here by hand.
+FEETECH_CODES_5_TO_7 = {5: 76_800, 6: 57_600, 7: 38_400}
+
+
+def test_baud_rates_are_feetechs_where_lerobots_table_disagrees():
+    """lerobot's table shifts codes 5-7 one rate down (57 600 / 38 400 / 19 200).
+
+    A servo obeys Feetech's firmware, not lerobot's table; lerobot itself only ever
+    writes code 0 (1 Mbit/s), so its table's error never reaches a SO-101. The
+    emulator follows the servo: codes 0-4 agree, 5-7 are Feetech's.
+    """
+    theirs = {code: rate for rate, code in tables.MODEL_BAUDRATE_TABLE[MODEL].items()}
+    assert {c: BAUD_RATES[c] for c in range(5)} == {c: theirs[c] for c in range(5)}
+    assert {c: BAUD_RATES[c] for c in range(5, 8)} == FEETECH_CODES_5_TO_7
+    if theirs[5] == 57_600:  # lerobot still has its own table: say so if it is ever fixed
+        assert {c: theirs[c] for c in range(5, 8)} == {5: 57_600, 6: 38_400, 7: 19_200}

@@ -31,9 +31,11 @@ Design
   it (0.88 ms of wire); see :func:`measure_cycle`.
 - Protocol 0 (``FF FF ID LEN INST P.. CHK``): PING (also broadcast: every servo
   answers, in id order), READ, WRITE, SYNC_READ (replies in the request's id
-  order), SYNC_WRITE and broadcast WRITE (never answered). Packets with a bad
-  checksum are ignored, as a servo does. REG_WRITE/ACTION/RESET are not
-  emulated (lerobot does not send them): they are ignored.
+  order), SYNC_WRITE and broadcast WRITE (never answered), and what other
+  clients send: REG_WRITE + ACTION, RESET, BACKUP, RESTART, calibration
+  (``virtual/instructions.py``; the coverage table is docs/virtual_arm_protocol.md).
+  Packets with a bad checksum and unknown instructions are ignored, as a servo
+  does. Servos sharing an ID all obey and their replies collide.
 - A servo only understands the host when the pty's baud rate (set by pyserial)
   equals its Baud_Rate register, so baud scans behave as on a real bus. (Rates
   termios cannot name, 128000 and 250000, read as "unchanged".) Wire timing

@@ -9,9 +9,7 @@ import time
 
 from so101_kinematics import cube_sensor
 from so101_kinematics.virtual.protocol import ADDR, EEPROM_END, ERROR_BITS, FIRMWARE
-
-FACTORY_ID = 1  # every STS3215 leaves the factory as ID 1 ...
-FACTORY_BAUD_RATE = 0  # ... at 1 Mbit/s (Baud_Rate register value 0)
+from so101_kinematics.virtual.servo import FACTORY_ID, factory_eeprom
 
 logger = logging.getLogger("virtual_so101")
 
@@ -62,11 +60,9 @@ class ParentCommands:
         one has been given a new ID and its baud rate, or on :meth:`plug_next`.
         """
         for servo in self.by_joint.values():
-            for name, value in (("ID", FACTORY_ID), ("Baud_Rate", FACTORY_BAUD_RATE),
-                                ("Homing_Offset", 0), ("Min_Position_Limit", 0),
-                                ("Max_Position_Limit", 4095), ("Return_Delay_Time", 250)):
-                servo.set(name, value)
+            servo.regs[:EEPROM_END] = factory_eeprom()
             servo.saved = bytes(servo.regs[:EEPROM_END])
+            servo.load_torque_limit()
             servo.plugged = False
             servo.sync_cache()
         self.factory_queue = list(reversed(self.by_joint.values()))
@@ -86,6 +82,26 @@ class ParentCommands:
         """After a Baud_Rate write: a renumbered servo is set up, the next one is plugged in."""
         if self.factory_queue and servo.id != FACTORY_ID:
             self.plug_next()
+
+    def power_up(self, servo) -> None:
+        """The servo's power cut and restored: RAM to factory values, EEPROM to what was saved.
+
+        Torque_Limit is loaded from Max_Torque_Limit; the parameter backup (instruction
+        0x09) is in flash and stays.
+        """
+        eeprom = servo.saved
+        gains = servo.kp, servo.kv, servo.max_force  # the model's, before any torque change
+        kept = servo.plugged, servo.temperature, servo.backup  # wiring; heat; flash
+        servo.__init__(servo.joint, servo.cal, self.m)
+        servo.kp, servo.kv, servo.max_force = gains
+        servo.plugged, servo.temperature, servo.backup = kept
+        servo.regs[:EEPROM_END] = eeprom
+        servo.saved = eeprom
+        servo.load_torque_limit()
+        servo.sync_cache()
+        self._apply_torque(servo)
+        self.servos = {s.id: s for s in self.by_joint.values()}
+        self.update_listening()
 
     def unplug(self) -> None:
         """The USB cable pulled out: the port vanishes; the servos keep their last goals."""
@@ -211,18 +227,7 @@ class ParentCommands:
             return {reg: servo.get(reg) for reg in ADDR}
         if name == "power_cycle":
             for servo in self.by_joint.values():
-                eeprom = servo.saved
-                gains = servo.kp, servo.kv, servo.max_force  # the model's, before any torque change
-                kept = servo.plugged, servo.temperature  # the bus's wiring; the servo's heat
-                servo.__init__(servo.joint, servo.cal, self.m)
-                servo.kp, servo.kv, servo.max_force = gains
-                servo.plugged, servo.temperature = kept
-                servo.regs[:EEPROM_END] = eeprom
-                servo.saved = eeprom
-                servo.sync_cache()
-                self._apply_torque(servo)
-            self.servos = {s.id: s for s in self.by_joint.values()}
-            self.update_listening()
+                self.power_up(servo)
             return None
         if name == "reply_stats":
             lateness = sorted(self.lateness)

@@ -3,7 +3,8 @@
 It runs in its own interpreter, started by :class:`so101_kinematics.virtual.arm.VirtualSO101`
 (entry point :func:`emulator_main`), and serves the bus and steps the physics
 in one single-threaded event loop; the parent's commands arrive on a socket pair.
-What the registers do to the arm is ``virtual/registers.py``'s.
+What the instructions do is ``virtual/instructions.py``'s, what the registers do to the
+arm ``virtual/registers.py``'s.
 """
 from __future__ import annotations
 
@@ -19,27 +20,16 @@ import tty
 from collections import deque
 from multiprocessing.connection import Connection
 
-from so101_kinematics import cube_sensor
 from so101_kinematics.virtual.commands import ParentCommands
 from so101_kinematics.virtual.electrical import SUPPLY_V, THERMAL_TIME_S
 from so101_kinematics.virtual.hand import Hand
-from so101_kinematics.virtual.protocol import (
-    BITS_PER_BYTE,
-    BROADCAST_ID,
-    INST_PING,
-    INST_READ,
-    INST_SYNC_READ,
-    INST_SYNC_WRITE,
-    INST_WRITE,
-    status_packet,
-    take_packets,
-)
+from so101_kinematics.virtual.instructions import BusInstructions
+from so101_kinematics.virtual.protocol import take_packets
 from so101_kinematics.virtual.registers import GOAL_LOG_LENGTH, ServoRegisters  # noqa: F401
 from so101_kinematics.virtual.servo import VirtualServo
 
 logger = logging.getLogger("virtual_so101")
 
-LATE_REPLY = 0.045  # [s] after this, lerobot (50 ms timeout) may have given up
 TCGETS2 = 0x802C542A  # Linux ioctl: struct termios2, whose c_ospeed is the exact rate [bit/s]
 
 
@@ -54,8 +44,8 @@ def pty_baud_rate(fd: int) -> int | None:
                      if getattr(termios, f"B{b}", None) == speed), None)
 
 
-class _Emulator(ServoRegisters, ParentCommands, Hand):
-    """The event loop of the emulator process: the pty and the protocol."""
+class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
+    """The event loop of the emulator process: the pty, the physics, the parent's commands."""
 
     def __init__(self, conn, options: dict):
         import mujoco
@@ -160,110 +150,6 @@ class _Emulator(ServoRegisters, ParentCommands, Hand):
         if rx:
             self.rx_partial_since = now
 
-    def handle(self, packet: bytes, t_seen: float) -> None:
-        target, inst, params = packet[2], packet[4], packet[5:-1]
-        tpb = BITS_PER_BYTE / max(1, self.host_baud)
-        if self.wire_timing:  # the request ends on the wire after its bytes (queued behind others)
-            t_end = max(t_seen, self.wire_free) + len(packet) * tpb
-            self.wire_free = t_end
-        else:
-            t_end = t_seen
-        listening = self.listening
-        replies: list[tuple[VirtualServo, bytes]] = []
-        if target == cube_sensor.SENSOR_ID:  # the lab's cube sensor: READ only, never PING
-            index = cube_sensor.index_of(*params) if inst == INST_READ and len(params) == 2 \
-                else None
-            if index is not None:
-                self.send_sensor(self.cube_reading(index), t_end, tpb)
-            return
-        reply_id = None  # the id a reply comes from, when it is not the servo's (a new ID)
-        if inst == INST_PING:
-            if target == BROADCAST_ID:
-                replies = [(s, b"") for _, s in sorted(listening.items())]
-            elif target in listening:
-                replies = [(listening[target], b"")]
-        elif inst == INST_READ and len(params) == 2 and target in listening:
-            servo = listening[target]
-            replies = [(servo, self.read(servo, params[0], params[1]))]
-        elif inst == INST_WRITE and len(params) >= 2:
-            addr, data = params[0], params[1:]
-            targets = list(listening.values()) if target == BROADCAST_ID else (
-                [listening[target]] if target in listening else [])
-            if target != BROADCAST_ID and targets and targets[0].regs[8] != 0:
-                replies = [(targets[0], b"")]  # built before the write: from the addressed ID
-                reply_id = target
-            for servo in targets:
-                self.write(servo, addr, data)
-        elif inst == INST_SYNC_READ and target == BROADCAST_ID and len(params) >= 2:
-            addr, size = params[0], params[1]
-            for servo_id in params[2:]:
-                servo = listening.get(servo_id)
-                if servo is not None:
-                    replies.append((servo, self.read(servo, addr, size)))
-        elif inst == INST_SYNC_WRITE and target == BROADCAST_ID and len(params) >= 2:
-            addr, size = params[0], params[1]
-            body = params[2:]
-            for i in range(0, len(body) - size, size + 1):
-                servo = listening.get(body[i])
-                if servo is not None:
-                    self.write(servo, addr, body[i + 1:i + 1 + size])
-        if replies:
-            self.send(replies, t_end, tpb, reply_id)
-
-    def send_sensor(self, data: bytes, t_end: float, tpb: float) -> None:
-        """The cube sensor's reply: no error bits, no servo faults (the bus-wide ones apply)."""
-        packet = status_packet(cube_sensor.SENSOR_ID, 0, data)
-        deadline = t_end + len(packet) * tpb
-        if self.wire_timing:
-            _wait_until(deadline)
-        self._emit(packet, deadline, t_end)
-
-    def send(self, replies: list[tuple[VirtualServo, bytes]], t_end: float, tpb: float,
-             reply_id: int | None = None) -> None:
-        t_ready = t_end
-        out = []
-        for servo, params in replies:
-            if servo.drop:
-                servo.drop -= 1
-                continue
-            if servo.removed:
-                continue
-            packet = status_packet(servo.id if reply_id is None else reply_id,
-                                   self.error_byte(servo), params)
-            if servo.corrupt:
-                servo.corrupt -= 1
-                packet = packet[:-1] + bytes(((packet[-1] + 1) & 0xFF,))
-            t_ready += servo.return_delay + len(packet) * tpb
-            out.append((t_ready, packet))
-        if not out:
-            return
-        if self.latency_left > 0:  # late replies (injected): the whole batch waits
-            self.latency_left -= 1
-            out = [(ready + self.latency, packet) for ready, packet in out]
-            t_ready += self.latency
-            if not self.wire_timing:
-                _wait_until(t_ready)
-        if self.wire_timing:
-            self.wire_free = t_ready
-            for deadline, packet in out:
-                _wait_until(deadline)
-                self._emit(packet, deadline, t_end)
-        else:
-            now = time.perf_counter()
-            self._emit(b"".join(p for _, p in out), t_end, t_end, now)
-            self.replies += len(out) - 1
-
-    def _emit(self, data: bytes, deadline: float, t_end: float, now: float | None = None) -> None:
-        try:
-            os.write(self.master, data)
-        except BlockingIOError:  # nobody reads the port: the bytes are lost on the wire
-            pass
-        now = time.perf_counter() if now is None else now
-        self.replies += 1
-        self.lateness.append(time.perf_counter() - deadline)
-        if now - t_end > LATE_REPLY:
-            self.late += 1
-
     def run(self) -> None:
         self.conn.send(("ready", self.port))
         master, conn = self.master, self.conn
@@ -289,24 +175,6 @@ class _Emulator(ServoRegisters, ParentCommands, Hand):
                 except Exception as exc:  # noqa: BLE001 - handed to the caller
                     conn.send(("err", exc))
             self.step_physics()
-
-
-SPIN_S = float(os.environ.get("VIRTUAL_SO101_SPIN_S", "1e-4"))  # [s] busy-wait before a reply
-
-
-def _wait_until(deadline: float) -> None:
-    """Sleep, then spin the last ``SPIN_S``, until ``time.perf_counter() >= deadline``.
-
-    The process runs with a 1 us timer slack (:func:`_tighten_timer_slack`),
-    so a short sleep wakes within tens of microseconds; sleeping rather than
-    spinning keeps the emulator a light, interactive task for the scheduler,
-    which then wakes it promptly on a busy machine.
-    """
-    remaining = deadline - time.perf_counter()
-    if remaining > SPIN_S:
-        time.sleep(remaining - SPIN_S)
-    while time.perf_counter() < deadline:
-        pass
 
 
 def _raise_priority() -> None:

@@ -26,12 +26,20 @@ from __future__ import annotations
 MODEL_NUMBER = 777
 FIRMWARE = (3, 10)
 RESOLUTION = 4096  # encoder ticks per turn
-BAUD_RATES = {0: 1_000_000, 1: 500_000, 2: 250_000, 3: 128_000, 4: 115_200, 5: 57_600,
-              6: 38_400, 7: 19_200}  # Baud_Rate register value -> [bit/s]
+# Baud_Rate register value -> [bit/s], as Feetech's memory table (ftservo/ftservo-wiki,
+# docs/en/reference/parameter/memory-sts.md, address 6) and its SDK headers (SMS_STS.h) give them.
+# lerobot's STS_SMS_SERIES_BAUDRATE_TABLE says 57 600 / 38 400 / 19 200 for codes 5-7: a servo
+# follows Feetech's (lerobot itself only ever writes code 0).
+BAUD_RATES = {0: 1_000_000, 1: 500_000, 2: 250_000, 3: 128_000, 4: 115_200, 5: 76_800,
+              6: 57_600, 7: 38_400}
 BITS_PER_BYTE = 10  # on the wire: start bit, 8 data bits, stop bit
 
 # --- protocol 0 ----------------------------------------------------------------------------------
 INST_PING, INST_READ, INST_WRITE = 0x01, 0x02, 0x03
+INST_REG_WRITE, INST_ACTION = 0x04, 0x05  # a write held until ACTION (Registered flag, addr 64)
+INST_RESET = 0x06  # Feetech's "parameter recovery": every parameter but the ID restored
+INST_RESTART, INST_BACKUP = 0x08, 0x09  # restart the servo; back up the parameters for 0x06
+INST_RESET_TURNS, INST_CALIBRATE = 0x0A, 0x0B  # clear the turn count; present := middle / value
 INST_SYNC_READ, INST_SYNC_WRITE = 0x82, 0x83
 BROADCAST_ID = 0xFE
 ERR_VOLTAGE = 0x01  # status error bits (the status packet's error byte and the Status register)
@@ -51,7 +59,10 @@ ADDR = {
     "I_Coefficient": (23, 1), "Minimum_Startup_Force": (24, 2), "CW_Dead_Zone": (26, 1),
     "CCW_Dead_Zone": (27, 1), "Protection_Current": (28, 2), "Angular_Resolution": (30, 1),
     "Homing_Offset": (31, 2), "Operating_Mode": (33, 1), "Protective_Torque": (34, 1),
-    "Protection_Time": (35, 1), "Overload_Torque": (36, 1), "Torque_Enable": (40, 1),
+    "Protection_Time": (35, 1), "Overload_Torque": (36, 1),
+    "Velocity_closed_loop_P_proportional_coefficient": (37, 1),
+    "Over_Current_Protection_Time": (38, 1),
+    "Velocity_closed_loop_I_integral_coefficient": (39, 1), "Torque_Enable": (40, 1),
     "Acceleration": (41, 1), "Goal_Position": (42, 2), "Goal_Time": (44, 2),
     "Goal_Velocity": (46, 2), "Torque_Limit": (48, 2), "Lock": (55, 1),
     "Present_Position": (56, 2), "Present_Velocity": (58, 2), "Present_Load": (60, 2),
@@ -62,6 +73,7 @@ SIGN_BITS = {"Homing_Offset": 11, "Goal_Position": 15, "Goal_Velocity": 15,
              "Present_Position": 15, "Present_Velocity": 15, "Present_Load": 10}
 EEPROM_END = 40  # addresses below are EEPROM (saved when Lock = 0)
 READ_ONLY = set(range(0, 5)) | set(range(56, 80))
+REGISTERED = 64  # the Registered (asynchronous write) flag: 1 from REG_WRITE until ACTION
 
 
 # --- sign-magnitude ------------------------------------------------------------------------------
@@ -131,6 +143,63 @@ def take_packets(rx: bytearray) -> list[bytes]:
         del rx[:total]
         packets.append(packet)
     return packets
+
+
+# --- a shared half-duplex line --------------------------------------------------------------------
+UART_OVERSAMPLING = 16  # samples per bit of a UART receiver (the usual 16x clock)
+
+
+def collide(packets: list[bytes], baud: int, skew_s: float) -> bytes:
+    """What a receiver decodes when several transmitters answer on one line at once.
+
+    Each packet is sent as 8N1 frames (start 0, 8 data bits LSB first, stop 1, idle 1),
+    the k-th one ``k * skew_s`` later; a driven 0 wins (the line is the AND of the
+    transmitters). The receiver samples each bit in its middle; a frame whose stop
+    bit reads 0 is a framing error, delivered as a 0 byte (termios without IGNPAR or
+    PARMRK). Equal packets with no skew come through intact; anything else is garbled.
+
+    Args:
+        packets: the packets, in the order their transmitters start.
+        baud: the line's rate [bit/s].
+        skew_s: [s] the delay between one transmitter's start and the next one's.
+
+    Returns:
+        The bytes the receiver delivers.
+
+    Example (two servos answer a PING to ID 1 at 1 Mbit/s, 2 us apart)::
+
+        >>> ping = status_packet(1, 0)
+        >>> collide([ping, ping], 1_000_000, 0.0) == ping
+        True
+        >>> collide([ping, ping], 1_000_000, 2e-6) == ping
+        False
+    """
+    n = UART_OVERSAMPLING
+    shift = round(skew_s * baud * n)
+    length = max(len(p) * BITS_PER_BYTE * n + k * shift for k, p in enumerate(packets)) + n
+    line = [1] * length
+    for k, packet in enumerate(packets):
+        start = k * shift
+        for i, byte in enumerate(packet):
+            bits = [0] + [byte >> b & 1 for b in range(8)] + [1]
+            for j, bit in enumerate(bits):
+                if not bit:
+                    at = start + (i * BITS_PER_BYTE + j) * n
+                    line[at:at + n] = [0] * n
+    out = bytearray()
+    t, previous = 0, 1
+    while t < length:
+        if previous == 1 and line[t] == 0 and t + (BITS_PER_BYTE - 1) * n + n // 2 < length:
+            mid = t + n // 2
+            if line[mid] == 0:  # a start bit, not a glitch
+                data = sum(line[mid + b * n] << (b - 1) for b in range(1, 9))
+                stop = mid + 9 * n
+                out.append(data if line[stop] else 0)
+                t, previous = stop, line[stop]
+                continue
+        previous = line[t]
+        t += 1
+    return bytes(out)
 
 
 # --- wire time -----------------------------------------------------------------------------------

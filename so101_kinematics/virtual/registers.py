@@ -232,10 +232,14 @@ class ServoRegisters:
         for i, byte in enumerate(data):
             if addr + i not in READ_ONLY and addr + i < 256:
                 regs[addr + i] = byte
+        touched = set(range(addr, addr + len(data)))
+        if 40 in touched and regs[40] == 128:  # "calibrate the present position to 2048"
+            regs[40] = int(was_on)  # reads back 0/1: torque stays as it was
+            self.set_present(servo, 2048)
+            touched |= {31, 32}
         if addr < EEPROM_END and regs[55] == 0:
             servo.saved = bytes(regs[:EEPROM_END])
         servo.sync_cache()
-        touched = set(range(addr, addr + len(data)))
         if servo.id != old_id or touched & {6}:
             self.servos = {s.id: s for s in self.by_joint.values()}
             self.update_listening()
@@ -251,6 +255,25 @@ class ServoRegisters:
             if touched & {42, 43}:
                 self.goal_log.append((time.time(), servo.id, servo.get("Goal_Position")))
 
+    def set_present(self, servo: VirtualServo, value: int) -> None:
+        """Set Homing_Offset so that Present_Position reads ``value`` where the joint is now.
+
+        Torque_Enable = 128 (value 2048) and the calibration instruction 0x0B do this
+        (Feetech's memory table; STS firmware >= 3.10). The offset is sign-magnitude with
+        its sign at bit 11, so it stays within +-2047 (an encoder 2048 counts away from
+        ``value`` reads ``value`` - 1). Saved like any EEPROM write (Lock = 0); a servo
+        with torque on holds where it is.
+        """
+        angle = servo.stalled_at if servo.stalled_at is not None else float(self.d.qpos[servo.qadr])
+        encoder = (servo.angle_to_present(angle) + servo.get("Homing_Offset")) % RESOLUTION
+        offset = (encoder - value + RESOLUTION // 2) % RESOLUTION - RESOLUTION // 2
+        servo.set("Homing_Offset", max(-2047, offset))
+        if servo.regs[55] == 0:
+            servo.saved = bytes(servo.regs[:EEPROM_END])
+        servo.sync_cache()
+        if servo.torque:
+            self._hold(servo)
+
     def read(self, servo: VirtualServo, addr: int, size: int) -> bytes:
         """``size`` bytes from ``addr``, the Present_* registers refreshed from the simulation."""
         end = addr + size
@@ -259,7 +282,13 @@ class ServoRegisters:
         return bytes(servo.regs[addr:end]).ljust(size, b"\0")
 
     def update_listening(self) -> None:
-        """The servos that hear the host: present, and at the host's baud rate."""
-        self.listening = {s.id: s for s in self.by_joint.values()
-                          if s.plugged and not s.removed and s.baud == self.host_baud}
+        """The servos that hear the host, by ID: present, and at the host's baud rate.
+
+        Two servos may share an ID (two new ones on one bus): both hear and obey.
+        """
+        listening: dict[int, list[VirtualServo]] = {}
+        for s in self.by_joint.values():
+            if s.plugged and not s.removed and s.baud == self.host_baud:
+                listening.setdefault(s.id, []).append(s)
+        self.listening = listening
 

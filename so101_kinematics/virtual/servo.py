@@ -24,7 +24,13 @@ from so101_kinematics.virtual.protocol import (
     encode_sign_magnitude,
 )
 
-# Factory values; Return_Delay_Time as lerobot leaves it (see virtual_so101: deviations).
+# Factory values. Source: Feetech's STS3215 memory table (the spreadsheet lerobot's tables.py
+# links to, "Initial value" column; the same values where ftservo/ftservo-wiki's
+# docs/en/reference/parameter/memory-sts.md gives one), except: Return_Delay_Time as lerobot leaves
+# it (see virtual_so101: deviations; a new servo's is FACTORY_RETURN_DELAY), Max_Voltage_Limit
+# 14.0 V (the 12 V C018's; the table's 8.0 V is the 7.4 V C001's, and the virtual arm's supply is
+# 12 V), Lock 1 (the wiki; the spreadsheet says 0). Addresses 80-86 (speed and acceleration
+# factory parameters, read-only) have no public value: they read 0.
 FACTORY = {
     "Firmware_Major_Version": FIRMWARE[0], "Firmware_Minor_Version": FIRMWARE[1],
     "Model_Number": MODEL_NUMBER, "Baud_Rate": 0, "Return_Delay_Time": 0,
@@ -34,9 +40,33 @@ FACTORY = {
     "P_Coefficient": 32, "D_Coefficient": 32, "I_Coefficient": 0, "Minimum_Startup_Force": 16,
     "CW_Dead_Zone": 1, "CCW_Dead_Zone": 1, "Protection_Current": 500, "Angular_Resolution": 1,
     "Homing_Offset": 0, "Operating_Mode": 0, "Protective_Torque": 20, "Protection_Time": 200,
-    "Overload_Torque": 80, "Torque_Enable": 0, "Acceleration": 0, "Torque_Limit": 1000,
+    "Overload_Torque": 80, "Velocity_closed_loop_P_proportional_coefficient": 10,
+    "Over_Current_Protection_Time": 200, "Velocity_closed_loop_I_integral_coefficient": 10,
+    "Torque_Enable": 0, "Acceleration": 0, "Torque_Limit": 1000,
     "Lock": 1, "Present_Voltage": 120, "Present_Temperature": 25, "Maximum_Acceleration": 0,
 }
+FACTORY_ID = 1  # every STS3215 leaves the factory as ID 1 ...
+FACTORY_BAUD_RATE = 0  # ... at 1 Mbit/s (Baud_Rate register value 0) ...
+FACTORY_RETURN_DELAY = 250  # ... answering 500 us after a request (lerobot's configure writes 0)
+
+
+def factory_eeprom() -> bytes:
+    """A new STS3215's EEPROM (addresses 0-39): :data:`FACTORY` as it leaves the factory."""
+    regs = bytearray(256)
+    for name, value in {**FACTORY, "ID": FACTORY_ID, "Baud_Rate": FACTORY_BAUD_RATE,
+                        "Return_Delay_Time": FACTORY_RETURN_DELAY}.items():
+        _store(regs, name, value)
+    return bytes(regs[:EEPROM_END])
+
+
+def _store(regs: bytearray, name: str, value: int) -> None:
+    addr, size = ADDR[name]
+    if name in SIGN_BITS:
+        value = encode_sign_magnitude(int(value), SIGN_BITS[name])
+    value = int(value) & (0xFF if size == 1 else 0xFFFF)
+    regs[addr] = value & 0xFF
+    if size == 2:
+        regs[addr + 1] = value >> 8
 
 
 class VirtualServo:
@@ -67,6 +97,9 @@ class VirtualServo:
         self.set("Min_Position_Limit", cal["range_min"])
         self.set("Max_Position_Limit", cal["range_max"])
         self.saved = bytes(self.regs[:EEPROM_END])
+        self.load_torque_limit()
+        self.registered: tuple[int, bytes] | None = None  # REG_WRITE's (address, data) until ACTION
+        self.backup = factory_eeprom()  # what RESET (0x06) restores; BACKUP (0x09) replaces it
         # faults
         self.drop = 0
         self.corrupt = 0
@@ -92,6 +125,10 @@ class VirtualServo:
         self.delta = self.cal["homing_offset"] - self.get("Homing_Offset")
         self.return_delay = 2e-6 * self.regs[7]
 
+    def load_torque_limit(self) -> None:
+        """Power-up: Torque_Limit (48) := Max_Torque_Limit (16), as the memory table says."""
+        self.set("Torque_Limit", self.get("Max_Torque_Limit"))
+
     def get(self, name: str) -> int:
         """The named register's value (sign-magnitude registers decoded)."""
         addr, size = ADDR[name]
@@ -100,13 +137,7 @@ class VirtualServo:
 
     def set(self, name: str, value: int) -> None:
         """Store ``value`` in the named register (sign-magnitude registers encoded)."""
-        addr, size = ADDR[name]
-        if name in SIGN_BITS:
-            value = encode_sign_magnitude(int(value), SIGN_BITS[name])
-        value = int(value) & (0xFF if size == 1 else 0xFFFF)
-        self.regs[addr] = value & 0xFF
-        if size == 2:
-            self.regs[addr + 1] = value >> 8
+        _store(self.regs, name, value)
 
     def angle_to_present(self, angle: float) -> int:
         """Joint angle [rad] -> Present_Position with the current Homing_Offset register."""
