@@ -2,7 +2,11 @@
 
 Figures (medians over repeats, with spread):
   - sim_realtime_factor: simulated seconds per wall second of the whole
-    default plan with the free cube, headless (goal >= 100);
+    default plan with the free cube, headless, on the default servo (the STS3215 model
+    with the gravity feed-forward) (goal >= 100);
+  - sim_realtime_factor_ideal_servo: reference, the same run with --servo ideal (the
+    upstream position actuator: no Python per physics step), and servo_model_cost, the
+    ratio of the two;
   - pick_place_us_per_step: the same as wall time per physics step (the
     model's timestep, 4 ms);
   - sim_realtime_factor_half_step: reference, the same run with a 2 ms step
@@ -43,15 +47,19 @@ def bench_pick_place(quick: bool) -> dict:
     out: dict = {}
     run_pick_place()  # warm-up: compile caches, meshes
     timestep = build_model(physics_only=True).opt.timestep  # [s]
-    factors, per_step, half_step = [], [], []
+    factors, per_step, half_step, ideal = [], [], [], []
     for _ in range(3 if quick else 7):
         report = run_pick_place()
         factors.append(report.realtime_factor)
+        ideal.append(run_pick_place(servo={"mode": "ideal"}).realtime_factor)
         per_step.append(report.wall_time_s / round(report.sim_time_s / timestep) * 1e6)
         half_step.append(run_pick_place(timestep=timestep / 2).realtime_factor)
     out["sim_realtime_factor"] = summarize(factors)
     out["pick_place_us_per_step"] = summarize(per_step)
     out["sim_realtime_factor_half_step"] = summarize(half_step)
+    out["sim_realtime_factor_ideal_servo"] = summarize(ideal)
+    out["servo_model_cost"] = (out["sim_realtime_factor_ideal_servo"]["median"]
+                               / out["sim_realtime_factor"]["median"])
     arm = build_model(render_meshes=True)
     d = mujoco.MjData(arm)
     mujoco.mj_resetDataKeyframe(arm, d, arm.key("home").id)
