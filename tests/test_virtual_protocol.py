@@ -114,7 +114,7 @@ def test_torque_enable_128_makes_the_present_position_2048(raw, arm):
     before = arm.joint_positions()["wrist_flex"]
     assert read(raw, 4, PRESENT, 2) != 2048
     assert ask(raw, 4, fp.INST_WRITE, [40, 128]) == [(4, 0, b"")]
-    assert abs(read(raw, 4, PRESENT, 2) - 2048) <= 1
+    assert abs(read(raw, 4, PRESENT, 2) - 2048) <= 2  # the encoder reads a count off at times
     assert read(raw, 4, 40) == 1  # reads back 0/1: torque stays on
     time.sleep(0.3)
     assert abs(arm.joint_positions()["wrist_flex"] - before) < 1.0  # it did not jump
@@ -180,10 +180,6 @@ def test_two_factory_servos_on_one_bus_collide():
 
 
 # --- the servo model's rows of the issue (issue 25): expected to pass once it lands -----------
-SERVO_MODEL = pytest.mark.xfail(reason="servo model, issue 25", strict=False)
-
-
-@SERVO_MODEL
 def test_acceleration_and_goal_velocity_shape_a_position_move(raw):
     """Acceleration 10 (1000 counts/s^2), Goal_Velocity 100 counts/s: 400 counts take ~4 s."""
     start = read(raw, 1, PRESENT, 2)
@@ -194,7 +190,6 @@ def test_acceleration_and_goal_velocity_shape_a_position_move(raw):
     assert abs(read(raw, 1, PRESENT, 2) - start) < 250
 
 
-@SERVO_MODEL
 def test_wheel_mode_spins_at_goal_velocity(raw):
     start = read(raw, 5, PRESENT, 2)  # wrist_roll
     ask(raw, 5, fp.INST_WRITE, [33, 1])  # Operating_Mode 1: constant speed
@@ -203,7 +198,6 @@ def test_wheel_mode_spins_at_goal_velocity(raw):
     assert abs(read(raw, 5, PRESENT, 2) - start) > 150
 
 
-@SERVO_MODEL
 def test_a_reading_at_rest_moves_by_a_count_or_two(raw):
     readings = {read(raw, 2, PRESENT, 2) for _ in range(50)}
     assert 1 < len(readings) and max(readings) - min(readings) <= 4

@@ -118,6 +118,7 @@ class ServoBank:
                 kick = accel * dt
                 speed += max(-kick, min(kick, wanted - speed))
                 target += speed * dt
+                targets[k], speeds[k] = target, speed
             elif speed or target != goal:  # the fastest speed that still stops on the goal
                 distance = goal - target
                 wanted = copysign(min(vmax, sqrt(2 * accel * abs(distance)), abs(distance) / dt),

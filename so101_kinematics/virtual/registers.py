@@ -25,6 +25,7 @@ overheat/voltage/overload status bits follow ``virtual/electrical.py``'s model.
 from __future__ import annotations
 
 import math
+import random
 import time
 
 from so101_kinematics import servo as servo_facts
@@ -42,6 +43,9 @@ from so101_kinematics.virtual.servo import VirtualServo
 
 STALL_LOAD_RATE = 2000.0  # [0.1 % per s] Present_Load rise of a stalled servo
 HAND_GAINS = IDEAL_GAINS  # a hand guiding a limp joint: the upstream model's stiff spring
+ENCODER_NOISE = 0.3
+"""How often a Present_Position reading is a count off (either way, seeded): a real STS3215 at
+rest reads a count or two apart from one read to the next (issue 26, clients on real arms)."""
 SETTING_ADDRESSES = {16, 21, 22, 23, 24, 26, 27, 33, 41, 44, 45, 46, 47, 48}
 """Registers that change the servo's loop (gains, dead zone, mode, profile, torque limit)."""
 
@@ -75,6 +79,7 @@ class ServoRegisters:
     # --- physics --------------------------------------------------------------------------
     def make_servo_bank(self, variant: str | None = None) -> None:
         """The servos' dynamics (``sim/sts3215.py``), in ``JOINTS`` order, at the supply."""
+        self.noise = random.Random(4096)  # the encoders' reading noise (ENCODER_NOISE), seeded
         self.order = [self.by_joint[j] for j in JOINTS if j in self.by_joint]
         for index, s in enumerate(self.order):
             s.index = index
@@ -121,7 +126,7 @@ class ServoRegisters:
             self.steps += due - 25
             due = 25
         m, d, step = self.m, self.d, self.mujoco.mj_step
-        stalled = [s for s in self.servos.values() if s.stalled_at is not None]
+        stalled = [s for s in self.by_joint.values() if s.stalled_at is not None]
         acts, qadr, torques, bias = self.bank_acts, self.bank_qadr, self.bank.torques, \
             m.actuator_biasprm
         ctrl, qpos = d.ctrl, d.qpos
@@ -177,7 +182,9 @@ class ServoRegisters:
         """Update the servo's Present_* registers overlapping [lo, hi) from the simulation."""
         d, regs = self.d, servo.regs
         angle = servo.stalled_at if servo.stalled_at is not None else float(d.qpos[servo.qadr])
-        present = round(servo.base + servo.scale * angle + servo.delta) % RESOLUTION
+        noise = self.noise.random()
+        jitter = -1 if noise < ENCODER_NOISE / 2 else 1 if noise > 1 - ENCODER_NOISE / 2 else 0
+        present = (round(servo.base + servo.scale * angle + servo.delta) + jitter) % RESOLUTION
         regs[56] = present & 0xFF
         regs[57] = present >> 8
         if not servo.torque:  # the STS keeps Goal_Position on Present_Position while limp
