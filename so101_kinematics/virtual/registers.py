@@ -278,8 +278,8 @@ class ServoRegisters:
         if servo.regs[55] == 0:
             servo.saved = bytes(servo.regs[:EEPROM_END])
         servo.sync_cache()
-        if servo.torque:
-            self._hold(servo)
+        if servo.torque:  # the same goal angle, in the new frame: the servo holds as it held
+            servo.set("Goal_Position", servo.angle_to_present(float(self.d.ctrl[servo.act])))
 
     def read(self, servo: VirtualServo, addr: int, size: int) -> bytes:
         """``size`` bytes from ``addr``, the Present_* registers refreshed from the simulation."""
