@@ -201,6 +201,7 @@ class ParentCommands:
                 if servo.stalled_at is not None:
                     servo.stalled_at = float(self.d.qpos[servo.qadr])
                 self._hold(servo)
+            self.rest_in_place()  # put down there: the torqued servos hold it without a sag
             return None
         if name == "set_torque":
             for servo in self.by_joint.values():

@@ -101,6 +101,7 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
             servo.sync_cache()
             self._apply_torque(servo)
             self._hold(servo)
+        self.rest_in_place()  # powered up where it was put down: holding it, no sag
         if options.get("hand_holds"):  # a hand rests on the limp arm: it does not sag
             self.hand_move([])
         self.update_listening()

@@ -30,6 +30,7 @@ import time
 
 from so101_kinematics import servo as servo_facts
 from so101_kinematics.frames import JOINTS
+from so101_kinematics.gravity import feedforward
 from so101_kinematics.sim.actuation import IDEAL_GAINS
 from so101_kinematics.sim.sts3215 import ServoBank
 from so101_kinematics.virtual.calibration import TICKS_PER_RAD
@@ -116,6 +117,24 @@ class ServoRegisters:
         servo.set("Goal_Position", servo.angle_to_present(angle))
         self.d.ctrl[servo.act] = angle
         self.bank.reset_target(servo.index, round(angle * servo_facts.COUNTS_PER_RAD))
+
+    def rest_in_place(self) -> None:
+        """Each torqued servo holds its joint where it is, at rest, without a sag.
+
+        Its goal is the pose plus the error at which it holds gravity there
+        (``gravity.feedforward`` at its registers and the supply), as after a move with
+        the feed-forward.
+        """
+        cfg = self.smu.get_configuration(self.m, self.d)
+        settings = {s.joint: servo_settings(s) for s in self.order}
+        offsets = feedforward(cfg, settings, self.bank.volts, self.bank.variant.name)
+        for servo in self.order:
+            if not servo.torque or servo.stalled_at is not None:
+                continue
+            angle = float(self.d.qpos[servo.qadr]) + math.radians(offsets.get(servo.joint, 0.0))
+            servo.set("Goal_Position", servo.angle_to_present(angle))
+            self.d.ctrl[servo.act] = angle
+            self.bank.reset_target(servo.index, round(angle * servo_facts.COUNTS_PER_RAD))
 
     def step_physics(self) -> None:
         """Step the simulation up to the wall clock (at most 25 steps behind: then time slips)."""
