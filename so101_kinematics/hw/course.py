@@ -50,12 +50,11 @@ from so101_kinematics.hw.bus import (
     configure,
     connect,
     disconnect,
-    enable_torque_in_place,
     release_torque,
     with_retries,
 )
 from so101_kinematics.hw.control import ArmSession, signals_as_interrupt, stop_on_signals
-from so101_kinematics.hw.feedforward import read_feedforward
+from so101_kinematics.hw.feedforward import read_feedforward, torque_on_in_place
 from so101_kinematics.hw.run import (
     LIMIT_SLACK_DEG,
     RELEASE_HINT,
@@ -183,7 +182,7 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
         with bus_errors("configuring the servos and enabling torque"):
             with_retries(configure, bus)
             feedforward = read_feedforward(bus, gravity_ff)
-            with_retries(enable_torque_in_place, bus)
+            with_retries(lambda b: torque_on_in_place(b, feedforward, trims.to_wire(start)), bus)
     except BaseException as error:
         if armed:  # torque may be on at the starting pose, nothing moved: release there
             release_torque(bus)

@@ -11,12 +11,25 @@ from __future__ import annotations
 
 import logging
 import statistics
+import time
 
 from so101_kinematics import servo
-from so101_kinematics.frames import JOINTS
+from so101_kinematics.calibration import calibrated_limits
+from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.gravity import Feedforward
+from so101_kinematics.hw.bus import clamp_to_limits, enable_torque_in_place, read_pose
 
 logger = logging.getLogger(__name__)
+
+SETTLE_TIMEOUT_S = 1.0
+"""How long torque-on waits for the arm to come back to where it stood [s] (lerobot's
+configuration lets it go limp for a moment; at P = 16 it settles in about 0.3 s)."""
+
+RAMP_S, RAMP_PERIOD_S = 0.3, 0.02
+"""The goals ramp to the held pose over this [s], one write each period [s]."""
+
+SETTLED_DEG = 1.0
+"""Back where it stood: every arm joint within this [deg]."""
 
 REGISTERS = ("P_Coefficient", "Minimum_Startup_Force", "CW_Dead_Zone", "CCW_Dead_Zone",
              "Torque_Limit", "Present_Voltage")
@@ -63,3 +76,41 @@ def read_feedforward(bus, enabled: bool = True) -> Feedforward:
     feedforward = Feedforward(settings, supply, enabled=enabled)
     logger.info("%s", feedforward.describe(dict.fromkeys(JOINTS, 0.0)))
     return feedforward
+
+
+def torque_on_in_place(bus, feedforward: Feedforward | None, start=None) -> None:
+    """Torque on where the arm stands; with the feed-forward, held there without its sag.
+
+    ``hw/bus.py``'s ``enable_torque_in_place`` sets each goal to the present position
+    and turns torque on. With an enabled ``feedforward`` the goals then ramp, over
+    ``RAMP_S``, to ``start`` (the pose measured before lerobot's configuration let the
+    arm go limp for a moment; default: the present one) plus the offsets, so the arm
+    comes back to where it stood and holds there instead of sagging from it by several
+    degrees at P = 16. (A servo keeps its goal on its present position while limp: a
+    goal written before torque on would be lost.)
+
+    Args:
+        bus: the connected bus.
+        feedforward: the arm's feed-forward, or None.
+        start: joint -> position as written on the wire ([deg], gripper [0, 100]).
+    """
+    enable_torque_in_place(bus)
+    if feedforward is None or not feedforward.enabled:
+        return
+    here = read_pose(bus)
+    target = dict(start) if start is not None else dict(here)
+    goal = clamp_to_limits(feedforward.apply(target), calibrated_limits(bus.calibration))
+    steps = max(1, round(RAMP_S / RAMP_PERIOD_S))
+    for k in range(1, steps + 1):
+        s = k / steps
+        bus.sync_write("Goal_Position", {j: here[j] + s * (goal[j] - here[j]) for j in goal})
+        time.sleep(RAMP_PERIOD_S)
+    deadline = time.monotonic() + SETTLE_TIMEOUT_S  # back where it stood, then go on
+    while time.monotonic() < deadline:
+        try:
+            pose = read_pose(bus)
+        except Exception:  # noqa: BLE001 - the control loop's own checks deal with a silent bus
+            return
+        if all(abs(pose[j] - target[j]) <= SETTLED_DEG for j in ARM_JOINTS):
+            return
+        time.sleep(0.02)

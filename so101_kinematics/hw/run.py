@@ -35,7 +35,6 @@ from so101_kinematics.hw.bus import (
     configure,
     connect,
     disconnect,
-    enable_torque_in_place,
     format_pose,
     read_cube_sensors,
     read_pose,
@@ -63,7 +62,7 @@ from so101_kinematics.hw.control import (
     stop_on_signals,
     tracking_tolerances,
 )
-from so101_kinematics.hw.feedforward import read_feedforward
+from so101_kinematics.hw.feedforward import read_feedforward, torque_on_in_place
 from so101_kinematics.motion import (
     Configuration,
     JointLimitError,
@@ -359,8 +358,8 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
         armed = True
         with bus_errors("configuring the servos and enabling torque"):
             with_retries(configure, bus)
-            session.feedforward = read_feedforward(bus, gravity_ff)
-            with_retries(enable_torque_in_place, bus)
+            session.feedforward = feedforward = read_feedforward(bus, gravity_ff)
+            with_retries(lambda b: torque_on_in_place(b, feedforward, trims.to_wire(start)), bus)
         return execute(session, plan, start, return_on_abort=return_on_abort)
     except MotionAborted:
         raise
