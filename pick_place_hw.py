@@ -184,7 +184,7 @@ def _run(args, plan, calibration, source, release: str, stack=None) -> int:
             tracking_tolerance=args.tracking_tolerance, confirm=lambda q: ask(q, args.yes),
             write_calibration=args.write_calibration,
             return_on_abort=not args.no_return_on_abort, on_cycle=log, on_start=on_start,
-            trims=args.trims)
+            trims=args.trims, base_height=args.base_height)
         status = 0
     except MotionAborted as error:
         print(f"ABORTED: {error}", file=sys.stderr)
@@ -233,7 +233,7 @@ def _main(args) -> int:
     plan = stack.plan if stack else plan_from_arguments(args) or (
         load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold))
     if args.sheet is not None:
-        validate_plan_for_arm(plan, None)
+        validate_plan_for_arm(plan, None, base_height=args.base_height)
         path = check_output_path(args.sheet, "--sheet", inputs=(args.plan,), suffixes=(".pdf",))
         origin = args.plan or ("--pick/--place" if args.pick else "the course's plan")
         print(write_sheet(plan, path, args.paper, source=str(origin), stack=stack,
@@ -247,7 +247,7 @@ def _main(args) -> int:
                                "lerobot-calibrate) or --calibration PATH.")
     if source is not None:
         logger.info("Calibration: %s", source)
-    validate_plan_for_arm(plan, calibration, str(source))
+    validate_plan_for_arm(plan, calibration, str(source), base_height=args.base_height)
     if stack is not None:
         print(stack.describe())
     for option, path in (("--log", args.log), ("--plot", args.plot)):

@@ -46,6 +46,10 @@ class JointLimitError(PlanError):
     """A configuration is outside the joint limits (the model's or the arm's calibration)."""
 
 
+class ClearanceError(PlanError):
+    """A configuration or a path would bring the arm into the table (``clearance.py``)."""
+
+
 class UnreachableError(PlanError):
     """No configuration within the joint limits puts the object frame at the target.
 

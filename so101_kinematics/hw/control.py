@@ -27,6 +27,7 @@ import time
 from collections.abc import Callable, Mapping
 
 from so101_kinematics.calibration import calibrated_limits
+from so101_kinematics.clearance import check_path
 from so101_kinematics.errors import (  # noqa: F401 - the family, re-exported
     BusError,
     FreezeRequested,
@@ -116,6 +117,8 @@ class ArmSession:
         clock, sleep: time sources (tests).
         trims: per-joint offsets (the course's offset_config; ``so101_kinematics.trims``),
             added to every goal written and taken off every position read, here only.
+        base_height: the table is this far below the base frame [m]: every move's path
+            is checked against it before it starts (``clearance.check_path``).
     """
 
     def __init__(self, bus, *, rate_hz: float = DEFAULT_RATE_HZ, profile: str = "minimum_jerk",
@@ -125,7 +128,8 @@ class ArmSession:
                  outage_tolerance: float = OUTAGE_TOLERANCE_S,
                  on_cycle: Callable[[ArmSession, Cycle], None] | None = None,
                  clock: Callable[[], float] = time.perf_counter,
-                 sleep: Callable[[float], None] = time.sleep, trims: Trims | None = None):
+                 sleep: Callable[[float], None] = time.sleep, trims: Trims | None = None,
+                 base_height: float = 0.0):
         if profile not in PROFILES:
             raise PlanError(f"Unknown profile '{profile}'; use one of {', '.join(PROFILES)}.")
         check_rate(rate_hz)
@@ -155,6 +159,7 @@ class ArmSession:
         self.known_faults: dict[str, int] = {}  # joint -> status bits already reported
         self._status_seen: dict[str, int] = {}  # joint -> bits of the last status read
         self.stale_bytes = 0  # late-reply bytes dropped before reads
+        self.base_height = base_height
 
     # measurement and command
     def _read(self) -> Configuration:
@@ -279,6 +284,7 @@ class ArmSession:
 
         Raises:
             JointLimitError: ``cfg`` is outside the calibrated range (nothing sent).
+            ClearanceError: the path goes into the table (nothing sent).
             TrackingError, BusError, ServoFault, StopRequested, PortLost: see the class.
         """
         goal = check_configuration(cfg, self.limits, "move_to_pose target (calibrated range)")
@@ -287,6 +293,7 @@ class ArmSession:
         if self.command is None:
             self.command = self.read_pose()  # the first move ramps from where the arm is
         start = dict(self.command)
+        check_path([start, goal], [self.step or "move_to_pose"], base_height=self.base_height)
         requested = float(duration)
         caps = max_speed or self.max_speed
         duration = capped_duration(start, goal, requested, self.profile, caps)

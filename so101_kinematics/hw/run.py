@@ -48,31 +48,29 @@ from so101_kinematics.hw.control import (
     DEFAULT_RATE_HZ,
     MAX_JOINT_SPEED_DEG_S,
     RECOVERY_TIMEOUT_S,
-    SPEED_CAP_LIMIT_DEG_S,
     TRACKING_TOLERANCE_DEG,
-    TRACKING_TOLERANCE_LIMIT_DEG,
     ArmSession,
     Cycle,
     FreezeRequested,
     Segment,
     StopRequested,
     capped_duration,
-    check_rate,
     gc_frozen,
     speed_caps,
     stop_on_signals,
     tracking_tolerances,
 )
+from so101_kinematics.hw.preflight import (  # noqa: F401 - the run's checks, re-exported
+    check_run_settings,
+    validate_plan_for_arm,
+)
 from so101_kinematics.motion import (
     Configuration,
-    JointLimitError,
     Plan,
     Step,
-    check_number,
     run_plan,
     unit,
 )
-from so101_kinematics.plans import validate_plan
 from so101_kinematics.trims import Trims, as_trims
 
 logger = logging.getLogger("pick_place_hw")
@@ -87,37 +85,6 @@ class MotionAborted(HardwareError):
     def __init__(self, message: str, result: RunResult):
         super().__init__(message)
         self.result = result
-
-
-def validate_plan_for_arm(plan: Plan, calibration: Mapping[str, Any] | None,
-                          source: str = "the calibration", trims: Trims | None = None) -> Plan:
-    """Check every waypoint against the model's limits and the arm's calibrated limits.
-
-    Raises:
-        PlanError: bad structure; JointLimitError naming joint, value, limit,
-            which limits (model or calibration) and the fix.
-    """
-    try:
-        validate_plan(plan, JOINT_LIMITS)
-    except JointLimitError as error:
-        raise JointLimitError(f"{error} (joint limits of the SO-101 model, as in the simulator)") \
-            from None
-    if calibration is not None:
-        try:
-            validate_plan(plan, as_trims(trims).limits(calibrated_limits(calibration)))
-        except JointLimitError as error:
-            raise JointLimitError(f"{error} (calibrated range of this arm, from {source}, less "
-                                  "any trim; if the range looks too small, recalibrate)") from None
-    return plan
-
-
-def check_run_settings(rate_hz: float, max_joint_speed: float, tracking_tolerance: float) -> None:
-    """Refuse a setting outside its documented range (PlanError naming it), before connecting."""
-    check_rate(rate_hz)
-    check_number(max_joint_speed, "--max-speed", 0.0, SPEED_CAP_LIMIT_DEG_S, "deg/s",
-                 low_open=True)
-    check_number(tracking_tolerance, "--tracking-tolerance", 0.0, TRACKING_TOLERANCE_LIMIT_DEG,
-                 "deg", low_open=True)
 
 
 @dataclass
@@ -305,7 +272,8 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
                confirm: Callable[[str], bool] | None = None, write_calibration: bool = False,
                return_on_abort: bool = True, trims: Trims | str | None = None,
                on_cycle: Callable[[ArmSession, Cycle], None] | None = None,
-               on_start: Callable[[Configuration, float], None] | None = None) -> RunResult:
+               on_start: Callable[[Configuration, float], None] | None = None,
+               base_height: float = 0.0) -> RunResult:
     """The whole hardware run: check, connect, confirm, torque on, run, return, torque off.
 
     Nothing is sent to the servos' goal registers and torque stays off until
@@ -329,6 +297,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
         on_cycle: hook called after each control cycle (the log).
         on_start: called with the measured starting pose and the first move's
             duration [s] before ``confirm``.
+        base_height: the table is this far below the base frame [m]: no move goes into it.
 
     Raises:
         CalibrationError, PlanError, ConnectionFailed, LerobotMissing, NotConfirmed:
@@ -336,7 +305,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
         MotionAborted: aborted during motion (controlled ending done).
     """
     trims = as_trims(trims)
-    validate_plan_for_arm(plan, calibration, source, trims)
+    validate_plan_for_arm(plan, calibration, source, trims, base_height)
     check_run_settings(rate_hz, max_joint_speed, tracking_tolerance)
     bus = connect(port, calibration, robot_id=robot_id, write_calibration=write_calibration)
     armed = False
@@ -345,7 +314,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
         session = ArmSession(
             bus, rate_hz=rate_hz, profile=profile, max_speed=speed_caps(max_joint_speed),
             tracking_tolerance=tracking_tolerances(tracking_tolerance), on_cycle=on_cycle,
-            trims=trims)
+            trims=trims, base_height=base_height)
         session.command = dict(start)
         first = plan.steps[0]
         if on_start is not None:
