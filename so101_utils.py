@@ -83,7 +83,9 @@ def setup_motors(calibration, port, offset_config=None):
             dict, a JSON/TOML trim file, or an ``offset_config(config)`` function).
 
     Returns:
-        lerobot's ``FeetechMotorsBus``, connected, arm joints in [deg], gripper 0-100.
+        lerobot's ``FeetechMotorsBus``, connected, arm joints in [deg], gripper 0-100,
+        guarded: a ``bus.sync_write("Goal_Position", ...)`` is checked and ramped at the
+        speed cap (``so101_kinematics/hw/guarded.py``); the bare bus is ``bus.raw``.
     """
     return _setup_motors(calibration, port, offset_config)
 
