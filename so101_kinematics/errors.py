@@ -141,6 +141,13 @@ class ServoFault(HardwareError):
     """A servo reported an error bit (overload, overheating, voltage) during motion."""
 
 
+class TorqueLost(ServoFault):
+    """A servo's Torque_Enable read back 0 while the loop commanded it: its joint is limp.
+
+    A brown-out of the servo power, or another program that released it.
+    """
+
+
 class StopRequested(HardwareError):
     """A stop was requested (Ctrl-C, SIGTERM, SIGHUP) and honoured at the next control cycle."""
 

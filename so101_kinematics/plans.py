@@ -18,10 +18,12 @@ from pathlib import Path
 import numpy as np
 
 from so101_kinematics.checks import (
+    RADIANS_BOUND,
     Limits,
     check_configuration,
     check_duration,
     describe_value,
+    looks_like_radians,
 )
 from so101_kinematics.clearance import check_plan_clearance
 from so101_kinematics.errors import JointLimitError as JointLimitError
@@ -337,6 +339,11 @@ def load_plan(path: str | Path, limits: Limits | None = None) -> Plan:
         steps.append(Step(raw.get("name", f"waypoint_{i + 1}"), dict(raw["configuration"]),
                           raw.get("duration", 2.0), raw.get("hold", 0.5)))
     plan = Plan(steps, data.get("return_to_start", True), data.get("return_duration", 2.0))
+    if steps and all(looks_like_radians(step.configuration) for step in steps):
+        raise PlanError(f"Waypoint file '{path}': every arm angle of every waypoint is within "
+                        f"+-{RADIANS_BOUND:g}: these are radians, but a plan's angles are "
+                        "degrees (the arm would go to almost 0 deg on every joint). Fix: "
+                        "multiply each angle by 180/pi (math.degrees).")
     if limits is not None:
         validate_plan(plan, limits, f"'{path}'")
     else:

@@ -44,7 +44,7 @@ from so101_kinematics.hw.bus import (
     read_pose,
     recover_port,
 )
-from so101_kinematics.hw.checks import check_status, check_tracking
+from so101_kinematics.hw.checks import check_status, check_torque, check_tracking
 from so101_kinematics.hw.signals import (  # noqa: F401 - stopping the loop, with the loop
     STOP_SIGNALS,
     gc_frozen,
@@ -92,7 +92,7 @@ READ_RETRIES = 1                   # a failed Present_Position read is retried i
 OUTAGE_TOLERANCE_S = 1.0           # the arm may go unobserved this long: the plan pauses [s]
 RECOVERY_TIMEOUT_S = 5.0           # after a longer outage, wait this long for the arm [s]
 MAX_ADVANCE_S = 0.05               # the trajectory advances at most this much per cycle [s]
-STATUS_EVERY = 10                  # read the servos' Status (error bits) every N cycles
+STATUS_EVERY = 10                  # read the servos' Status and Torque_Enable every N cycles
 
 
 # --- The control loop ------------------------------------------------------------
@@ -158,6 +158,7 @@ class ArmSession:
         self.plan_lag_s = 0.0  # [s] the plan ran behind the wall clock (outages, host stalls)
         self.known_faults: dict[str, int] = {}  # joint -> status bits already reported
         self._status_seen: dict[str, int] = {}  # joint -> bits of the last status read
+        self._limp_seen: set[str] = set()  # joints whose last Torque_Enable read was 0
         self.stale_bytes = 0  # late-reply bytes dropped before reads
         self.base_height = base_height
 
@@ -240,6 +241,7 @@ class ArmSession:
                                self.tracking_timeout, self._beyond)
             if len(self.cycles) % STATUS_EVERY == 0:
                 check_status(self.bus, self.known_faults, self._status_seen)
+                check_torque(self.bus, self._limp_seen)
         cycle = Cycle(deadline - self._t0, self.loop.woke - self._t0, self.step, command, measured)
         self.cycles.append(cycle)
         if self.on_cycle is not None:

@@ -47,6 +47,7 @@ from so101_kinematics.checks import (
     check_number,
     is_finite_number,
     move_arguments,
+    radians_warning,
     start_mismatch,
 )
 from so101_kinematics.errors import CalibrationError, PlanError, SO101Error
@@ -290,6 +291,9 @@ def course_move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING) 
             if is_finite_number(value) and low - LIMIT_SLACK_DEG <= value <= high + LIMIT_SLACK_DEG:
                 target[joint] = min(high, max(low, float(value)))
         warning = start_mismatch(start, session.command)
+        if warning:
+            logger.warning(warning)
+        warning = radians_warning(cfg, session.command)
         if warning:
             logger.warning(warning)
         session.move(target, seconds)

@@ -26,6 +26,7 @@ from so101_kinematics.calibration import (
 )
 from so101_kinematics.cube_sensor import CubeReading
 from so101_kinematics.errors import NotConfirmed as NotConfirmed
+from so101_kinematics.errors import TorqueLost
 from so101_kinematics.frames import JOINT_LIMITS, JOINTS
 from so101_kinematics.hw.bus import (
     SETUP_ATTEMPTS,
@@ -44,6 +45,7 @@ from so101_kinematics.hw.bus import (
     silent_servos,
     with_retries,
 )
+from so101_kinematics.hw.checks import read_torque
 from so101_kinematics.hw.control import (
     DEFAULT_RATE_HZ,
     MAX_JOINT_SPEED_DEG_S,
@@ -109,6 +111,7 @@ class RunResult:
     stale_bytes: int = 0  # late-reply bytes dropped before reads (see discard_stale_input)
     cube: CubeReading | None = None  # the virtual lab's cube sensor at the end; None on a real arm
     cubes: list[CubeReading] = field(default_factory=list)  # every cube it reports (stacking)
+    torque: dict[str, bool] | None = None  # Torque_Enable read back at the end (None: unread)
 
 
 def _describe(error: BaseException, step: str) -> str:
@@ -143,6 +146,9 @@ def after_abort(session: ArmSession, error: BaseException, start_pose: Configura
             if pose is None:
                 result.silent = silent_servos(bus)
                 return
+            if isinstance(error, TorqueLost):  # hold the limp joint where it sank, then return
+                with bus_errors("enabling torque again where the arm is"):
+                    with_retries(enable_torque_in_place, bus)
             if return_on_abort:
                 session.stop_reason = None
                 session.return_slowly(start_pose)
@@ -214,6 +220,7 @@ def finish(session: ArmSession, result: RunResult) -> None:
         if result.returned_to_start:
             result.unreleased = release_torque(session.bus)
             result.torque_released = not result.unreleased
+        result.torque = read_torque(session.bus)  # the last line says what the servos say
 
 
 def ending(result: RunResult, release: str) -> str:
@@ -235,12 +242,25 @@ def ending(result: RunResult, release: str) -> str:
                 f"powered silent servo holds its last goal). Check the cable and power of the "
                 f"silent servo(s). {hold}")
     pose = "" if result.final_pose is None else f" ({format_pose(result.final_pose)})"
+    torque = torque_words(result.torque)
     if result.frozen:
-        return f"Frozen where it was by a second stop signal{pose}, torque ON. {hold}"
+        return f"Frozen where it was by a second stop signal{pose}, {torque}. {hold}"
     if result.aborted is None:
-        return (f"Done: holding the final pose '{result.final_step}'{pose}, torque ON (the plan "
+        return (f"Done: holding the final pose '{result.final_step}'{pose}, {torque} (the plan "
                 f"has return_to_start: false). {hold}")
-    return f"The arm is holding where it stopped{pose}, torque ON. {hold}"
+    return f"The arm is holding where it stopped{pose}, {torque}. {hold}"
+
+
+def torque_words(torque: dict[str, bool] | None) -> str:
+    """The torque as read back from the servos, for a last line (never what was commanded)."""
+    if torque is None:
+        return "torque not read back (commanded ON)"
+    limp = [joint for joint, on in torque.items() if not on]
+    if not limp:
+        return "torque ON"
+    if len(limp) == len(torque):
+        return "torque OFF on every servo (read back): the arm is limp"
+    return f"torque ON, but OFF on {', '.join(limp)} (read back: limp)"
 
 
 def starting_pose(bus, calibration, port: str, robot_id: str | None) -> Configuration:

@@ -38,6 +38,7 @@ from so101_kinematics.checks import (
     describe_value,
     is_finite_number,
     move_arguments,
+    radians_warning,
     start_mismatch,
 )
 from so101_kinematics.errors import CallShapeError, ViewerClosed
@@ -174,9 +175,9 @@ def move_to_pose(m: mujoco.MjModel, d: mujoco.MjData, viewer, *args,
     goal = validate(m, cfg, "move_to_pose target")
     duration = check_duration(duration, "move_to_pose duration")
     command = get_command(m, d)
-    warning = start_mismatch(start, command)
-    if warning:
-        logger.warning(warning)
+    for warning in (start_mismatch(start, command), radians_warning(cfg, command)):
+        if warning:
+            logger.warning(warning)
     path = Trajectory(command, goal, duration, profile)
     t0 = d.time
     _advance(m, d, viewer, t0 + path.duration, path, t0)
