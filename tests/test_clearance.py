@@ -147,3 +147,20 @@ def test_the_virtual_hand_refuses_with_the_same_check():
     with VirtualSO101(torque_on_start=False) as virtual:
         with pytest.raises(Exception, match="into the table"):
             virtual.hand_move([SWING_A, SWING_B])
+
+
+@pytest.mark.hw
+def test_the_real_run_refuses_a_plan_into_the_table_before_the_port_opens(tmp_path, capsys):
+    pytest.importorskip("lerobot")
+    from so101_kinematics.virtual.arm import VirtualSO101
+
+    path = tmp_path / "press.json"
+    steps = [{"name": "above", "configuration": STARTING_CONFIGURATION},
+             {"name": "press", "configuration": INTO_TABLE}]
+    path.write_text(json.dumps({"steps": steps}))
+    with VirtualSO101() as arm:
+        rc = cli.main(["--port", arm.port, "--calibration", "calibration/virtual_so101.json",
+                       "--yes", "--plan", str(path)])
+        assert rc == 2
+        assert "waypoint 'press'" in capsys.readouterr().err
+        assert arm.goal_log() == []  # nothing sent: refused before the port opened
