@@ -30,7 +30,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from so101_kinematics.checks import START_MISMATCH, check_configuration, is_finite_number
-from so101_kinematics.errors import PlanError
+from so101_kinematics.errors import BusError, PlanError
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.control import ArmSession
 from so101_kinematics.hw.timing import capped_duration
@@ -139,7 +139,10 @@ def resync(session: ArmSession) -> None:
     loop: each arm joint more than ``START_MISMATCH`` from its last command starts the
     next move or hold from its measured position, never jumping back to the stale command.
     """
-    measured = session.read_pose()
+    try:
+        measured = session.read_pose()
+    except BusError:  # a glitch: the loop itself rides it through (or ends by the policy)
+        return
     moved = [j for j in ARM_JOINTS if abs(measured[j] - session.command[j]) > START_MISMATCH]
     if moved:
         logger.warning("The arm is not where it was last commanded (%s; a goal written on "
