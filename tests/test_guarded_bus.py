@@ -100,7 +100,11 @@ def test_move_to_pose_after_a_students_own_write_starts_where_the_arm_is(course_
     (bus if how == "guarded" else bus.raw).sync_write("Goal_Position", cfg)
     time.sleep(2.0)
     assert abs(course_arm.joint_positions()["shoulder_pan"] - 25.0) < 1.5
+    written = pan_goals(course_arm)[-1]  # the goal the arm holds [ticks]
+    sent = len(course_arm.goal_log())
     move_to_pose(bus, starting_pose, 2.0)
+    first = pan_goals(course_arm, sent)[0]
+    assert abs(first - written) <= 2.0 * TICKS_PER_DEG, "the move starts where the arm is"
     assert abs(course_arm.joint_positions()["shoulder_pan"] - starting_pose["shoulder_pan"]) < 1.5
     bus.disable_torque()
     out = capsys.readouterr()
