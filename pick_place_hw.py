@@ -16,6 +16,7 @@ from so101_kinematics.calibration import (
     load_calibration,
 )
 from so101_kinematics.cartesian_plan import add_cartesian_arguments, plan_from_arguments
+from so101_kinematics.clearance import check_plan_clearance
 from so101_kinematics.hw.bus import FIND_PORT_HINT, LerobotMissing, connect, disconnect, read_pose
 from so101_kinematics.hw.control import (
     DEFAULT_RATE_HZ,
@@ -156,6 +157,7 @@ def _dry_run(args, plan, calibration) -> int:
                 measured = read_pose(bus, retries=2)
                 start = clamp_to_limits(measured, calibrated_limits(calibration))
                 print("Measured starting pose: " + format_configuration(measured))
+                check_plan_clearance(plan, start, base_height=args.base_height)  # + the ramp
             finally:
                 disconnect(bus)
     print(format_plan(plan, rate_hz=args.rate, profile=args.profile, max_speed=caps, start=start))
