@@ -16,6 +16,7 @@ from so101_kinematics.calibration import (
     load_calibration,
 )
 from so101_kinematics.cartesian_plan import add_cartesian_arguments, plan_from_arguments
+from so101_kinematics.clearance import check_plan_clearance
 from so101_kinematics.cli import requires
 from so101_kinematics.hw.bus import FIND_PORT_HINT, LerobotMissing, connect, disconnect, read_pose
 from so101_kinematics.hw.control import (
@@ -158,6 +159,7 @@ def _dry_run(args, plan, calibration) -> int:
                 measured = read_pose(bus, retries=2)
                 start = clamp_to_limits(measured, calibrated_limits(calibration))
                 print("Measured starting pose: " + format_configuration(measured))
+                check_plan_clearance(plan, start, base_height=args.base_height)  # + the ramp
             finally:
                 disconnect(bus)
     print(format_plan(plan, rate_hz=args.rate, profile=args.profile, max_speed=caps, start=start))
@@ -186,7 +188,7 @@ def _run(args, plan, calibration, source, release: str, stack=None) -> int:
             tracking_tolerance=args.tracking_tolerance, confirm=lambda q: ask(q, args.yes),
             write_calibration=args.write_calibration,
             return_on_abort=not args.no_return_on_abort, on_cycle=log, on_start=on_start,
-            trims=args.trims, gravity_ff=args.gravity_ff)
+            trims=args.trims, gravity_ff=args.gravity_ff, base_height=args.base_height)
         status = 0
     except MotionAborted as error:
         print(f"ABORTED: {error}", file=sys.stderr)
@@ -238,7 +240,7 @@ def _main(args) -> int:
     plan = stack.plan if stack else plan_from_arguments(args) or (
         load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold))
     if args.sheet is not None:
-        validate_plan_for_arm(plan, None)
+        validate_plan_for_arm(plan, None, base_height=args.base_height)
         path = outputs.check_output_path(args.sheet, "--sheet", inputs=(args.plan, args.trims),
                                          suffixes=(".pdf",), kind=outputs.PDF,
                                          overwrite=args.overwrite)
@@ -254,7 +256,7 @@ def _main(args) -> int:
                                "lerobot-calibrate) or --calibration PATH.")
     if source is not None:
         logger.info("Calibration: %s", source)
-    validate_plan_for_arm(plan, calibration, str(source), trims)
+    validate_plan_for_arm(plan, calibration, str(source), trims, base_height=args.base_height)
     if stack is not None:
         print(stack.describe())
     for option, path, kind in (("--log", args.log, LOG_KIND), ("--plot", args.plot, outputs.PNG),

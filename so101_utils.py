@@ -98,7 +98,9 @@ def setup_motors(calibration, port, offset_config=None, gravity_ff=True):
             on; ``False`` shows the raw sag). README, "What the real arm does".
 
     Returns:
-        lerobot's ``FeetechMotorsBus``, connected, arm joints in [deg], gripper 0-100.
+        lerobot's ``FeetechMotorsBus``, connected, arm joints in [deg], gripper 0-100,
+        guarded: a ``bus.sync_write("Goal_Position", ...)`` is checked and ramped at the
+        speed cap (``so101_kinematics/hw/guarded.py``); the bare bus is ``bus.raw``.
     """
     return _setup_motors(calibration, port, offset_config, gravity_ff)
 

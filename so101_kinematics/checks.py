@@ -17,7 +17,7 @@ import numpy as np
 from so101_kinematics.errors import CallShapeError
 from so101_kinematics.errors import JointLimitError as JointLimitError
 from so101_kinematics.errors import PlanError as PlanError
-from so101_kinematics.frames import JOINTS
+from so101_kinematics.frames import ARM_JOINTS, JOINTS
 
 Configuration = dict[str, float]
 Limits = Mapping[str, tuple[float, float]]
@@ -299,3 +299,33 @@ def start_mismatch(start: Mapping[str, float] | None, command: Mapping[str, floa
             f"command ({joint}: {start[joint]:g} given, {command[joint]:g} commanded); the move "
             f"starts from the last command (starting elsewhere would be a jump). Fix: pass the "
             f"previous move's target as the starting configuration.")
+
+
+RADIANS_BOUND = 3.2
+"""A target whose every arm angle is within +-this (pi = 3.14), not all zero, looks like
+radians given for degrees (``d.qpos`` copied as it is): 3.2 deg is less than any real move."""
+
+
+def looks_like_radians(cfg: Mapping[str, float]) -> bool:
+    """Whether every arm angle of ``cfg`` is within +-``RADIANS_BOUND`` and not all are zero."""
+    values = [cfg[j] for j in ARM_JOINTS if j in cfg and is_finite_number(cfg[j])]
+    return (len(values) == len(ARM_JOINTS) and all(abs(v) <= RADIANS_BOUND for v in values)
+            and any(v != 0 for v in values))
+
+
+def radians_warning(cfg: Mapping[str, float], current: Mapping[str, float] | None,
+                    what: str = "move_to_pose") -> str | None:
+    """A warning when ``cfg`` looks like radians while the arm stands elsewhere, else None.
+
+    Args:
+        cfg: the target ([deg] expected).
+        current: where the arm is (or its last command) [deg]; None: unknown.
+        what: the call, for the message.
+    """
+    if not looks_like_radians(cfg) or (current is not None and looks_like_radians(current)):
+        return None
+    shown = ", ".join(f"{j} {cfg[j]:g}" for j in ARM_JOINTS)
+    return (f"{what}: every arm angle of the target is within +-{RADIANS_BOUND:g} ({shown}): "
+            "these look like radians, but the angles are degrees, so the arm swings to almost "
+            "0 deg on every joint (and a gripper of 0-1 is closed). Fix: convert with "
+            "math.degrees (numpy.degrees for d.qpos), e.g. {j: math.degrees(v) ...}.")

@@ -46,6 +46,10 @@ class JointLimitError(PlanError):
     """A configuration is outside the joint limits (the model's or the arm's calibration)."""
 
 
+class ClearanceError(PlanError):
+    """A configuration or a path would bring the arm into the table (``clearance.py``)."""
+
+
 class UnreachableError(PlanError):
     """No configuration within the joint limits puts the object frame at the target.
 
@@ -135,6 +139,13 @@ class BusError(HardwareError):
 
 class ServoFault(HardwareError):
     """A servo reported an error bit (overload, overheating, voltage) during motion."""
+
+
+class TorqueLost(ServoFault):
+    """A servo's Torque_Enable read back 0 while the loop commanded it: its joint is limp.
+
+    A brown-out of the servo power, or another program that released it.
+    """
 
 
 class StopRequested(HardwareError):

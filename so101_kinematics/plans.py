@@ -18,11 +18,14 @@ from pathlib import Path
 import numpy as np
 
 from so101_kinematics.checks import (
+    RADIANS_BOUND,
     Limits,
     check_configuration,
     check_duration,
     describe_value,
+    looks_like_radians,
 )
+from so101_kinematics.clearance import check_plan_clearance
 from so101_kinematics.errors import JointLimitError as JointLimitError
 from so101_kinematics.errors import PlanError as PlanError
 from so101_kinematics.frames import JOINTS
@@ -164,13 +167,16 @@ def pick_and_place_steps(plan: Plan) -> tuple[Step, Step]:
             by_name.get(PLACE_STEP, places[-1] if places else plan.steps[-1]))
 
 
-def validate_plan(plan: Plan, limits: Limits, source: str = "") -> Plan:
+def validate_plan(plan: Plan, limits: Limits, source: str = "",
+                  base_height: float = 0.0) -> Plan:
     """Check every step before anything moves.
 
     Args:
         plan: the plan.
         limits: joint name -> (lower, upper) [deg] (gripper [0, 100]).
         source: where the plan came from, for messages (e.g. the file).
+        base_height: the table is this far below the base frame [m]: the path from
+            the first waypoint on stays clear of it (``clearance.check_plan_clearance``).
 
     Returns:
         The same plan with configurations and durations normalised to floats.
@@ -178,13 +184,14 @@ def validate_plan(plan: Plan, limits: Limits, source: str = "") -> Plan:
     Raises:
         PlanError: empty plan, duplicate names, bad durations (each in
             [0, ``MAX_DURATION``] s), a ``return_to_start`` that is not a
-            boolean, or bad configurations.
+            boolean, or bad configurations; ClearanceError: the path goes into the table.
     """
     prefix = f"{source}, " if source else ""
     check_plan_settings(plan, source)
     for i, step in enumerate(plan.steps):
         where = f"{prefix}waypoint {i + 1} '{step.name}'"
         step.configuration = check_configuration(step.configuration, limits, where)
+    check_plan_clearance(plan, base_height=base_height, where=source)
     return plan
 
 
@@ -332,6 +339,11 @@ def load_plan(path: str | Path, limits: Limits | None = None) -> Plan:
         steps.append(Step(raw.get("name", f"waypoint_{i + 1}"), dict(raw["configuration"]),
                           raw.get("duration", 2.0), raw.get("hold", 0.5)))
     plan = Plan(steps, data.get("return_to_start", True), data.get("return_duration", 2.0))
+    if steps and all(looks_like_radians(step.configuration) for step in steps):
+        raise PlanError(f"Waypoint file '{path}': every arm angle of every waypoint is within "
+                        f"+-{RADIANS_BOUND:g}: these are radians, but a plan's angles are "
+                        "degrees (the arm would go to almost 0 deg on every joint). Fix: "
+                        "multiply each angle by 180/pi (math.degrees).")
     if limits is not None:
         validate_plan(plan, limits, f"'{path}'")
     else:

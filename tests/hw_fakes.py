@@ -60,7 +60,7 @@ class FakeBus:
                 self.pose[joint] = value
 
     def sync_read(self, name, motors=None, *, normalize=True, num_retry=0):
-        assert name in ("Present_Position", "Status")
+        assert name in ("Present_Position", "Status", "Torque_Enable")
         outage = self.clock is not None and self.clock.now < self.fail_until
         if self.fail_reads > 0 or outage:
             self.fail_reads = max(0, self.fail_reads - 1)
@@ -68,6 +68,8 @@ class FakeBus:
                                   f"{num_retry + 1} tries. [TxRxResult] There is no status packet!")
         if name == "Status":
             return dict(self.status)
+        if name == "Torque_Enable":
+            return {joint: int(on) for joint, on in self.torque.items()}
         self.reads += 1
         return dict(self.pose)
 

@@ -1,10 +1,14 @@
-"""What the control loop checks each cycle: tracking (a stall, a collision), servo error bits."""
+"""What the control loop checks each cycle: tracking, error bits, torque read back.
+
+Tracking catches a stall or a collision; the Status register's error bits an
+overload, overheating or a bad voltage; Torque_Enable read back a servo gone limp.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
 
-from so101_kinematics.errors import ServoFault, TrackingError
+from so101_kinematics.errors import ServoFault, TorqueLost, TrackingError
 from so101_kinematics.hw.bus import discard_stale_input, recover_port
 from so101_kinematics.motion import Configuration, unit
 
@@ -82,3 +86,37 @@ def check_tracking(commanded: Configuration, measured: Configuration, now: float
                 f"{now - since:.2f} s). Something blocks the arm (the table, an object, a "
                 "cable) or the servo is overloaded: clear the way and check the power supply; "
                 "--tracking-tolerance changes the tolerance.")
+
+
+def read_torque(bus) -> dict[str, bool] | None:
+    """Each servo's Torque_Enable as read back (True: torqued), or None if the read failed."""
+    try:
+        discard_stale_input(bus)
+        values = bus.sync_read("Torque_Enable", normalize=False)
+    except Exception:  # noqa: BLE001 - unread: the caller says so
+        recover_port(bus, settle=False)
+        return None
+    if any(int(v) not in (0, 1) for v in values.values()):
+        return None  # not a Torque_Enable byte: a garbled or late reply
+    return {joint: bool(int(v)) for joint, v in values.items()}
+
+
+def check_torque(bus, pending: set[str]) -> None:
+    """Raise TorqueLost when a servo's Torque_Enable reads 0 twice in a row (a limp joint).
+
+    Args:
+        bus: the lerobot bus (the loop commands every servo torqued).
+        pending: joints read limp once, waiting for the second reading (updated).
+    """
+    torque = read_torque(bus)
+    if torque is None:
+        return  # a missed read is not a fault; the next one
+    limp = {joint for joint, on in torque.items() if not on}
+    confirmed = sorted(limp & pending)
+    pending.clear()
+    pending.update(limp)
+    if confirmed:
+        raise TorqueLost(f"torque went off on {', '.join(confirmed)} (Torque_Enable reads 0; a "
+                         "brown-out of the servo power, or another program released it): that "
+                         "joint is limp. Fix: check the power supply and that no other program "
+                         "uses the arm.")

@@ -28,6 +28,7 @@ from collections.abc import Callable, Mapping
 
 from so101_kinematics.calibration import calibrated_limits
 from so101_kinematics.checks import LIMIT_TOLERANCE, limit_excess, limit_message
+from so101_kinematics.clearance import check_path
 from so101_kinematics.errors import (  # noqa: F401 - the family, re-exported
     BusError,
     FreezeRequested,
@@ -46,7 +47,8 @@ from so101_kinematics.hw.bus import (
     read_pose,
     recover_port,
 )
-from so101_kinematics.hw.checks import check_status, check_tracking
+from so101_kinematics.hw.checks import check_status, check_torque, check_tracking
+from so101_kinematics.hw.feedforward import tracking_allowance
 from so101_kinematics.hw.signals import (  # noqa: F401 - stopping the loop, with the loop
     STOP_SIGNALS,
     gc_frozen,
@@ -94,7 +96,7 @@ READ_RETRIES = 1                   # a failed Present_Position read is retried i
 OUTAGE_TOLERANCE_S = 1.0           # the arm may go unobserved this long: the plan pauses [s]
 RECOVERY_TIMEOUT_S = 5.0           # after a longer outage, wait this long for the arm [s]
 MAX_ADVANCE_S = 0.05               # the trajectory advances at most this much per cycle [s]
-STATUS_EVERY = 10                  # read the servos' Status (error bits) every N cycles
+STATUS_EVERY = 10                  # read the servos' Status and Torque_Enable every N cycles
 
 
 # --- The control loop ------------------------------------------------------------
@@ -122,6 +124,8 @@ class ArmSession:
         feedforward: the gravity feed-forward (``hw/feedforward.py``), or None: its
             offsets are added to every goal written (within the calibrated range), so the
             sagging arm rests at the command; positions read are the arm's own.
+        base_height: the table is this far below the base frame [m]: every move's path
+            is checked against it before it starts (``clearance.check_path``).
     """
 
     def __init__(self, bus, *, rate_hz: float = DEFAULT_RATE_HZ, profile: str = "minimum_jerk",
@@ -132,7 +136,7 @@ class ArmSession:
                  on_cycle: Callable[[ArmSession, Cycle], None] | None = None,
                  clock: Callable[[], float] = time.perf_counter,
                  sleep: Callable[[float], None] = time.sleep, trims: Trims | None = None,
-                 feedforward: Feedforward | None = None):
+                 feedforward: Feedforward | None = None, base_height: float = 0.0):
         if profile not in PROFILES:
             raise PlanError(f"Unknown profile '{profile}'; use one of {', '.join(PROFILES)}.")
         check_rate(rate_hz)
@@ -162,7 +166,9 @@ class ArmSession:
         self.plan_lag_s = 0.0  # [s] the plan ran behind the wall clock (outages, host stalls)
         self.known_faults: dict[str, int] = {}  # joint -> status bits already reported
         self._status_seen: dict[str, int] = {}  # joint -> bits of the last status read
+        self._limp_seen: set[str] = set()  # joints whose last Torque_Enable read was 0
         self.stale_bytes = 0  # late-reply bytes dropped before reads
+        self.base_height = base_height
 
     # measurement and command
     def _read(self) -> Configuration:
@@ -189,15 +195,6 @@ class ArmSession:
                 raise JointLimitError(f"Command {message}; nothing was sent.")
             out[joint] = min(upper, max(lower, value))
         return out
-
-    def _allowed(self, previous: Configuration, command: Configuration) -> dict:
-        """Tracking tolerances for this cycle: the margin plus the lag and sag the servo has."""
-        if self.feedforward is None:
-            return self.tracking_tolerance
-        speeds = {j: (command[j] - previous[j]) / self.loop.period for j in command}
-        expected = self.feedforward.expected_errors(previous, speeds)
-        return {j: None if allowed is None else allowed + expected.get(j, 0.0)
-                for j, allowed in self.tracking_tolerance.items()}
 
     @property
     def observed(self) -> bool:
@@ -253,10 +250,13 @@ class ArmSession:
                 logger.warning("The arm answers again after %.2f s; resuming the plan.", length)
                 self._unobserved_since = None
             if previous is not None:
-                check_tracking(previous, measured, deadline, self._allowed(previous, command),
+                check_tracking(previous, measured, deadline,
+                               tracking_allowance(self.feedforward, self.tracking_tolerance,
+                                                  previous, command, self.loop.period),
                                self.tracking_timeout, self._beyond)
             if len(self.cycles) % STATUS_EVERY == 0:
                 check_status(self.bus, self.known_faults, self._status_seen)
+                check_torque(self.bus, self._limp_seen)
         cycle = Cycle(deadline - self._t0, self.loop.woke - self._t0, self.step, command, measured)
         self.cycles.append(cycle)
         if self.on_cycle is not None:
@@ -301,6 +301,7 @@ class ArmSession:
 
         Raises:
             JointLimitError: ``cfg`` is outside the calibrated range (nothing sent).
+            ClearanceError: the path goes into the table (nothing sent).
             TrackingError, BusError, ServoFault, StopRequested, PortLost: see the class.
         """
         goal = check_configuration(cfg, self.limits, "move_to_pose target (calibrated range)")
@@ -309,6 +310,7 @@ class ArmSession:
         if self.command is None:
             self.command = self.read_pose()  # the first move ramps from where the arm is
         start = dict(self.command)
+        check_path([start, goal], [self.step or "move_to_pose"], base_height=self.base_height)
         requested = float(duration)
         caps = max_speed or self.max_speed
         duration = capped_duration(start, goal, requested, self.profile, caps)

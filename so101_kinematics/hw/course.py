@@ -19,6 +19,12 @@ is released only at the starting pose, the pose the arm had at
 - a script that ends without it (done, an exception, Ctrl-C or SIGTERM/SIGHUP
   between the calls) gets the same ending when Python exits;
 - input refused before anything moved (calibration, port): one line, exit 2.
+
+The bus handed out is a :class:`~so101_kinematics.hw.guarded.GuardedBus`: the
+student's own ``bus.sync_write("Goal_Position", ...)`` is a checked move
+ramped at the speed cap (:func:`course_write_goal`); raw lerobot is ``bus.raw``.
+Each move and hold starts from where the arm stands when it is elsewhere than
+the last command (a goal written on ``bus.raw``): ``guarded.resync``.
 """
 
 from __future__ import annotations
@@ -41,6 +47,7 @@ from so101_kinematics.checks import (
     check_number,
     is_finite_number,
     move_arguments,
+    radians_warning,
     start_mismatch,
 )
 from so101_kinematics.errors import CalibrationError, PlanError, SO101Error
@@ -55,6 +62,7 @@ from so101_kinematics.hw.bus import (
 )
 from so101_kinematics.hw.control import ArmSession, signals_as_interrupt, stop_on_signals
 from so101_kinematics.hw.feedforward import read_feedforward, torque_on_in_place
+from so101_kinematics.hw.guarded import RAW_TICKS, GuardedBus, ramp_to_goal, resync
 from so101_kinematics.hw.run import (
     LIMIT_SLACK_DEG,
     RELEASE_HINT,
@@ -106,9 +114,10 @@ class CourseRun:
     release: str                  # the documented command that releases the torque by hand
     restore: ExitStack = field(default_factory=ExitStack)
     ended: str | None = None      # the run's last line, once it ended
+    key: int = 0                  # id() of the bus handed out (its key in _RUNS)
 
 
-_RUNS: dict[int, CourseRun] = {}  # id(bus) -> its run, while it is set up and not ended
+_RUNS: dict[int, CourseRun] = {}  # id(bus handed out) -> its run, while set up and not ended
 
 
 def _refuse(error: BaseException) -> ScriptEnded:
@@ -159,6 +168,11 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
         gravity_ff: offset every goal by the sag the servos will have there (read from
             their P_Coefficient and Present_Voltage; ``so101_kinematics/hw/feedforward.py``),
             so the arm rests where it is sent; ``False``: the raw sag, as lerobot alone.
+
+    Returns:
+        A :class:`~so101_kinematics.hw.guarded.GuardedBus`: lerobot's bus whose
+        ``Goal_Position`` writes are checked and ramped at the speed cap; lerobot's
+        own bus, unguarded, is its ``raw`` attribute.
 
     Raises:
         ScriptEnded: refused before anything moved (one line, exit status 2).
@@ -211,11 +225,14 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
         else:  # the run ended holding away from the start (a fault): holding is safer
             logger.warning("Not releasing the torque away from the starting pose: %s", run.ended)
 
-    bus.disable_torque = disable_torque
-    _RUNS[id(bus)] = run
+    bus.disable_torque = disable_torque  # lerobot's own disconnect() calls it too
+    guarded = GuardedBus(bus, lambda values, what, normalize: course_write_goal(
+        guarded, values, what, normalize), disable_torque)
+    run.key = id(guarded)
+    _RUNS[run.key] = run
     logger.info("Torque on, holding where the arm stands (%s); trims: %s.", format_pose(start),
                 trims.describe())
-    return bus
+    return guarded
 
 
 def _unlock_port(bus) -> None:
@@ -272,6 +289,7 @@ def course_move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING) 
         if not isinstance(cfg, Mapping):
             raise PlanError(f"move_to_pose needs a configuration dict joint -> [deg], got "
                             f"{type(cfg).__name__}. Fix: e.g. {{'shoulder_pan': 0.0, ...}}.")
+        resync(session)
         target = dict(session.command, **cfg)
         for joint in JOINTS:
             low, high = session.limits[joint]
@@ -279,6 +297,9 @@ def course_move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING) 
             if is_finite_number(value) and low - LIMIT_SLACK_DEG <= value <= high + LIMIT_SLACK_DEG:
                 target[joint] = min(high, max(low, float(value)))
         warning = start_mismatch(start, session.command)
+        if warning:
+            logger.warning(warning)
+        warning = radians_warning(cfg, session.command)
         if warning:
             logger.warning(warning)
         session.move(target, seconds)
@@ -289,9 +310,18 @@ def course_move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING) 
 def course_hold_position(bus, duration: float) -> None:
     """Hold the last commanded pose for ``duration`` [s], reading and checking the arm."""
     def hold(session: ArmSession) -> None:
-        session.hold(check_number(duration, "hold_position duration", 0.0, MAX_HOLD_S, "s"))
+        seconds = check_number(duration, "hold_position duration", 0.0, MAX_HOLD_S, "s")
+        resync(session)
+        session.hold(seconds)
 
     _guarded(bus, "hold_position", hold)
+
+
+def course_write_goal(bus, values: Mapping[str, Any], what: str, normalize: bool = True) -> None:
+    """A student's own ``Goal_Position`` write: checked, ramped there (``hw/guarded.py``)."""
+    if not normalize:
+        raise _refuse(PlanError(f"{what} {RAW_TICKS}"))
+    _guarded(bus, what, lambda session: ramp_to_goal(session, values, what))
 
 
 def end_at_start(run: CourseRun, why: str) -> str:
@@ -316,7 +346,7 @@ def end_at_start(run: CourseRun, why: str) -> str:
 
 def _end(run: CourseRun, result: RunResult) -> str:
     """Close the run and print its last line (where the arm is, whether it is torqued)."""
-    _RUNS.pop(id(run.session.bus), None)
+    _RUNS.pop(run.key, None)
     run.restore.close()
     run.ended = ending(result, run.release)
     released = result.returned_to_start and result.torque_released

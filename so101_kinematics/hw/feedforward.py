@@ -114,3 +114,22 @@ def torque_on_in_place(bus, feedforward: Feedforward | None, start=None) -> None
         if all(abs(pose[j] - target[j]) <= SETTLED_DEG for j in ARM_JOINTS):
             return
         time.sleep(0.02)
+
+
+def tracking_allowance(feedforward: Feedforward | None, tolerance: dict, previous: dict,
+                       command: dict, period: float) -> dict:
+    """Tracking tolerances for one cycle: each joint's margin plus the lag and sag it will have.
+
+    Args:
+        feedforward: the arm's feed-forward (None: the margins alone).
+        tolerance: joint -> margin [deg] (None: unchecked).
+        previous: the command before [deg].
+        command: this cycle's command [deg].
+        period: the loop's period [s] (the commands' change over it is their speed).
+    """
+    if feedforward is None:
+        return tolerance
+    speeds = {j: (command[j] - previous[j]) / period for j in command}
+    expected = feedforward.expected_errors(previous, speeds)
+    return {j: None if allowed is None else allowed + expected.get(j, 0.0)
+            for j, allowed in tolerance.items()}

@@ -26,6 +26,7 @@ from so101_kinematics.calibration import (
 )
 from so101_kinematics.cube_sensor import CubeReading
 from so101_kinematics.errors import NotConfirmed as NotConfirmed
+from so101_kinematics.errors import TorqueLost
 from so101_kinematics.frames import JOINT_LIMITS, JOINTS
 from so101_kinematics.hw.bus import (
     SETUP_ATTEMPTS,
@@ -43,36 +44,35 @@ from so101_kinematics.hw.bus import (
     silent_servos,
     with_retries,
 )
+from so101_kinematics.hw.checks import read_torque
 from so101_kinematics.hw.control import (
     DEFAULT_RATE_HZ,
     MAX_JOINT_SPEED_DEG_S,
     RECOVERY_TIMEOUT_S,
-    SPEED_CAP_LIMIT_DEG_S,
     TRACKING_TOLERANCE_DEG,
-    TRACKING_TOLERANCE_LIMIT_DEG,
     ArmSession,
     Cycle,
     FreezeRequested,
     Segment,
     StopRequested,
     capped_duration,
-    check_rate,
     gc_frozen,
     speed_caps,
     stop_on_signals,
     tracking_tolerances,
 )
 from so101_kinematics.hw.feedforward import read_feedforward, torque_on_in_place
+from so101_kinematics.hw.preflight import (  # noqa: F401 - the run's checks, re-exported
+    check_run_settings,
+    validate_plan_for_arm,
+)
 from so101_kinematics.motion import (
     Configuration,
-    JointLimitError,
     Plan,
     Step,
-    check_number,
     run_plan,
     unit,
 )
-from so101_kinematics.plans import validate_plan
 from so101_kinematics.trims import Trims, as_trims
 
 logger = logging.getLogger("pick_place_hw")
@@ -87,37 +87,6 @@ class MotionAborted(HardwareError):
     def __init__(self, message: str, result: RunResult):
         super().__init__(message)
         self.result = result
-
-
-def validate_plan_for_arm(plan: Plan, calibration: Mapping[str, Any] | None,
-                          source: str = "the calibration", trims: Trims | None = None) -> Plan:
-    """Check every waypoint against the model's limits and the arm's calibrated limits.
-
-    Raises:
-        PlanError: bad structure; JointLimitError naming joint, value, limit,
-            which limits (model or calibration) and the fix.
-    """
-    try:
-        validate_plan(plan, JOINT_LIMITS)
-    except JointLimitError as error:
-        raise JointLimitError(f"{error} (joint limits of the SO-101 model, as in the simulator)") \
-            from None
-    if calibration is not None:
-        try:
-            validate_plan(plan, as_trims(trims).limits(calibrated_limits(calibration)))
-        except JointLimitError as error:
-            raise JointLimitError(f"{error} (calibrated range of this arm, from {source}, less "
-                                  "any trim; if the range looks too small, recalibrate)") from None
-    return plan
-
-
-def check_run_settings(rate_hz: float, max_joint_speed: float, tracking_tolerance: float) -> None:
-    """Refuse a setting outside its documented range (PlanError naming it), before connecting."""
-    check_rate(rate_hz)
-    check_number(max_joint_speed, "--max-speed", 0.0, SPEED_CAP_LIMIT_DEG_S, "deg/s",
-                 low_open=True)
-    check_number(tracking_tolerance, "--tracking-tolerance", 0.0, TRACKING_TOLERANCE_LIMIT_DEG,
-                 "deg", low_open=True)
 
 
 @dataclass
@@ -142,6 +111,7 @@ class RunResult:
     stale_bytes: int = 0  # late-reply bytes dropped before reads (see discard_stale_input)
     cube: CubeReading | None = None  # the virtual lab's cube sensor at the end; None on a real arm
     cubes: list[CubeReading] = field(default_factory=list)  # every cube it reports (stacking)
+    torque: dict[str, bool] | None = None  # Torque_Enable read back at the end (None: unread)
 
 
 def _describe(error: BaseException, step: str) -> str:
@@ -176,6 +146,9 @@ def after_abort(session: ArmSession, error: BaseException, start_pose: Configura
             if pose is None:
                 result.silent = silent_servos(bus)
                 return
+            if isinstance(error, TorqueLost):  # hold the limp joint where it sank, then return
+                with bus_errors("enabling torque again where the arm is"):
+                    with_retries(lambda b: torque_on_in_place(b, session.feedforward), bus)
             if return_on_abort:
                 session.stop_reason = None
                 session.return_slowly(start_pose)
@@ -247,6 +220,7 @@ def finish(session: ArmSession, result: RunResult) -> None:
         if result.returned_to_start:
             result.unreleased = release_torque(session.bus)
             result.torque_released = not result.unreleased
+        result.torque = read_torque(session.bus)  # the last line says what the servos say
 
 
 def ending(result: RunResult, release: str) -> str:
@@ -268,12 +242,25 @@ def ending(result: RunResult, release: str) -> str:
                 f"powered silent servo holds its last goal). Check the cable and power of the "
                 f"silent servo(s). {hold}")
     pose = "" if result.final_pose is None else f" ({format_pose(result.final_pose)})"
+    torque = torque_words(result.torque)
     if result.frozen:
-        return f"Frozen where it was by a second stop signal{pose}, torque ON. {hold}"
+        return f"Frozen where it was by a second stop signal{pose}, {torque}. {hold}"
     if result.aborted is None:
-        return (f"Done: holding the final pose '{result.final_step}'{pose}, torque ON (the plan "
+        return (f"Done: holding the final pose '{result.final_step}'{pose}, {torque} (the plan "
                 f"has return_to_start: false). {hold}")
-    return f"The arm is holding where it stopped{pose}, torque ON. {hold}"
+    return f"The arm is holding where it stopped{pose}, {torque}. {hold}"
+
+
+def torque_words(torque: dict[str, bool] | None) -> str:
+    """The torque as read back from the servos, for a last line (never what was commanded)."""
+    if torque is None:
+        return "torque not read back (commanded ON)"
+    limp = [joint for joint, on in torque.items() if not on]
+    if not limp:
+        return "torque ON"
+    if len(limp) == len(torque):
+        return "torque OFF on every servo (read back): the arm is limp"
+    return f"torque ON, but OFF on {', '.join(limp)} (read back: limp)"
 
 
 def starting_pose(bus, calibration, port: str, robot_id: str | None) -> Configuration:
@@ -306,7 +293,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
                return_on_abort: bool = True, trims: Trims | str | None = None,
                on_cycle: Callable[[ArmSession, Cycle], None] | None = None,
                on_start: Callable[[Configuration, float], None] | None = None,
-               gravity_ff: bool = True) -> RunResult:
+               gravity_ff: bool = True, base_height: float = 0.0) -> RunResult:
     """The whole hardware run: check, connect, confirm, torque on, run, return, torque off.
 
     Nothing is sent to the servos' goal registers and torque stays off until
@@ -331,6 +318,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
         on_start: called with the measured starting pose and the first move's
             duration [s] before ``confirm``.
         gravity_ff: offset each goal by the sag the servos will have (``hw/feedforward.py``).
+        base_height: the table is this far below the base frame [m]: no move goes into it.
 
     Raises:
         CalibrationError, PlanError, ConnectionFailed, LerobotMissing, NotConfirmed:
@@ -338,7 +326,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
         MotionAborted: aborted during motion (controlled ending done).
     """
     trims = as_trims(trims)
-    validate_plan_for_arm(plan, calibration, source, trims)
+    validate_plan_for_arm(plan, calibration, source, trims, base_height)
     check_run_settings(rate_hz, max_joint_speed, tracking_tolerance)
     bus = connect(port, calibration, robot_id=robot_id, write_calibration=write_calibration)
     armed = False
@@ -347,7 +335,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
         session = ArmSession(
             bus, rate_hz=rate_hz, profile=profile, max_speed=speed_caps(max_joint_speed),
             tracking_tolerance=tracking_tolerances(tracking_tolerance), on_cycle=on_cycle,
-            trims=trims)
+            trims=trims, base_height=base_height)
         session.command = dict(start)
         first = plan.steps[0]
         if on_start is not None:

@@ -183,7 +183,7 @@ def run_pick_place(
                                  f"{', '.join(QUALITY)}.")
     if timestep is not None:
         timestep = check_number(timestep, "timestep", *TIMESTEP_RANGE, "s", low_open=True)
-    plan = validate_plan(plan or default_plan(), scene_limits())
+    plan = validate_plan(plan or default_plan(), scene_limits(), base_height=base_height)
     if cube is not None:
         check_cube_start(plan, cube)
     if mode == "record":

@@ -133,7 +133,7 @@ def run_stack(
     if quality not in QUALITY:
         raise RenderSettingError(f"Unknown quality {quality!r}; choose one of "
                                  f"{', '.join(QUALITY)}.")
-    plan = validate_plan(stack.plan, scene_limits())
+    plan = validate_plan(stack.plan, scene_limits(), base_height=stack.base_height)
     if mode == "record":
         check_fps(fps, 1.0 / scene_model().opt.timestep)
         check_frame_size(size, "Video size")

@@ -40,6 +40,7 @@ from so101_kinematics.checks import (
     describe_value,
     is_finite_number,
     move_arguments,
+    radians_warning,
     start_mismatch,
 )
 from so101_kinematics.errors import CallShapeError, ViewerClosed
@@ -195,9 +196,9 @@ def move_to_pose(m: mujoco.MjModel, d: mujoco.MjData, viewer, *args,
     goal = held_at_limits(m, cfg, "move_to_pose target")
     duration = check_duration(duration, "move_to_pose duration")
     command = get_command(m, d)
-    warning = start_mismatch(start, command)
-    if warning:
-        logger.warning(warning)
+    for warning in (start_mismatch(start, command), radians_warning(cfg, command)):
+        if warning:
+            logger.warning(warning)
     path = Trajectory(command, goal, duration, profile)
     if _viewer_closed(viewer):
         if raise_if_closed:

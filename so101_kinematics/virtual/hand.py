@@ -15,8 +15,10 @@ Rules:
 - The hand moves only limp joints: a torqued servo holds its goal (enabling
   torque on a gripped joint makes the hand let go of it).
 - Targets are checked against the joint limits; the whole path is checked
-  against the table before the hand moves: a path that would press a link
-  into the table (deeper than it already is, by :data:`TABLE_MARGIN`) is refused.
+  against the table before the hand moves, by the project's one clearance
+  check (``so101_kinematics/clearance.py``, the same as every commanded move):
+  a path that brings a link, a jaw or the object frame within its margin of
+  the table (or lower than it already is) is refused.
 - After its path the hand keeps holding the joints where it put them (a limp
   arm would otherwise sag under gravity) until :meth:`hand_release`.
 """
@@ -26,13 +28,11 @@ from __future__ import annotations
 import math
 import time
 
-import numpy as np
+from so101_kinematics.clearance import check_path
+from so101_kinematics.errors import ClearanceError
 
 HAND_SPEED = math.radians(90.0)  # [rad/s] average speed of the joint that moves most
 MIN_SEGMENT_S = 0.3  # [s] shortest hand move
-TABLE_MARGIN = 0.002  # [m] new penetration of the table that refuses a path
-CHECK_STEP = math.radians(1.0)  # [rad] path sampling for the table check
-SERVE_EVERY_S = 0.002  # the table check pauses this often to answer the bus [s]
 
 
 class HandError(ValueError):
@@ -121,37 +121,20 @@ class Hand:
             d.qfrc_applied[servo.dofadr] = d.qfrc_bias[servo.dofadr]
 
     def _check_table(self, points: list[dict[str, float]]) -> None:
-        """Raise HandError if the path presses a link into the table."""
-        mujoco, m = self.mujoco, self.m
-        scratch = mujoco.MjData(m)
-        table = m.geom("table").id
-        qadr = {j: s.qadr for j, s in self.by_joint.items()}
+        """Raise HandError if the path goes into the table (``clearance.check_path``)."""
+        lo, hi = (float(x) for x in self.m.joint("gripper").range)
 
-        def penetration(q: dict[str, float]) -> float:
-            scratch.qpos[:] = self.d.qpos
-            for j, value in q.items():
-                scratch.qpos[qadr[j]] = value
-            mujoco.mj_kinematics(m, scratch)
-            mujoco.mj_collision(m, scratch)
-            n = scratch.ncon
-            c = scratch.contact
-            on_table = (c.geom1[:n] == table) | (c.geom2[:n] == table)
-            return float(max(0.0, -c.dist[:n][on_table].min())) if on_table.any() else 0.0
+        def user(q: dict[str, float]) -> dict[str, float]:  # [rad] -> [deg], gripper [0, 100]
+            return {j: 100.0 * (v - lo) / (hi - lo) if j == "gripper" else math.degrees(v)
+                    for j, v in q.items()}
 
-        # A long path takes tens of ms to check (a full sweep: ~20 ms on an idle host, twice
-        # that beside a busy lerobot tool): answer the bus meanwhile, as the servos would,
-        # or lerobot's 1-try reads time out (its deadline is ~34 ms).
-        serve = getattr(self, "serve_serial", None)
-        served = time.perf_counter()
-        allowed = penetration(points[0]) + TABLE_MARGIN
-        for a, b in zip(points, points[1:], strict=False):
-            n = max(1, math.ceil(max(abs(b[j] - a[j]) for j in a) / CHECK_STEP))
-            for s in np.linspace(0.0, 1.0, n + 1)[1:]:
-                if serve is not None and time.perf_counter() - served > SERVE_EVERY_S:
-                    serve()
-                    served = time.perf_counter()
-                q = {j: a[j] + s * (b[j] - a[j]) for j in a}
-                if penetration(q) > allowed:
-                    pose = ", ".join(f"{j}={math.degrees(v):.0f}" for j, v in q.items())
-                    raise HandError(f"that path goes into the table (at {pose} deg); "
-                                    "move the arm up first or choose another pose")
+        # Answer the bus between segments, as the servos would: lerobot's 1-try reads
+        # time out after ~34 ms while a tool (lerobot-calibrate) reads during a sweep.
+        try:
+            check_path([user(q) for q in points], [f"hand waypoint {i + 1}" for i in
+                                                   range(len(points) - 1)],
+                       base_height=getattr(self, "base_height", 0.0),
+                       between=getattr(self, "serve_serial", None),
+                       fix="move the arm up first or choose another pose")
+        except ClearanceError as error:
+            raise HandError(str(error)) from None
