@@ -33,6 +33,7 @@ from so101_kinematics.checks import START_MISMATCH, check_configuration, is_fini
 from so101_kinematics.errors import BusError, PlanError
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.control import ArmSession
+from so101_kinematics.hw.feedforward import tracking_allowance
 from so101_kinematics.hw.timing import capped_duration
 
 logger = logging.getLogger("so101_utils")
@@ -136,14 +137,17 @@ def resync(session: ArmSession) -> None:
     """Start from where the arm stands if it is elsewhere than the last command.
 
     A goal written on ``bus.raw`` (or by another program) moved the arm outside the
-    loop: each arm joint more than ``START_MISMATCH`` from its last command starts the
-    next move or hold from its measured position, never jumping back to the stale command.
+    loop: each arm joint more than ``START_MISMATCH`` (plus the sag the servo has there
+    without the feed-forward) from its last command starts the next move or hold from its
+    measured position, never jumping back to the stale command.
     """
     try:
         measured = session.read_pose()
     except BusError:  # a glitch: the loop itself rides it through (or ends by the policy)
         return
-    moved = [j for j in ARM_JOINTS if abs(measured[j] - session.command[j]) > START_MISMATCH]
+    allowed = tracking_allowance(session.feedforward, dict.fromkeys(ARM_JOINTS, START_MISMATCH),
+                                 session.command, session.command, 1.0)  # plus the sag at rest
+    moved = [j for j in ARM_JOINTS if abs(measured[j] - session.command[j]) > allowed[j]]
     if moved:
         logger.warning("The arm is not where it was last commanded (%s; a goal written on "
                        "bus.raw?): the move starts from where it stands.",
