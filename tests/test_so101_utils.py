@@ -97,7 +97,9 @@ def test_assignment_8_example_runs_as_written(arm, lerobot_calibrations, capsys)
     move_to_pose(bus, starting_pose, move_time)
     bus.disable_torque()
 
-    assert_near(starting_pose, HOME, tol_deg=0.5, label="start")
+    # held where it stood, within the servo's friction band (0.5 deg at P = 16 on 5 V) and
+    # a count of the encoder
+    assert_near(starting_pose, HOME, tol_deg=0.7, label="start")
     assert_near(reached, desired_configuration, label="after move_to_pose")
     assert_near(held, desired_configuration, label="after hold_position")
     position = forward_kinematics({j: held[j] for j in ARM_JOINTS})[0]
