@@ -63,21 +63,25 @@ def measure_loop_timing(rates_hz=(100.0, 200.0), seconds: float = 3.0, wire_timi
         configure,
         connect,
         disconnect,
-        enable_torque_in_place,
+        read_pose,
         release_torque,
     )
     from so101_kinematics.hw.control import ArmSession, gc_frozen
+    from so101_kinematics.hw.feedforward import read_feedforward, torque_on_in_place
     from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
 
     results = {}
     with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, wire_timing=wire_timing) as arm:
         bus = connect(arm.port, load_calibration(DEFAULT_CALIBRATION_PATH))
         try:
+            start = read_pose(bus)
             configure(bus)
-            enable_torque_in_place(bus)
+            feedforward = read_feedforward(bus)  # as every run: the arm holds, not sags
+            torque_on_in_place(bus, feedforward, start)
             for rate in rates_hz:
                 with gc_frozen():
-                    results[rate] = _swing_wrist(ArmSession(bus, rate_hz=rate), seconds)
+                    session = ArmSession(bus, rate_hz=rate, feedforward=feedforward)
+                    results[rate] = _swing_wrist(session, seconds)
         finally:
             release_torque(bus)
             disconnect(bus)

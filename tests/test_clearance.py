@@ -133,7 +133,9 @@ def test_move_to_pose_into_the_table_is_refused_before_anything_moves(course_arm
     lift = [ticks for _, servo, ticks in course_arm.goal_log() if servo == 2]  # shoulder_lift
     home, grasp = lift[0], lift[sent_lift(course_arm, sent) - 1]
     after = lift[sent_lift(course_arm, sent):]
-    assert all(min(home, grasp) - 3 <= t <= max(home, grasp) + 3 for t in after), \
+    # goals carry the feed-forward: up to 0.5 deg (6 ticks) of friction push at P = 16 on
+    # the virtual arm's 5 V; the refused target is 8 deg (91 ticks) beyond the grasp
+    assert all(min(home, grasp) - 10 <= t <= max(home, grasp) + 10 for t in after), \
         "after the refusal, shoulder_lift only went back towards the start"
     assert err.strip().splitlines()[-1] == "Back at the starting pose, torque off."
     bus.disconnect(disable_torque=False)

@@ -72,7 +72,7 @@ def test_a_goal_outside_the_calibration_is_refused(course_arm, capsys):
     with pytest.raises(course.ScriptEnded):
         bus.write("Goal_Position", "elbow_flex", upper + 10.0)
     err = capsys.readouterr().err
-    assert f"elbow_flex = {upper + 10.0:g} deg is outside" in err and "calibrated range" in err
+    assert f"elbow_flex = {upper + 10.0:.5f} deg is outside" in err and "calibrated range" in err
     assert "ramped" not in err
 
 

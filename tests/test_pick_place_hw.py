@@ -28,6 +28,7 @@ from benchmarks.bench_hw import measure_loop_timing  # noqa: E402
 from so101_forward_kinematics import ARM_JOINTS, JOINTS  # noqa: E402
 from so101_kinematics.calibration import CalibrationError, load_calibration  # noqa: E402
 from so101_kinematics.constants import HOME_POSE  # noqa: E402
+from so101_kinematics.hw import feedforward  # noqa: E402
 from so101_kinematics.hw.bus import (  # noqa: E402
     ConnectionFailed,
     calibration_mismatch,
@@ -105,16 +106,24 @@ def test_full_sequence_completes_and_ends_at_the_starting_pose(full_run):
 def test_every_goal_received_stays_within_the_calibrated_limits(full_run):
     goals = full_run["goals"]
     cycles = full_run["result"].cycles
-    assert len(goals) == 6 * (len(cycles) + 1)  # + the in-place goals written before torque on
+    # + the in-place goals written before torque on, and the feed-forward's ramp after it
+    ramp = round(feedforward.RAMP_S / feedforward.RAMP_PERIOD_S)
+    assert len(goals) == 6 * (len(cycles) + 1 + ramp)
     assert goals_outside_calibration(goals) == []
 
 
 def test_waypoints_are_reached(full_run):
-    """Each waypoint's last measured pose is within 2 deg of it (gripper: no cube, 3 %)."""
+    """Each held waypoint's last measured pose is within 2 deg of it (gripper: no cube, 3 %).
+
+    A waypoint the plan passes through without a hold (approach, pre_grasp, retreat,
+    depart) is left while the arm still trails it: the STS3215 at P = 16 lags a move by
+    about 0.1 s of its motion (servo.lag), up to 6 deg at these shortened moves' speeds.
+    """
     result = full_run["result"]
     for step in full_run["plan"].steps:
         cycles = [c for c in result.cycles if c.step == step.name and c.measured]
-        assert_near(cycles[-1].measured, step.configuration, tol_deg=2.0, label=step.name)
+        tolerance = 2.0 if step.hold > 0 else 8.0
+        assert_near(cycles[-1].measured, step.configuration, tol_deg=tolerance, label=step.name)
 
 
 def test_the_loop_holds_its_rate(full_run):
