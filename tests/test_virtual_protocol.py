@@ -202,3 +202,28 @@ def test_wheel_mode_spins_at_goal_velocity(raw):
 def test_a_reading_at_rest_moves_by_a_count_or_two(raw):
     readings = {read(raw, 2, PRESENT, 2) for _ in range(50)}
     assert 1 < len(readings) and max(readings) - min(readings) <= 4
+
+
+def test_step_mode_moves_by_the_counts_written(raw):
+    # Operating_Mode 3 [MEM]: Goal_Position is a relative step (sign bit 15), from the goal
+    start = read(raw, 5, PRESENT, 2)  # wrist_roll, no gravity load
+    ask(raw, 5, fp.INST_WRITE, [33, 3])
+    ask(raw, 5, fp.INST_WRITE, [GOAL, *goal_bytes(200)])
+    time.sleep(0.6)
+    assert abs(read(raw, 5, PRESENT, 2) - (start + 200)) <= 8  # dead zone, play, friction
+    ask(raw, 5, fp.INST_WRITE, [GOAL, *goal_bytes(200 | 0x8000)])  # -200: sign-magnitude
+    time.sleep(0.6)
+    assert abs(read(raw, 5, PRESENT, 2) - start) <= 8
+
+
+def test_pwm_mode_drives_open_loop_with_the_duty_written(raw):
+    # Operating_Mode 2 [MEM]: Goal_Time holds the duty (0.1 %), bit 10 its direction
+    start = read(raw, 5, PRESENT, 2)
+    ask(raw, 5, fp.INST_WRITE, [33, 2])
+    ask(raw, 5, fp.INST_WRITE, [44, *goal_bytes(300)])  # 30 % one way
+    time.sleep(0.3)
+    forward = read(raw, 5, PRESENT, 2) - start
+    ask(raw, 5, fp.INST_WRITE, [44, *goal_bytes(300 | 0x400)])  # the other way
+    time.sleep(0.6)
+    back = read(raw, 5, PRESENT, 2) - start
+    assert abs(forward) > 50 and back * forward < abs(forward) ** 2  # it turned, then back

@@ -47,6 +47,9 @@ HAND_GAINS = IDEAL_GAINS  # a hand guiding a limp joint: the upstream model's st
 ENCODER_NOISE = 0.3
 """How often a Present_Position reading is a count off (either way, seeded): a real STS3215 at
 rest reads a count or two apart from one read to the next (issue 26, clients on real arms)."""
+STEP_MODE = 3
+"""Operating_Mode 3 (step): each Goal_Position written moves the goal by that many counts
+(signed), from where it was, with the position loop [MEM]."""
 SETTING_ADDRESSES = {16, 21, 22, 23, 24, 26, 27, 33, 41, 44, 45, 46, 47, 48}
 """Registers that change the servo's loop (gains, dead zone, mode, profile, torque limit)."""
 
@@ -246,6 +249,8 @@ class ServoRegisters:
             goal = -(goal & 0x7FFF)
         if servo.torque and servo.position_mode:
             self.d.ctrl[servo.act] = servo.goal_to_angle(goal)
+        elif servo.torque and regs[33] == STEP_MODE:  # a relative move of ``goal`` counts
+            self.d.ctrl[servo.act] += goal / servo.scale
         self.goal_log.append((time.time(), servo.id, goal))
 
     def write(self, servo: VirtualServo, addr: int, data: bytes) -> None:
@@ -278,6 +283,8 @@ class ServoRegisters:
         if touched & {42, 43, 31, 32, 9, 10, 11, 12, 33}:
             if servo.torque and servo.position_mode:
                 self.d.ctrl[servo.act] = servo.goal_to_angle(servo.get("Goal_Position"))
+            elif servo.torque and regs[33] == STEP_MODE and touched & {42, 43}:
+                self.d.ctrl[servo.act] += servo.get("Goal_Position") / servo.scale
             if touched & {42, 43}:
                 self.goal_log.append((time.time(), servo.id, servo.get("Goal_Position")))
 
