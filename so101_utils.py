@@ -126,6 +126,21 @@ def move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING):
     course_move_to_pose(bus, *args, desired_position=desired_position, duration=duration)
 
 
+def move_to_pose_cubic(bus, *args, desired_position=MISSING, duration=MISSING):
+    """Move as :func:`move_to_pose` does, along the course's cubic (assignment 9).
+
+    Per joint ``q(t) = a0 + a1 t + a2 t^2 + a3 t^3`` with ``a0`` the start,
+    ``a1 = 0``, ``a2 = 3 (qf - q0) / T^2``, ``a3 = -2 (qf - q0) / T^3`` (zero
+    velocity at both ends), ``t`` clipped to ``[0, duration]``
+    (``so101_kinematics/profiles.py``). Same shapes, checks, speed cap (its
+    peak is 1.5 times the mean speed) and fault policy as :func:`move_to_pose`:
+    ``move_to_pose_cubic(bus, desired_position, duration)`` or
+    ``move_to_pose_cubic(bus, starting_position, desired_position, duration)``.
+    """
+    course_move_to_pose(bus, *args, desired_position=desired_position, duration=duration,
+                        profile="cubic", what="move_to_pose_cubic")
+
+
 def hold_position(bus, duration):
     """Hold the last commanded pose for ``duration`` seconds, watching the arm.
 
