@@ -76,13 +76,41 @@ def set_initial_pose(d, position_dict: Mapping[str, float]) -> None:
     scene.set_initial_pose(d, scene.held_at_limits(d.model, position_dict, "set_initial_pose"))
 
 
-def send_position_command(d, position_dict: Mapping[str, float]) -> None:
+def send_position_command(d, position_dict: Mapping[str, float],
+                          velocity_dict: Mapping[str, float] | None = None) -> None:
     """Command the servos to ``position_dict`` ([deg], gripper [0, 100]); others keep theirs.
 
     A joint beyond the model's range is commanded to its limit, with a warning line.
+    With ``model/scene_with_velocity.xml`` (assignment 9's 12 controls) the velocity
+    actuators get ``velocity_dict`` ([deg/s], gripper [%/s]), or 0 when it is None,
+    as the course's ``d.ctrl = [positions..., velocities...]``.
+
+    Raises:
+        PlanError: a velocity for a model without velocity actuators, or one that is
+            not a finite number.
     """
     scene.send_position_command(
         d, scene.held_at_limits(d.model, position_dict, "send_position_command", partial=True))
+    scene.send_velocity_command(d, velocity_dict)
+
+
+def move_to_pose_cubic(m, d, viewer, *args, **keywords) -> None:
+    """Assignment 9's move: as ``move_to_pose``, along the course's cubic.
+
+    ``move_to_pose_cubic(m, d, viewer, desired_position, duration)`` or
+    ``move_to_pose_cubic(m, d, viewer, starting_position, desired_position, duration)``.
+    Per joint ``q(t) = a0 + a1 t + a2 t^2 + a3 t^3`` from the start ``a0 = q0`` to
+    ``qf``, zero velocity at both ends::
+
+        a1 = 0,  a2 = 3 (qf - q0) / duration**2,  a3 = -2 (qf - q0) / duration**3
+
+    with ``t`` clipped to ``[0, duration]`` (``profiles.cubic_coefficients``). The
+    move starts at the last command; a ``starting_position`` farther than 3 deg from
+    it is named in a warning, never jumped to. On ``model/scene_with_velocity.xml``
+    the cubic's velocity ``a1 + 2 a2 t + 3 a3 t^2`` goes to the velocity actuators
+    (the course's optional part; ``velocity=False`` leaves them at 0).
+    """
+    move_to_pose(m, d, viewer, *args, profile="cubic", **keywords)
 
 
 def pick_up_block(m, d, viewer, block_position, move_to_duration: float) -> None:
