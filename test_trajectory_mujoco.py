@@ -1,0 +1,172 @@
+"""Test trajectories in MuJoCo: the course's week-9 sequence, profile by profile (assignment 9)."""
+
+from __future__ import annotations
+
+import so101_kinematics.display as so101_display  # first: EGL when there is no display
+
+# isort: split
+import argparse
+import json
+import logging
+import sys
+from pathlib import Path
+
+import mujoco
+
+from so101_kinematics.cli import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
+    ArgumentParser,
+    add_servo_arguments,
+    report_unexpected,
+    servo_from_arguments,
+)
+from so101_kinematics.errors import KinematicsInputError
+from so101_kinematics.motion import PROFILES, PlanError
+from so101_kinematics.outputs import (
+    JSON_REPORT,
+    PNG,
+    OutputPathError,
+    add_overwrite_argument,
+    check_output_path,
+    stamp,
+    write_text_atomic,
+)
+from so101_kinematics.outputs import atomic_output as _atomic_output
+from so101_kinematics.sim import actuation, tracking
+from so101_mujoco_utils import MODEL_DIR, ViewerClosed, load_model
+
+log = logging.getLogger("test_trajectory_mujoco")
+
+VELOCITY_SCENE = MODEL_DIR / "scene_with_velocity.xml"  # the course's week-9 model
+DEFAULT_PROFILE = "cubic"  # the assignment's
+COLUMNS = (("tracking_rms_deg", "RMS [deg]", ".2f"), ("tracking_max_deg", "max [deg]", ".2f"),
+           ("peak_velocity_deg_s", "peak vel [deg/s]", ".1f"),
+           ("peak_acceleration_deg_s2", "peak acc [deg/s^2]", ".0f"),
+           ("peak_jerk_deg_s3", "peak jerk [deg/s^3]", ".0f"))
+
+
+def open_model(args: argparse.Namespace):
+    """The model and what drives it: the velocity scene (course's gains) or the servo model."""
+    if args.velocity:
+        m = load_model(VELOCITY_SCENE)
+        return m, ("the course's velocity scene (position kp 50, kv 2; velocity kv 10), "
+                   "the velocity fed forward")
+    m = load_model()
+    spec = actuation.use_servo(m, **servo_from_arguments(args))
+    return m, spec.describe()
+
+
+def table(results: dict[str, dict[str, float]]) -> str:
+    """The figures, one line per profile."""
+    lines = ["profile       " + "  ".join(f"{title:>19}" for _, title, _ in COLUMNS)]
+    for name, figures in results.items():
+        lines.append(f"{name:<13} " + "  ".join(f"{figures[key]:>19{form}}"
+                                                for key, _, form in COLUMNS))
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Check the outputs, run each profile on the page's sequence, report (see :func:`main`)."""
+    json_path = plot_path = None
+    if args.json is not None:
+        json_path = check_output_path(args.json, "--json", kind=JSON_REPORT,
+                                      overwrite=args.overwrite)
+    if args.plot is not None:
+        plot_path = check_output_path(args.plot, "--plot", suffixes=(".png",), kind=PNG,
+                                      overwrite=args.overwrite)
+        if plot_path == json_path:
+            raise OutputPathError(f"--plot {args.plot}: is the --json file too. Fix: give the "
+                                  "plot its own name, e.g. tracking.png.")
+    profiles = list(PROFILES) if args.compare else [args.profile]
+    m, driven_by = open_model(args)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    headless = args.headless or not so101_display.has_display()
+    if not args.headless and headless:
+        print("No display found: running headless.", file=sys.stderr)
+    viewer = None if headless else so101_display.launch_viewer(m, d)
+    logs = {}
+    try:
+        for name in profiles:
+            log.info("profile %s", name)
+            logs[name] = tracking.run_week9(m, d, viewer, name,
+                                            velocity=True if args.velocity else None)
+    except ViewerClosed:
+        print(f"The viewer was closed: {len(logs)} of {len(profiles)} profile(s) ran.",
+              file=sys.stderr)
+    finally:
+        if viewer is not None:
+            so101_display.close_viewer(viewer)
+    results = {name: tracking.metrics(logged) for name, logged in logs.items()}
+    print(f"The page's sequence (all-zero, {tracking.TARGETS[0]}, {tracking.TARGETS[1]}, back; "
+          f"{tracking.MOVE_S:g} s moves, {tracking.HOLD_S:g} s holds) on {driven_by}:")
+    print(table(results))
+    if json_path is not None:
+        report = {"model": driven_by, "targets_m": [list(t) for t in tracking.TARGETS],
+                  "move_s": tracking.MOVE_S, "hold_s": tracking.HOLD_S, "profiles": results}
+        write_text_atomic(json_path, json.dumps(stamp(report, "test_trajectory_mujoco.py"),
+                                                indent=2) + "\n")
+    if plot_path is not None and logs:
+        with _atomic_output(plot_path) as temporary:
+            tracking.plot_tracking(logs, temporary, f"Commanded (solid) vs measured (dashed): "
+                                   f"{driven_by}")
+    return 0 if len(logs) == len(profiles) else 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Parse the command line, run, print the figures; returns the exit code."""
+    parser = ArgumentParser(
+        description=__doc__.splitlines()[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="""The page's test: from the all-zero pose (gripper 0) to the configuration
+get_inverse_kinematics gives for the 28.5 mm block at [0.25, 0.1, 0.01425] m, to the one
+at [0.25, -0.1, 0.01425] m, and back; 2 s moves, 1 s holds. Each profile runs it from
+rest; the figures are the arm's five joints: tracking error (measured minus commanded)
+RMS and largest, and the largest measured speed, acceleration and jerk.
+
+Profiles: direct (the goal at once: the page's "direct position commands"), linear (the
+course's move_to_pose), cubic (assignment 9's move_to_pose_cubic), quintic (zero end
+acceleration too; the same polynomial as minimum_jerk, this project's default).
+
+Without --velocity: the measured STS3215 at lerobot's settings (README, "What the real arm
+does"). With it: model/scene_with_velocity.xml, the course's gains, each profile's
+velocity fed to the velocity actuators.
+
+Exit code: 0 done, 1 viewer closed early or an unexpected error (rerun with -v), 2 bad
+input, 130 Ctrl-C.""")
+    parser.add_argument("--headless", action="store_true",
+                        help="no viewer (automatic when there is no display)")
+    parser.add_argument("--profile", choices=list(PROFILES), default=DEFAULT_PROFILE,
+                        help="the time scaling of every move (default %(default)s)")
+    parser.add_argument("--compare", action="store_true",
+                        help="run every profile on the same sequence, one after the other")
+    parser.add_argument("--velocity", action="store_true",
+                        help="the course's velocity scene, with the velocity fed forward")
+    parser.add_argument("--json", type=Path, metavar="PATH", help="write the figures as JSON")
+    parser.add_argument("--plot", type=Path, metavar="PATH.png",
+                        help="commanded vs measured per joint, one panel per profile")
+    add_servo_arguments(parser)
+    add_overwrite_argument(parser)
+    parser.add_argument("-v", "--verbose", action="store_true",
+                        help="log each profile (and show the traceback of an unexpected error)")
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # bad options (one line printed) or --help: the exit code
+        return stop.code
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="%(message)s")
+    try:
+        return run(args)
+    except (PlanError, OutputPathError, KinematicsInputError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("Interrupted (Ctrl-C): existing output files are as they were.", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as error:
+        return report_unexpected(error, args.verbose)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
