@@ -230,6 +230,67 @@ def test_the_logging_helper_without_pandas_names_the_extra(model, data, monkeypa
         tracking.log_frame(tracking.StepLog(model, data))
 
 
+# --- week 8's logging helpers, both backends ----------------------------------------------------
+def test_sim_logging_helper_returns_the_course_s_frame_in_both_shapes(model, data, tmp_path):
+    pytest.importorskip("pandas")
+    from so101_mujoco_utils import move_to_pose_with_logging, plot_data, set_initial_pose
+
+    set_initial_pose(data, ZERO)
+    df = move_to_pose_with_logging(model, data, None, dict(ZERO, elbow_flex=40.0), 2.0)
+    assert list(df.columns) == (["time"] + [f"target_{j}" for j in JOINTS] +
+                                [f"actual_{j}" for j in JOINTS])
+    assert len(df) == 500  # a row per 4 ms step
+    assert df["target_elbow_flex"].iloc[249] == pytest.approx(20.0, abs=0.2)  # halfway: linear
+    assert abs(df["actual_elbow_flex"].iloc[-1] - 40.0) < 3.0  # the servo lags, then arrives
+    df2 = move_to_pose_with_logging(model, data, None, dict(ZERO, elbow_flex=40.0), ZERO, 1.0,
+                                    profile="cubic")
+    assert df2["time"].iloc[0] == pytest.approx(model.opt.timestep)  # from the move's start
+    assert df2["target_elbow_flex"].iloc[124] == pytest.approx(20.0, abs=0.3)  # cubic: halfway
+    plot_data(df2, tmp_path / "log.png")
+    assert (tmp_path / "log.png").read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.fixture
+def virtual_arm_calibration(tmp_path, monkeypatch):
+    import shutil
+
+    folder = tmp_path / "lerobot_calibration" / "robots" / "so_follower"
+    folder.mkdir(parents=True)
+    shutil.copy(REPO / "calibration" / "virtual_so101.json", folder / "follower-1.json")
+    monkeypatch.setenv("HF_LEROBOT_CALIBRATION", str(tmp_path / "lerobot_calibration"))
+
+
+@pytest.mark.hw
+@pytest.mark.slow
+def test_the_arm_s_cubic_and_logged_moves_on_the_virtual_arm(course_arm, virtual_arm_calibration,
+                                                             caplog):
+    pytest.importorskip("pandas")
+    import so101_kinematics.hw.course as course
+    from so101_utils import (
+        load_calibration,
+        move_to_pose_cubic,
+        move_to_pose_with_logging,
+        setup_motors,
+    )
+
+    bus = setup_motors(load_calibration("follower-1"), course_arm.port)
+    session = course._RUNS[id(bus)].session
+    start = bus.sync_read("Present_Position")
+    target = dict(start, shoulder_pan=start["shoulder_pan"] + 20.0)
+    move_to_pose_cubic(bus, target, 1.0)
+    assert session.segments[-1].goal["shoulder_pan"] == pytest.approx(target["shoulder_pan"])
+    elsewhere = dict(target, shoulder_pan=target["shoulder_pan"] + 25.0)
+    with caplog.at_level(logging.WARNING):
+        df = move_to_pose_with_logging(bus, elsewhere, start, 1.0, profile="cubic")
+    assert "starting configuration is 25.0 deg from the last command" in caplog.text
+    assert session.segments[-1].start["shoulder_pan"] == pytest.approx(target["shoulder_pan"])
+    assert len(df) >= 90  # 100 Hz for 1 s
+    middle = df.iloc[(df["time"] - 0.5).abs().idxmin()]
+    assert middle["target_shoulder_pan"] == pytest.approx(start["shoulder_pan"] + 10.0, abs=1.0)
+    assert not df["actual_shoulder_pan"].isna().all()
+    bus.disable_torque()
+
+
 def _run_script(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "test_trajectory_mujoco.py", *args], cwd=REPO,
                           capture_output=True, text=True, timeout=600,

@@ -291,6 +291,26 @@ def course_move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING,
     _guarded(bus, what, move)
 
 
+def course_logged_move(bus, *args, desired_position=MISSING, duration=MISSING,
+                       profile: str | None = None) -> list:
+    """:func:`course_move_to_pose`, returning the move's control cycles (``timing.Cycle``)."""
+    session = _run_of(bus, "move_to_pose_with_logging").session
+    cycles, previous = [], session.on_cycle
+
+    def record(arm: ArmSession, cycle) -> None:
+        cycles.append(cycle)
+        if previous is not None:
+            previous(arm, cycle)
+
+    session.on_cycle = record
+    try:
+        course_move_to_pose(bus, *args, desired_position=desired_position, duration=duration,
+                            profile=profile, what="move_to_pose_with_logging")
+    finally:
+        session.on_cycle = previous
+    return cycles
+
+
 def course_hold_position(bus, duration: float) -> None:
     """Hold the last commanded pose for ``duration`` [s], reading and checking the arm."""
     def hold(session: ArmSession) -> None:

@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from so101_kinematics import trajectory_log
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.ik.course import get_inverse_kinematics
 from so101_kinematics.sim import stepping
@@ -45,6 +46,8 @@ class StepLog:
 
     def __init__(self, m, d, viewer=None):
         self.m, self.d, self.viewer = m, d, viewer
+        if viewer is not None:
+            stepping._guard_passive_viewer(viewer)  # its exit waits for the render thread
         self.offscreen = viewer is None or getattr(viewer, "offscreen", False)
         table = joint_table(m)
         self._acts = [act for _, _, act, *_ in table]
@@ -144,24 +147,15 @@ def metrics(log: StepLog) -> dict[str, float]:
 
 
 def log_frame(log: StepLog):
-    """The course's logging DataFrame: ``time``, ``target_<joint>``, ``actual_<joint>``.
-
-    One row per physics step: ``time`` [s] from the log's start, the joints in
-    [deg] (gripper [0, 100]).
+    """The course's logging DataFrame (``trajectory_log.logging_frame``), a row per physics step.
 
     Raises:
         ImportError: one line naming the extra, when pandas is not installed.
     """
-    try:
-        import pandas as pd
-    except ImportError:
-        raise ImportError("move_to_pose_with_logging returns a pandas DataFrame, and pandas is "
-                          "not installed. Fix: pip install -e '.[hw]' (lerobot brings it) or "
-                          "pip install pandas.") from None
     a = log.arrays()
-    return pd.DataFrame({"time": a["time"],
-                         **{f"target_{j}": a["command"][:, i] for i, j in enumerate(JOINTS)},
-                         **{f"actual_{j}": a["measured"][:, i] for i, j in enumerate(JOINTS)}})
+    rows = [dict(zip(JOINTS, row, strict=True)) for row in a["command"].tolist()]
+    measured = [dict(zip(JOINTS, row, strict=True)) for row in a["measured"].tolist()]
+    return trajectory_log.logging_frame(a["time"].tolist(), rows, measured)
 
 
 def plot_tracking(logs: dict[str, StepLog], path, title: str = "") -> None:
