@@ -40,6 +40,7 @@ log = logging.getLogger("test_trajectory_mujoco")
 
 VELOCITY_SCENE = MODEL_DIR / "scene_with_velocity.xml"  # the course's week-9 model
 DEFAULT_PROFILE = "cubic"  # the assignment's
+SERVO_DEFAULTS = {"mode": "sts3215", "volts": 5.0, "variant": None, "p": 16, "feedforward": True}
 COLUMNS = (("tracking_rms_deg", "RMS [deg]", ".2f"), ("tracking_max_deg", "max [deg]", ".2f"),
            ("peak_velocity_deg_s", "peak vel [deg/s]", ".1f"),
            ("peak_acceleration_deg_s2", "peak acc [deg/s^2]", ".0f"),
@@ -48,10 +49,17 @@ COLUMNS = (("tracking_rms_deg", "RMS [deg]", ".2f"), ("tracking_max_deg", "max [
 
 def open_model(args: argparse.Namespace):
     """The model and what drives it: the velocity scene (course's gains) or the servo model."""
-    if args.velocity:
+    if args.velocity or args.velocity_scene:
+        servo = servo_from_arguments(args)
+        if servo != SERVO_DEFAULTS:
+            option = "--velocity" if args.velocity else "--velocity-scene"
+            raise PlanError(f"{option} runs the course's velocity scene on its own gains; the "
+                            "servo options (--servo, --supply, --variant, --p-coefficient, "
+                            f"--no-gravity-ff) choose the STS3215 model. Fix: leave them out "
+                            f"with {option}, or drop {option}.")
         m = load_model(VELOCITY_SCENE)
-        return m, ("the course's velocity scene (position kp 50, kv 2; velocity kv 10), "
-                   "the velocity fed forward")
+        fed = "the velocity fed forward" if args.velocity else "velocity commands 0"
+        return m, f"the course's velocity scene (position kp 50, kv 2; velocity kv 10), {fed}"
     m = load_model()
     spec = actuation.use_servo(m, **servo_from_arguments(args))
     return m, spec.describe()
@@ -90,8 +98,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         for name in profiles:
             log.info("profile %s", name)
-            logs[name] = tracking.run_week9(m, d, viewer, name,
-                                            velocity=True if args.velocity else None)
+            logs[name] = tracking.run_week9(m, d, viewer, name, velocity=bool(args.velocity))
     except ViewerClosed:
         print(f"The viewer was closed: {len(logs)} of {len(profiles)} profile(s) ran.",
               file=sys.stderr)
@@ -131,7 +138,7 @@ acceleration too; the same polynomial as minimum_jerk, this project's default).
 
 Without --velocity: the measured STS3215 at lerobot's settings (README, "What the real arm
 does"). With it: model/scene_with_velocity.xml, the course's gains, each profile's
-velocity fed to the velocity actuators.
+velocity fed to the velocity actuators; --velocity-scene: the same scene, velocities 0.
 
 Exit code: 0 done, 1 viewer closed early or an unexpected error (rerun with -v), 2 bad
 input, 130 Ctrl-C.""")
@@ -141,8 +148,12 @@ input, 130 Ctrl-C.""")
                         help="the time scaling of every move (default %(default)s)")
     parser.add_argument("--compare", action="store_true",
                         help="run every profile on the same sequence, one after the other")
-    parser.add_argument("--velocity", action="store_true",
-                        help="the course's velocity scene, with the velocity fed forward")
+    velocity = parser.add_mutually_exclusive_group()
+    velocity.add_argument("--velocity", action="store_true",
+                          help="the course's velocity scene, with the velocity fed forward")
+    velocity.add_argument("--velocity-scene", action="store_true",
+                          help="the course's velocity scene, velocity commands left at 0 (its "
+                          "velocity actuators then damp every move)")
     parser.add_argument("--json", type=Path, metavar="PATH", help="write the figures as JSON")
     parser.add_argument("--plot", type=Path, metavar="PATH.png",
                         help="commanded vs measured per joint, one panel per profile")

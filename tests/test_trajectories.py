@@ -317,3 +317,10 @@ def test_the_script_refuses_a_bad_profile_in_one_line():
     done = _run_script("--headless", "--profile", "cubical")
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert "cubic" in done.stderr
+
+
+def test_the_velocity_scene_refuses_the_servo_options_in_one_line():
+    done = _run_script("--headless", "--velocity", "--servo", "ideal")
+    assert done.returncode == 2 and "Traceback" not in done.stderr
+    assert "--velocity runs the course's velocity scene on its own gains" in done.stderr
+    assert "Fix:" in done.stderr
