@@ -324,3 +324,23 @@ def test_the_velocity_scene_refuses_the_servo_options_in_one_line():
     assert done.returncode == 2 and "Traceback" not in done.stderr
     assert "--velocity runs the course's velocity scene on its own gains" in done.stderr
     assert "Fix:" in done.stderr
+
+
+@pytest.mark.hw
+@pytest.mark.slow
+def test_pick_place_hw_runs_a_cubic_plan_on_the_virtual_arm(course_arm, tmp_path, capsys):
+    import pick_place_hw
+    from so101_kinematics.constants import HOME_POSE
+    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH
+
+    plan = {"steps": [{"name": "nod", "configuration": dict(HOME_POSE, wrist_flex=50.0),
+                       "duration": 0.5, "hold": 0.1}], "return_duration": 0.5}
+    plan_path = tmp_path / "nod.json"
+    plan_path.write_text(json.dumps(plan))
+    rc = pick_place_hw.main(["--port", course_arm.port, "--calibration",
+                             str(DEFAULT_CALIBRATION_PATH), "--yes", "--plan", str(plan_path),
+                             "--profile", "cubic"])
+    out = capsys.readouterr().out
+    assert rc == 0, out
+    assert "Done: back at the starting pose" in out
+    assert not any(course_arm.torque_enabled().values())
