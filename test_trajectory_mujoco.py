@@ -9,6 +9,7 @@ import argparse
 import json
 import logging
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 import mujoco
@@ -21,10 +22,11 @@ from so101_kinematics.cli import (
     report_unexpected,
     servo_from_arguments,
 )
-from so101_kinematics.errors import KinematicsInputError
+from so101_kinematics.errors import KinematicsInputError, RenderError
 from so101_kinematics.motion import PROFILES, PlanError
 from so101_kinematics.outputs import (
     JSON_REPORT,
+    MP4,
     PNG,
     OutputPathError,
     add_overwrite_argument,
@@ -34,6 +36,7 @@ from so101_kinematics.outputs import (
 )
 from so101_kinematics.outputs import atomic_output as _atomic_output
 from so101_kinematics.sim import actuation, tracking
+from so101_kinematics.sim.ik_demo import open_scene
 from so101_mujoco_utils import MODEL_DIR, ViewerClosed, load_model
 
 log = logging.getLogger("test_trajectory_mujoco")
@@ -47,22 +50,38 @@ COLUMNS = (("tracking_rms_deg", "RMS [deg]", ".2f"), ("tracking_max_deg", "max [
            ("peak_jerk_deg_s3", "peak jerk [deg/s^3]", ".0f"))
 
 
-def open_model(args: argparse.Namespace):
-    """The model and what drives it: the velocity scene (course's gains) or the servo model."""
-    if args.velocity or args.velocity_scene:
-        servo = servo_from_arguments(args)
-        if servo != SERVO_DEFAULTS:
-            option = "--velocity" if args.velocity else "--velocity-scene"
-            raise PlanError(f"{option} runs the course's velocity scene on its own gains; the "
-                            "servo options (--servo, --supply, --variant, --p-coefficient, "
-                            f"--no-gravity-ff) choose the STS3215 model. Fix: leave them out "
-                            f"with {option}, or drop {option}.")
-        m = load_model(VELOCITY_SCENE)
-        fed = "the velocity fed forward" if args.velocity else "velocity commands 0"
-        return m, f"the course's velocity scene (position kp 50, kv 2; velocity kv 10), {fed}"
-    m = load_model()
-    spec = actuation.use_servo(m, **servo_from_arguments(args))
-    return m, spec.describe()
+@contextmanager
+def open_model(args: argparse.Namespace, mode: str, video: Path | None, total_time: float):
+    """``(m, d, viewer, what drives the arm)``: the velocity scene or the servo model.
+
+    The viewer (``mode``: "viewer", "headless" or "record") is closed however the
+    block ends; a video is renamed over ``video`` only when the block succeeds.
+    """
+    if not (args.velocity or args.velocity_scene):
+        with open_scene(mode, video, total_time=total_time, progress=not args.no_progress,
+                        servo=servo_from_arguments(args)) as (m, d, viewer):
+            yield m, d, viewer, actuation.servo_spec(m).describe()
+        return
+    option = "--velocity" if args.velocity else "--velocity-scene"
+    if servo_from_arguments(args) != SERVO_DEFAULTS:
+        raise PlanError(f"{option} runs the course's velocity scene on its own gains; the "
+                        "servo options (--servo, --supply, --variant, --p-coefficient, "
+                        f"--no-gravity-ff) choose the STS3215 model. Fix: leave them out "
+                        f"with {option}, or drop {option}.")
+    if mode == "record":
+        raise PlanError(f"--record films the course scene; {option} runs the velocity scene. "
+                        f"Fix: record without {option}, or use the viewer.")
+    m = load_model(VELOCITY_SCENE)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    fed = "the velocity fed forward" if args.velocity else "velocity commands 0"
+    viewer = so101_display.launch_viewer(m, d) if mode == "viewer" else None
+    try:
+        yield m, d, viewer, ("the course's velocity scene (position kp 50, kv 2; velocity "
+                             f"kv 10), {fed}")
+    finally:
+        if viewer is not None:
+            so101_display.close_viewer(viewer)
 
 
 def table(results: dict[str, dict[str, float]]) -> str:
@@ -86,25 +105,28 @@ def run(args: argparse.Namespace) -> int:
         if plot_path == json_path:
             raise OutputPathError(f"--plot {args.plot}: is the --json file too. Fix: give the "
                                   "plot its own name, e.g. tracking.png.")
+    video = None
+    if args.record is not None:
+        video = check_output_path(args.record, "--record", suffixes=(".mp4",), kind=MP4,
+                                  overwrite=args.overwrite)
+        if video in (json_path, plot_path):
+            raise OutputPathError(f"--record {args.record}: is another output too. Fix: give "
+                                  "the video its own name, e.g. week9.mp4.")
     profiles = list(PROFILES) if args.compare else [args.profile]
-    m, driven_by = open_model(args)
-    d = mujoco.MjData(m)
-    mujoco.mj_forward(m, d)
-    headless = args.headless or not so101_display.has_display()
-    if not args.headless and headless:
+    mode = "record" if video else "headless" if args.headless else "viewer"
+    if mode == "viewer" and not so101_display.has_display():
         print("No display found: running headless.", file=sys.stderr)
-    viewer = None if headless else so101_display.launch_viewer(m, d)
+        mode = "headless"
+    per_profile = tracking.SETTLE_S + 3 * (tracking.MOVE_S + tracking.HOLD_S)
     logs = {}
-    try:
-        for name in profiles:
-            log.info("profile %s", name)
-            logs[name] = tracking.run_week9(m, d, viewer, name, velocity=bool(args.velocity))
-    except ViewerClosed:
-        print(f"The viewer was closed: {len(logs)} of {len(profiles)} profile(s) ran.",
-              file=sys.stderr)
-    finally:
-        if viewer is not None:
-            so101_display.close_viewer(viewer)
+    with open_model(args, mode, video, per_profile * len(profiles)) as (m, d, viewer, driven_by):
+        try:
+            for name in profiles:
+                log.info("profile %s", name)
+                logs[name] = tracking.run_week9(m, d, viewer, name, velocity=bool(args.velocity))
+        except ViewerClosed:
+            print(f"The viewer was closed: {len(logs)} of {len(profiles)} profile(s) ran.",
+                  file=sys.stderr)
     results = {name: tracking.metrics(logged) for name, logged in logs.items()}
     print(f"The page's sequence (all-zero, {tracking.TARGETS[0]}, {tracking.TARGETS[1]}, back; "
           f"{tracking.MOVE_S:g} s moves, {tracking.HOLD_S:g} s holds) on {driven_by}:")
@@ -140,6 +162,11 @@ Without --velocity: the measured STS3215 at lerobot's settings (README, "What th
 does"). With it: model/scene_with_velocity.xml, the course's gains, each profile's
 velocity fed to the velocity actuators; --velocity-scene: the same scene, velocities 0.
 
+Modes: with a display, the interactive viewer (real time); --headless or no display: no
+viewer, as fast as possible; --record PATH.mp4: an offscreen video. Output files (--json,
+--plot, --record) are checked before the run and replaced only when they are this kind of
+output written by this project (or with --overwrite).
+
 Exit code: 0 done, 1 viewer closed early or an unexpected error (rerun with -v), 2 bad
 input, 130 Ctrl-C.""")
     parser.add_argument("--headless", action="store_true",
@@ -154,6 +181,10 @@ input, 130 Ctrl-C.""")
     velocity.add_argument("--velocity-scene", action="store_true",
                           help="the course's velocity scene, velocity commands left at 0 (its "
                           "velocity actuators then damp every move)")
+    parser.add_argument("--record", type=Path, metavar="PATH.mp4",
+                        help="record an offscreen video (the course scene)")
+    parser.add_argument("--no-progress", action="store_true",
+                        help="no progress bar while recording")
     parser.add_argument("--json", type=Path, metavar="PATH", help="write the figures as JSON")
     parser.add_argument("--plot", type=Path, metavar="PATH.png",
                         help="commanded vs measured per joint, one panel per profile")
@@ -169,7 +200,7 @@ input, 130 Ctrl-C.""")
                         format="%(message)s")
     try:
         return run(args)
-    except (PlanError, OutputPathError, KinematicsInputError) as error:
+    except (PlanError, OutputPathError, KinematicsInputError, RenderError) as error:
         print(f"error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:

@@ -344,3 +344,13 @@ def test_pick_place_hw_runs_a_cubic_plan_on_the_virtual_arm(course_arm, tmp_path
     assert rc == 0, out
     assert "Done: back at the starting pose" in out
     assert not any(course_arm.torque_enabled().values())
+
+
+@pytest.mark.slow
+def test_the_script_records_a_video_and_refuses_one_of_the_velocity_scene(tmp_path):
+    video = tmp_path / "week9.mp4"
+    done = _run_script("--record", str(video), "--no-progress", "--profile", "cubic")
+    assert done.returncode == 0, done.stderr
+    assert video.read_bytes()[4:8] == b"ftyp"
+    done = _run_script("--record", str(tmp_path / "other.mp4"), "--velocity")
+    assert done.returncode == 2 and "Fix: record without --velocity" in done.stderr

@@ -39,7 +39,8 @@ class StepLog:
     Args:
         m: the model.
         d: the data.
-        viewer: a viewer to pass frames on to (every ``VIEWER_SYNC_PERIOD``), or None.
+        viewer: a viewer to pass frames on to (every ``VIEWER_SYNC_PERIOD``; every step to
+            a video recorder, which asks for it with ``sync_every_step``), or None.
     """
 
     sync_every_step = True
@@ -49,6 +50,7 @@ class StepLog:
         if viewer is not None:
             stepping._guard_passive_viewer(viewer)  # its exit waits for the render thread
         self.offscreen = viewer is None or getattr(viewer, "offscreen", False)
+        self._every_step = getattr(viewer, "sync_every_step", False)  # a video recorder
         table = joint_table(m)
         self._acts = [act for _, _, act, *_ in table]
         self._qadr = [adr for _, adr, *_ in table]
@@ -66,7 +68,7 @@ class StepLog:
         d = self.d
         self.rows.append((d.time, d.ctrl[self._acts].copy(), d.qpos[self._qadr].copy(),
                           d.qvel[self._dofs].copy(), d.qacc[self._dofs].copy()))
-        if self.viewer is not None and d.time >= self._next_frame - 1e-9:
+        if self.viewer is not None and (self._every_step or d.time >= self._next_frame - 1e-9):
             self.viewer.sync()
             self._next_frame = d.time + stepping.VIEWER_SYNC_PERIOD
 
