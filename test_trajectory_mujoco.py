@@ -35,7 +35,7 @@ from so101_kinematics.outputs import (
     write_text_atomic,
 )
 from so101_kinematics.outputs import atomic_output as _atomic_output
-from so101_kinematics.sim import actuation, tracking
+from so101_kinematics.sim import actuation, straight, tracking
 from so101_kinematics.sim.ik_demo import open_scene
 from so101_mujoco_utils import MODEL_DIR, ViewerClosed, load_model
 
@@ -118,12 +118,17 @@ def run(args: argparse.Namespace) -> int:
         print("No display found: running headless.", file=sys.stderr)
         mode = "headless"
     per_profile = tracking.SETTLE_S + 3 * (tracking.MOVE_S + tracking.HOLD_S)
-    logs = {}
-    with open_model(args, mode, video, per_profile * len(profiles)) as (m, d, viewer, driven_by):
+    lines_s = 2 * (2 * straight.SETTLE_S + straight.DURATION_S) if args.straight else 0.0
+    logs, lines = {}, {}
+    total_s = per_profile * len(profiles) + lines_s
+    with open_model(args, mode, video, total_s) as (m, d, viewer, driven_by):
         try:
             for name in profiles:
                 log.info("profile %s", name)
                 logs[name] = tracking.run_week9(m, d, viewer, name, velocity=bool(args.velocity))
+            for method in straight.METHODS if args.straight else ():
+                log.info("straight line: %s", method)
+                lines[method] = straight.figures(straight.run_straight(m, d, method, viewer))
         except ViewerClosed:
             print(f"The viewer was closed: {len(logs)} of {len(profiles)} profile(s) ran.",
                   file=sys.stderr)
@@ -131,16 +136,23 @@ def run(args: argparse.Namespace) -> int:
     print(f"The page's sequence (all-zero, {tracking.TARGETS[0]}, {tracking.TARGETS[1]}, back; "
           f"{tracking.MOVE_S:g} s moves, {tracking.HOLD_S:g} s holds) on {driven_by}:")
     print(table(results))
+    for method, figures in lines.items():
+        print(f"straight line {straight.FROM} -> {straight.TO}, {method}: "
+              f"measured {figures['max_path_deviation_mm']:.2f} mm from the segment at most "
+              f"(the start {figures['start_offset_mm']:.2f} mm off), commanded "
+              f"{figures['command_deviation_mm']:.3f} mm")
     if json_path is not None:
         report = {"model": driven_by, "targets_m": [list(t) for t in tracking.TARGETS],
                   "move_s": tracking.MOVE_S, "hold_s": tracking.HOLD_S, "profiles": results}
+        if args.straight:
+            report["straight_line"] = lines
         write_text_atomic(json_path, json.dumps(stamp(report, "test_trajectory_mujoco.py"),
                                                 indent=2) + "\n")
     if plot_path is not None and logs:
         with _atomic_output(plot_path) as temporary:
             tracking.plot_tracking(logs, temporary, f"Commanded (solid) vs measured (dashed): "
                                    f"{driven_by}")
-    return 0 if len(logs) == len(profiles) else 1
+    return 0 if len(logs) == len(profiles) and len(lines) == (2 if args.straight else 0) else 1
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -185,6 +197,9 @@ input, 130 Ctrl-C.""")
                         help="record an offscreen video (the course scene)")
     parser.add_argument("--no-progress", action="store_true",
                         help="no progress bar while recording")
+    parser.add_argument("--straight", action="store_true",
+                        help="also the straight line between the blocks, 3 cm above them, by "
+                        "IK in the loop and by resolved-rate control")
     parser.add_argument("--json", type=Path, metavar="PATH", help="write the figures as JSON")
     parser.add_argument("--plot", type=Path, metavar="PATH.png",
                         help="commanded vs measured per joint, one panel per profile")

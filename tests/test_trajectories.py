@@ -301,9 +301,14 @@ def _run_script(*args: str) -> subprocess.CompletedProcess:
 @pytest.mark.slow
 def test_the_script_compares_every_profile_into_json_and_a_plot(tmp_path):
     report, plot = tmp_path / "week9.json", tmp_path / "week9.png"
-    done = _run_script("--headless", "--compare", "--json", str(report), "--plot", str(plot))
+    done = _run_script("--headless", "--compare", "--straight", "--json", str(report),
+                       "--plot", str(plot))
     assert done.returncode == 0, done.stderr
-    profiles = json.loads(report.read_text())["profiles"]
+    written = json.loads(report.read_text())
+    assert set(written["straight_line"]) == {"ik", "resolved_rate"}
+    for figures in written["straight_line"].values():
+        assert {"max_path_deviation_mm", "start_offset_mm", "command_deviation_mm"} == set(figures)
+    profiles = written["profiles"]
     assert set(profiles) == set(PROFILES)
     for figures in profiles.values():
         assert set(figures) == {"tracking_rms_deg", "tracking_max_deg", "peak_velocity_deg_s",
@@ -354,3 +359,34 @@ def test_the_script_records_a_video_and_refuses_one_of_the_velocity_scene(tmp_pa
     assert video.read_bytes()[4:8] == b"ftyp"
     done = _run_script("--record", str(tmp_path / "other.mp4"), "--velocity")
     assert done.returncode == 2 and "Fix: record without --velocity" in done.stderr
+
+
+# --- straight lines in task space ----------------------------------------------------------------
+def test_the_path_deviation_is_the_distance_to_the_segment():
+    from so101_kinematics.sim.straight import max_path_deviation_mm
+
+    # Beside the middle: 3-4-5 mm off; before the start: the distance to the start.
+    assert max_path_deviation_mm([[0.5, 0.003, 0.004]], (0, 0, 0), (1, 0, 0)) == pytest.approx(5.0)
+    assert max_path_deviation_mm([[-0.003, 0.0, 0.004]], (0, 0, 0), (1, 0, 0)) == pytest.approx(
+        5.0)
+
+
+@pytest.mark.parametrize("method", ["ik", "resolved_rate"])
+def test_both_straight_line_methods_command_the_segment(model, data, method):
+    from so101_kinematics.sim import straight
+
+    figures = straight.figures(straight.run_straight(model, data, method))
+    assert figures["command_deviation_mm"] < 0.1  # the method's own share: on the line
+    # The measured path is off by the servo's sag (README), already at the start.
+    assert figures["max_path_deviation_mm"] < figures["start_offset_mm"] + 1.0
+
+
+@pytest.mark.parametrize("method", ["ik", "resolved_rate"])
+def test_on_a_stiff_servo_the_measured_line_is_within_2_mm(method):
+    from so101_kinematics.sim import actuation, straight
+    from so101_mujoco_utils import load_model
+
+    m = load_model()
+    actuation.use_servo(m, "ideal")
+    figures = straight.figures(straight.run_straight(m, mujoco.MjData(m), method))
+    assert figures["max_path_deviation_mm"] < 2.0  # the acceptance
