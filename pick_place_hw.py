@@ -47,7 +47,7 @@ from so101_kinematics.hw.run import (
 )
 from so101_kinematics.hw.teach import format_configuration, format_plan, outcome_lines, teach
 from so101_kinematics.lab.sheet import PAPER_MM, write_sheet
-from so101_kinematics.motion import PROFILES, PlanError, check_number
+from so101_kinematics.motion import SPEED_CAPPED_PROFILES, PlanError, check_number
 from so101_kinematics.plans import default_plan, load_plan
 from so101_kinematics.trims import load_trims
 
@@ -102,7 +102,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--hold", type=float, default=0.5,
                         help="pause after each move of the built-in plan [s] "
                              f"(0-{MAX_MOVE_DURATION_S:g}, default 0.5)")
-    parser.add_argument("--profile", choices=sorted(PROFILES), default="minimum_jerk",
+    parser.add_argument("--profile", choices=sorted(SPEED_CAPPED_PROFILES),
+                        default="minimum_jerk",
                         help="time scaling of each move (default minimum_jerk, as the simulator)")
     parser.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ,
                         help=f"control loop rate [Hz] ({MIN_RATE_HZ:g}-{MAX_RATE_HZ:g}, "

@@ -20,7 +20,11 @@ As the course's utils, in simulation:
 - ``convert_to_dictionary(d.qpos)`` / ``convert_to_list(cfg)`` convert between
   radians and a configuration, the gripper by this project's mapping
   (see ``scene.convert_to_dictionary``);
-- ``pick_up_block`` / ``place_block`` are assignment 8's (``m, d, viewer`` first).
+- ``pick_up_block`` / ``place_block`` are assignment 8's (``m, d, viewer`` first);
+- ``move_to_pose_cubic`` is assignment 9's (the course's cubic, both shapes), and on
+  ``model/scene_with_velocity.xml`` (12 controls) it and ``send_position_command(d,
+  pos, vel)`` feed the velocity too; ``move_to_pose_with_logging`` / ``plot_data``
+  are week 8's tracking log (a pandas DataFrame).
 
 Example (the course's test pose, headless)::
 
@@ -37,11 +41,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from so101_kinematics import trajectory_log
 from so101_kinematics.display import has_display  # noqa: F401 - the scripts' display check
 from so101_kinematics.errors import CallShapeError, ViewerClosed  # noqa: F401
 from so101_kinematics.frames import GRIPPER_RANGE, JOINTS, TOOL_SITE  # noqa: F401
 from so101_kinematics.ik.blocks import pick_up_moves, place_moves
-from so101_kinematics.sim import scene
+from so101_kinematics.sim import scene, tracking
 from so101_kinematics.sim.scene import (  # noqa: F401 - the course's names
     MODEL_DIR,
     SCENE_PATH,
@@ -66,6 +71,7 @@ from so101_kinematics.sim.stepping import (  # noqa: F401
     hold_position,
     move_to_pose,
 )
+from so101_kinematics.trajectory_log import plot_data  # noqa: F401 - week 8's plot
 
 
 def set_initial_pose(d, position_dict: Mapping[str, float]) -> None:
@@ -76,13 +82,57 @@ def set_initial_pose(d, position_dict: Mapping[str, float]) -> None:
     scene.set_initial_pose(d, scene.held_at_limits(d.model, position_dict, "set_initial_pose"))
 
 
-def send_position_command(d, position_dict: Mapping[str, float]) -> None:
+def send_position_command(d, position_dict: Mapping[str, float],
+                          velocity_dict: Mapping[str, float] | None = None) -> None:
     """Command the servos to ``position_dict`` ([deg], gripper [0, 100]); others keep theirs.
 
     A joint beyond the model's range is commanded to its limit, with a warning line.
+    With ``model/scene_with_velocity.xml`` (assignment 9's 12 controls) the velocity
+    actuators get ``velocity_dict`` ([deg/s], gripper [%/s]), or 0 when it is None,
+    as the course's ``d.ctrl = [positions..., velocities...]``.
+
+    Raises:
+        PlanError: a velocity for a model without velocity actuators, or one that is
+            not a finite number.
     """
     scene.send_position_command(
         d, scene.held_at_limits(d.model, position_dict, "send_position_command", partial=True))
+    scene.send_velocity_command(d, velocity_dict)
+
+
+def move_to_pose_cubic(m, d, viewer, *args, **keywords) -> None:
+    """Assignment 9's move: as ``move_to_pose``, along the course's cubic.
+
+    ``move_to_pose_cubic(m, d, viewer, desired_position, duration)`` or
+    ``move_to_pose_cubic(m, d, viewer, starting_position, desired_position, duration)``.
+    Per joint ``q(t) = a0 + a1 t + a2 t^2 + a3 t^3`` from the start ``a0 = q0`` to
+    ``qf``, zero velocity at both ends::
+
+        a1 = 0,  a2 = 3 (qf - q0) / duration**2,  a3 = -2 (qf - q0) / duration**3
+
+    with ``t`` clipped to ``[0, duration]`` (``profiles.cubic_coefficients``). The
+    move starts at the last command; a ``starting_position`` farther than 3 deg from
+    it is named in a warning, never jumped to. On ``model/scene_with_velocity.xml``
+    the cubic's velocity ``a1 + 2 a2 t + 3 a3 t^2`` goes to the velocity actuators
+    (the course's optional part; ``velocity=False`` leaves them at 0).
+    """
+    move_to_pose(m, d, viewer, *args, profile="cubic", **keywords)
+
+
+def move_to_pose_with_logging(m, d, viewer, *args, profile: str = "linear", **keywords):
+    """Week 8's logged move: as ``move_to_pose``, returning the course's DataFrame.
+
+    ``move_to_pose_with_logging(m, d, viewer, desired_position, duration)`` or
+    ``(m, d, viewer, starting_position, desired_position, duration)``; one row per
+    physics step: ``time`` [s] from the move's start, ``target_<joint>`` (the
+    command) and ``actual_<joint>`` (``d.qpos``), [deg] and the gripper [0, 100].
+    ``profile`` is the move's ("linear", the course's, or "cubic", ...); pandas is
+    needed (checked before the arm moves).
+    """
+    trajectory_log.require_pandas()
+    log = tracking.StepLog(m, d, viewer)
+    move_to_pose(m, d, log, *args, profile=profile, **keywords)
+    return tracking.log_frame(log)
 
 
 def pick_up_block(m, d, viewer, block_position, move_to_duration: float) -> None:

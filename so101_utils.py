@@ -46,6 +46,12 @@ Assignment 8's ``pick_up_block(bus, block_position, move_to_duration)`` and
 ``place_block(bus, target_position, move_to_duration)`` are here too: every
 configuration is solved before the arm moves, and each move is a
 ``move_to_pose`` with its checks and endings.
+
+Assignment 9's ``move_to_pose_cubic(bus, desired_position, duration)`` (or with
+the starting position first) is the same move along the course's cubic, and
+week 8's ``move_to_pose_with_logging(bus, desired_position, duration)`` returns
+the course's DataFrame of target and actual joints for ``plot_data(df)`` (pandas:
+in the hw extra).
 """
 
 from __future__ import annotations
@@ -60,12 +66,18 @@ from so101_kinematics.hw.course import (  # noqa: F401 - the course's helpers an
     course_guarded_call,
     course_hold_position,
     course_load_calibration,
+    course_logged_move,
     course_move_to_pose,
     course_trims,
 )
 from so101_kinematics.hw.course import setup_motors as _setup_motors
 from so101_kinematics.ik.blocks import pick_up_moves, place_moves
 from so101_kinematics.motion import check_configuration
+from so101_kinematics.trajectory_log import (  # noqa: F401 - week 8's plot
+    logging_frame,
+    plot_data,
+    require_pandas,
+)
 
 
 def load_calibration(robot_name_or_path):
@@ -126,6 +138,39 @@ def move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING):
             speed cap.
     """
     course_move_to_pose(bus, *args, desired_position=desired_position, duration=duration)
+
+
+def move_to_pose_cubic(bus, *args, desired_position=MISSING, duration=MISSING):
+    """Move as :func:`move_to_pose` does, along the course's cubic (assignment 9).
+
+    Per joint ``q(t) = a0 + a1 t + a2 t^2 + a3 t^3`` with ``a0`` the start,
+    ``a1 = 0``, ``a2 = 3 (qf - q0) / T^2``, ``a3 = -2 (qf - q0) / T^3`` (zero
+    velocity at both ends), ``t`` clipped to ``[0, duration]``
+    (``so101_kinematics/profiles.py``). Same shapes, checks, speed cap (its
+    peak is 1.5 times the mean speed) and fault policy as :func:`move_to_pose`:
+    ``move_to_pose_cubic(bus, desired_position, duration)`` or
+    ``move_to_pose_cubic(bus, starting_position, desired_position, duration)``.
+    """
+    course_move_to_pose(bus, *args, desired_position=desired_position, duration=duration,
+                        profile="cubic", what="move_to_pose_cubic")
+
+
+def move_to_pose_with_logging(bus, *args, desired_position=MISSING, duration=MISSING,
+                              profile="linear"):
+    """Week 8's logged move: as :func:`move_to_pose`, returning the course's DataFrame.
+
+    ``move_to_pose_with_logging(bus, desired_position, duration)`` or with the
+    starting position first; one row per control cycle (100 Hz): ``time`` [s] from
+    the move's start, ``target_<joint>`` (the goal commanded) and ``actual_<joint>``
+    (``Present_Position``), [deg], gripper 0-100. ``profile``: "linear" (the
+    course's), "cubic", "quintic" or "minimum_jerk". Needs pandas (the hw extra has it).
+    """
+    require_pandas()
+    cycles = course_logged_move(bus, *args, desired_position=desired_position,
+                                duration=duration, profile=profile)
+    t0 = cycles[0].t_s if cycles else 0.0
+    return logging_frame([c.t_s - t0 for c in cycles], [c.command for c in cycles],
+                         [c.measured for c in cycles])
 
 
 def hold_position(bus, duration):

@@ -141,7 +141,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def _run(args) -> int:
     """Check the output paths, then do what ``args`` ask (see :func:`main`)."""
-    inputs = [SCENE_PATH, MODEL_DIR / "so101.xml"]
+    inputs = [SCENE_PATH, *(MODEL_DIR / name for name in ("so101.xml", "so101_servos.xml",
+                                                          "table.xml"))]
     png = {"suffixes": (".png",), "kind": PNG, "overwrite": args.overwrite}
     if args.table is not None and str(args.table) != "-":
         table_kind = text_kind(fk_table_markdown()[:40], "the FK table of test_fk_mujoco.py")

@@ -1,13 +1,13 @@
 """Joint-space motion shared by the simulated and the real SO-101.
 
 One place for what both backends must agree on: the interpolation between
-two configurations (:class:`Trajectory`, with a linear or a minimum-jerk
-profile), the plan's shape (:class:`Step`, :class:`Plan`) and the runner that
-executes a plan through a backend's ``move_to_pose`` / ``hold_position``
-(:func:`run_plan`). The plans themselves are ``plans.py``'s; the checks
-``checks.py``'s. The backends (``sim/stepping.py`` for MuJoCo,
-``hw/control.py`` for a lerobot bus) only decide how time passes and how a
-command reaches the arm.
+two configurations (:class:`Trajectory`, with one of ``profiles.py``'s time
+scalings: direct, linear, cubic, quintic, minimum-jerk), the plan's shape
+(:class:`Step`, :class:`Plan`) and the runner that executes a plan through a
+backend's ``move_to_pose`` / ``hold_position`` (:func:`run_plan`). The plans
+themselves are ``plans.py``'s; the checks ``checks.py``'s. The backends
+(``sim/stepping.py`` for MuJoCo, ``hw/control.py`` for a lerobot bus) only
+decide how time passes and how a command reaches the arm.
 """
 
 from __future__ import annotations
@@ -32,19 +32,13 @@ from so101_kinematics.checks import (  # noqa: F401 - motion's vocabulary, re-ex
 )
 from so101_kinematics.errors import JointLimitError as JointLimitError
 from so101_kinematics.errors import PlanError as PlanError
-
-
-def minimum_jerk(s: float) -> float:
-    """Minimum-jerk time scaling: 0 -> 0, 1 -> 1, zero velocity and acceleration at both ends."""
-    return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))
-
-
-def linear(s: float) -> float:
-    """Linear time scaling (the course's interpolation)."""
-    return s
-
-
-PROFILES: dict[str, Callable[[float], float]] = {"linear": linear, "minimum_jerk": minimum_jerk}
+from so101_kinematics.profiles import (  # noqa: F401 - the profiles, re-exported
+    PROFILES,
+    SPEED_CAPPED_PROFILES,
+    cubic,
+    linear,
+    minimum_jerk,
+)
 
 
 @dataclass(frozen=True)
@@ -85,6 +79,33 @@ class Trajectory:
         """Configuration at time ``t`` [s] after the start (held at the ends)."""
         alpha = self.fraction(t)
         return {j: self.start[j] + alpha * (self.goal[j] - self.start[j]) for j in self.goal}
+
+    def rates(self, times: np.ndarray) -> np.ndarray:
+        """d(fraction)/dt [1/s] at each time [s]: 0 before the start and after the end."""
+        times = np.asarray(times, dtype=float)
+        if self.duration <= 0.0:
+            return np.zeros(np.shape(times))
+        s = times / self.duration
+        inside = (s >= 0.0) & (s <= 1.0)
+        return np.where(inside, PROFILES[self.profile].velocity(np.clip(s, 0.0, 1.0)),
+                        0.0) / self.duration
+
+    def velocity_at(self, t: float) -> Configuration:
+        """Velocity at time ``t`` [s] ([deg/s], gripper [%/s]); zero outside the move.
+
+        Example:
+            >>> Trajectory({"gripper": 0.0}, {"gripper": 100.0}, 2.0, "cubic").velocity_at(1.0)
+            {'gripper': 75.0}
+        """
+        rate = float(self.rates(np.array([t]))[0])
+        return {j: rate * (self.goal[j] - self.start[j]) for j in self.goal}
+
+    def acceleration_at(self, t: float) -> Configuration:
+        """Acceleration at time ``t`` [s] ([deg/s^2], gripper [%/s^2]); zero outside the move."""
+        if self.duration <= 0.0 or not 0.0 <= t <= self.duration:
+            return dict.fromkeys(self.goal, 0.0)
+        rate = float(PROFILES[self.profile].acceleration(t / self.duration)) / self.duration**2
+        return {j: rate * (self.goal[j] - self.start[j]) for j in self.goal}
 
 
 @dataclass

@@ -109,6 +109,16 @@ def test_ik_demo_record_refuses_a_file_that_is_not_a_video(tmp_path):
     assert_refused(done, "--record", video, video.read_bytes())
 
 
+def test_trajectory_test_json_and_plot_refuse_a_source_file(student_file, tmp_path):
+    before = student_file.read_bytes()
+    done = run("test_trajectory_mujoco.py", "--headless", "--json", student_file)
+    assert_refused(done, "--json", student_file, before)
+    plot = tmp_path / "tracking.png"
+    plot.write_text("a student's notes, named .png by mistake\n")
+    done = run("test_trajectory_mujoco.py", "--headless", "--plot", plot)
+    assert_refused(done, "--plot", plot, plot.read_bytes())
+
+
 def test_ik_demo_replaces_its_own_old_report(tmp_path):
     report = tmp_path / "ik.json"
     first = run("test_ik_mujoco.py", "--headless", "--no-progress", "--json", report,

@@ -68,6 +68,7 @@ from so101_kinematics.hw.timing import (  # noqa: F401 - the loop's time and spe
     RateLoop,
     Segment,
     capped_duration,
+    check_profile,
     check_rate,
     loop_timing_stats,
     peak_speed_factor,
@@ -75,10 +76,8 @@ from so101_kinematics.hw.timing import (  # noqa: F401 - the loop's time and spe
     tracking_tolerances,
 )
 from so101_kinematics.motion import (
-    PROFILES,
     Configuration,
     JointLimitError,
-    PlanError,
     Trajectory,
     check_configuration,
     unit,
@@ -110,7 +109,7 @@ class ArmSession:
     Args:
         bus: a connected lerobot ``FeetechMotorsBus`` (calibration set).
         rate_hz: control loop rate [Hz], in [``MIN_RATE_HZ``, ``MAX_RATE_HZ``].
-        profile: "minimum_jerk" (default, as the simulator) or "linear".
+        profile: "minimum_jerk" (default, as the simulator), "cubic", "quintic" or "linear".
         max_speed: joint -> speed cap ([deg/s]; gripper [%/s]).
         tracking_tolerance: joint -> |measured - commanded| allowed [deg]
             (None: not checked; the gripper by default, as it squeezes the cube).
@@ -137,8 +136,7 @@ class ArmSession:
                  clock: Callable[[], float] = time.perf_counter,
                  sleep: Callable[[float], None] = time.sleep, trims: Trims | None = None,
                  feedforward: Feedforward | None = None, base_height: float = 0.0):
-        if profile not in PROFILES:
-            raise PlanError(f"Unknown profile '{profile}'; use one of {', '.join(PROFILES)}.")
+        check_profile(profile)
         check_rate(rate_hz)
         self.bus = bus
         self.trims = as_trims(trims)  # commands and readings here are the model's angles
@@ -294,10 +292,11 @@ class ArmSession:
             self._cycle(at)
 
     def move(self, cfg: Mapping[str, float], duration: float, step: str | None = None,
-             max_speed: Mapping[str, float] | None = None) -> Segment:
+             max_speed: Mapping[str, float] | None = None, profile: str | None = None) -> Segment:
         """Move from the last command (the measured pose at first) to ``cfg`` in ``duration`` [s].
 
-        The duration is stretched (with a warning) if a joint would exceed its speed cap.
+        The duration is stretched (with a warning) if a joint would exceed its speed cap;
+        ``profile`` (default the session's) is this move's time scaling.
 
         Raises:
             JointLimitError: ``cfg`` is outside the calibrated range (nothing sent).
@@ -313,7 +312,8 @@ class ArmSession:
         check_path([start, goal], [self.step or "move_to_pose"], base_height=self.base_height)
         requested = float(duration)
         caps = max_speed or self.max_speed
-        duration = capped_duration(start, goal, requested, self.profile, caps)
+        profile = check_profile(profile or self.profile)
+        duration = capped_duration(start, goal, requested, profile, caps)
         if duration > requested + 1e-9:
             fastest = max(goal, key=lambda j: abs(goal[j] - start[j]) / caps[j])
             distance = abs(goal[fastest] - start[fastest])
@@ -323,7 +323,7 @@ class ArmSession:
             if max_speed is None:
                 logger.warning(message)
                 self.stretched.append(message)
-        path = Trajectory(start, goal, duration, self.profile)
+        path = Trajectory(start, goal, duration, profile)
         t_start = self._begin()
         segment = Segment("move", self.step, t_start - self._t0, start, goal, duration, requested)
         self.segments.append(segment)

@@ -272,7 +272,8 @@ MOVE_SHAPES = ("move_to_pose(bus, desired_position, duration) or, with assignmen
                "configuration, move_to_pose(bus, starting_position, desired_position, duration)")
 
 
-def course_move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING) -> None:
+def course_move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING,
+                        profile: str | None = None, what: str = "move_to_pose") -> None:
     """Move to the target ([deg], gripper [0, 100]) in ``duration`` [s]; joints left out stay put.
 
     ``(bus, desired_position, duration)`` or assignment 8's ``(bus,
@@ -280,14 +281,17 @@ def course_move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING) 
     last goal either way (a starting position farther than
     ``checks.START_MISMATCH`` from it is named in a warning, never jumped to).
     A target within ``LIMIT_SLACK_DEG`` outside the calibrated range (a pose
-    read back with ``bus.sync_read``) is clamped into it.
+    read back with ``bus.sync_read``) is clamped into it. ``profile`` is the
+    move's time scaling (default the session's; ``move_to_pose_cubic`` passes
+    "cubic"), ``what`` the name the messages use.
     """
     def move(session: ArmSession) -> None:
         start, cfg, seconds = move_arguments(
-            args, {"desired_position": desired_position, "duration": duration}, MOVE_SHAPES, "bus")
-        seconds = check_number(seconds, "move_to_pose duration", 0.0, MAX_MOVE_S, "s")
+            args, {"desired_position": desired_position, "duration": duration},
+            MOVE_SHAPES.replace("move_to_pose", what), "bus")
+        seconds = check_number(seconds, f"{what} duration", 0.0, MAX_MOVE_S, "s")
         if not isinstance(cfg, Mapping):
-            raise PlanError(f"move_to_pose needs a configuration dict joint -> [deg], got "
+            raise PlanError(f"{what} needs a configuration dict joint -> [deg], got "
                             f"{type(cfg).__name__}. Fix: e.g. {{'shoulder_pan': 0.0, ...}}.")
         resync(session)
         target = dict(session.command, **cfg)
@@ -302,9 +306,29 @@ def course_move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING) 
         warning = radians_warning(cfg, session.command)
         if warning:
             logger.warning(warning)
-        session.move(target, seconds)
+        session.move(target, seconds, profile=profile)
 
-    _guarded(bus, "move_to_pose", move)
+    _guarded(bus, what, move)
+
+
+def course_logged_move(bus, *args, desired_position=MISSING, duration=MISSING,
+                       profile: str | None = None) -> list:
+    """:func:`course_move_to_pose`, returning the move's control cycles (``timing.Cycle``)."""
+    session = _run_of(bus, "move_to_pose_with_logging").session
+    cycles, previous = [], session.on_cycle
+
+    def record(arm: ArmSession, cycle) -> None:
+        cycles.append(cycle)
+        if previous is not None:
+            previous(arm, cycle)
+
+    session.on_cycle = record
+    try:
+        course_move_to_pose(bus, *args, desired_position=desired_position, duration=duration,
+                            profile=profile, what="move_to_pose_with_logging")
+    finally:
+        session.on_cycle = previous
+    return cycles
 
 
 def course_hold_position(bus, duration: float) -> None:

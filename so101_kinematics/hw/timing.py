@@ -13,7 +13,13 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from so101_kinematics.frames import JOINTS
-from so101_kinematics.motion import Configuration, check_number
+from so101_kinematics.motion import (
+    PROFILES,
+    SPEED_CAPPED_PROFILES,
+    Configuration,
+    PlanError,
+    check_number,
+)
 
 DEFAULT_RATE_HZ = 100.0            # control loop rate [Hz]
 MIN_RATE_HZ = 20.0                 # slower, one cycle's step at the speed cap exceeds 5 deg
@@ -28,9 +34,21 @@ IDLE_RESTART_S = 0.25              # a loop idle for longer starts a fresh deadl
 
 
 # --- Speed cap ---------------------------------------------------------------
-PEAK_SPEED_FACTOR = {"linear": 1.0, "minimum_jerk": 1.875}
-"""Peak of d(fraction)/ds of each time scaling: 1 for linear; 30 s^2 (1 - s)^2 peaks at
-s = 1/2 for minimum jerk: 15/8."""
+PEAK_SPEED_FACTOR = {name: p.peak_speed for name, p in PROFILES.items()
+                     if name in SPEED_CAPPED_PROFILES}
+"""Peak of d(fraction)/ds of each time scaling a speed cap can stretch (``profiles.py``): 1 for
+linear; 6 s (1 - s) peaks at s = 1/2 for the cubic: 3/2; 30 s^2 (1 - s)^2 for minimum jerk
+(the quintic): 15/8. ``direct`` (a step) has none: the real arm refuses it."""
+
+
+def check_profile(profile: str) -> str:
+    """``profile`` if the real arm runs it (a speed cap can stretch it), else a PlanError."""
+    if profile in SPEED_CAPPED_PROFILES:
+        return profile
+    why = (" is a step, which no speed cap can slow" if profile == "direct" else
+           " is not a profile")
+    raise PlanError(f"profile {profile!r}{why}. "
+                    f"Fix: use one of {', '.join(SPEED_CAPPED_PROFILES)}.")
 
 
 def peak_speed_factor(profile: str) -> float:
@@ -61,7 +79,7 @@ def capped_duration(start: Mapping[str, float], goal: Mapping[str, float], durat
         start: configuration at the start ([deg], gripper [0, 100]).
         goal: configuration at the end.
         duration: the requested duration [s].
-        profile: time scaling of the move ("minimum_jerk" or "linear").
+        profile: time scaling of the move (one of ``SPEED_CAPPED_PROFILES``).
         max_speed: joint -> cap ([deg/s]; gripper [%/s]).
 
     Example:

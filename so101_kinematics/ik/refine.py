@@ -151,3 +151,19 @@ def _check(theta: list[float], p: tuple, psi: float | None, yaw: float | None) -
     return refined
 
 
+
+
+def top_down_task(theta: Sequence[float], p: Sequence[float],
+                  yaw: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Residual and analytic Jacobian of a top-down grasp at ``p`` (resolved-rate control).
+
+    Args:
+        theta: the arm's five joint angles [rad].
+        p: the object frame's wanted position [m].
+        yaw: the jaw's yaw [rad] (modulo 90 deg, a cube's faces are alike).
+
+    Returns:
+        ``(error, jacobian)``: the position error [m] (3), the approach axis's tilt (3)
+        and the jaw's yaw error [rad] (1); and their (7, 5) Jacobian.
+    """
+    return _task(_chain(theta), np.asarray(p, dtype=float), _QUARTER, yaw)

@@ -12,6 +12,10 @@ follows it depends on the model's servo (:func:`use_servo`):
   ``forcerange`` 3.35 N m; TheRobotStudio SO-ARM100 PR #141), kept for comparison.
 - a model nobody set up is stepped with its own actuators (``model/scene.xml``'s
   native ones: the linearised STS3215, see the comment there).
+- a velocity model (``model/scene_with_velocity.xml``, the course's week 9: a position
+  and a ``<joint>_vel`` velocity actuator per joint, 12 controls) keeps the course's
+  own actuators: ``scene.load_model`` sets no servo on it (:func:`has_velocity_actuators`),
+  and :func:`use_servo` refuses it, so the course's gains are what drives it.
 """
 
 from __future__ import annotations
@@ -95,6 +99,10 @@ def use_servo(m: mujoco.MjModel, mode: str = "sts3215", volts: float = DEFAULT_V
     Raises:
         PlanError: an unknown mode or variant, a voltage or P out of range.
     """
+    if has_velocity_actuators(m):
+        raise PlanError("a velocity model (position and <joint>_vel actuators) runs on the "
+                        "course's own gains; the STS3215 model drives position actuators only. "
+                        "Fix: load model/scene.xml for the servo model.")
     if mode not in SERVO_MODES:
         raise PlanError(f"servo {mode!r} is not one of {', '.join(SERVO_MODES)}. "
                         "Fix: use --servo sts3215 (the measured servo) or --servo ideal.")
@@ -133,6 +141,35 @@ def use_servo(m: mujoco.MjModel, mode: str = "sts3215", volts: float = DEFAULT_V
         m.dof_damping[dofs] = chosen.emf_damping + chosen.viscous
     _PLANTS.pop(m, None)
     return spec
+
+
+VELOCITY_SUFFIX = "_vel"
+"""A velocity actuator is its joint's name with this suffix (the course's ``shoulder_pan_vel``)."""
+
+
+def has_velocity_actuators(m: mujoco.MjModel) -> bool:
+    """Whether ``m`` has the course's ``<joint>_vel`` velocity actuator for every joint."""
+    names = {m.actuator(i).name for i in range(m.nu)}
+    return all(joint + VELOCITY_SUFFIX in names for joint in JOINTS)
+
+
+def velocity_actuators(m: mujoco.MjModel, wanted: bool | None, joints) -> np.ndarray | None:
+    """The ``<joint>_vel`` actuator ids of ``joints`` if velocities are to be fed, else None.
+
+    Args:
+        m: the model.
+        wanted: True (feed them; a PlanError if the model has none), False, or None
+            (feed them when the model has them).
+        joints: the joints moving, in the order of the move's goals.
+    """
+    present = has_velocity_actuators(m)
+    if wanted and not present:
+        raise PlanError("velocity feed-forward needs the course's velocity actuators "
+                        "(<joint>_vel); this model has position actuators only. Fix: load "
+                        "model/scene_with_velocity.xml, or leave the velocity out.")
+    if not present or wanted is False:
+        return None
+    return np.array([int(m.actuator(j + VELOCITY_SUFFIX).id) for j in joints])
 
 
 def servo_spec(m: mujoco.MjModel) -> ServoSpec | None:

@@ -45,7 +45,8 @@ def load_model(path: str | Path = SCENE_PATH) -> mujoco.MjModel:
 
     The model's servos are the measured STS3215 at lerobot's settings on the kit's
     supply, with the gravity feed-forward (``actuation.use_servo``'s defaults); call
-    ``actuation.use_servo(m, ...)`` to choose another.
+    ``actuation.use_servo(m, ...)`` to choose another. A velocity model
+    (``model/scene_with_velocity.xml``: 12 actuators) keeps its own, the course's.
 
     Args:
         path: MJCF file (default ``model/scene.xml``).
@@ -55,6 +56,10 @@ def load_model(path: str | Path = SCENE_PATH) -> mujoco.MjModel:
     """
     ensure_meshes()
     m = mujoco.MjModel.from_xml_path(str(path))
+    if actuation.has_velocity_actuators(m):
+        logger.info("%s has velocity actuators: it runs on the course's own gains, not the "
+                    "STS3215 model.", Path(path).name)
+        return m
     actuation.use_servo(m)
     return m
 
@@ -265,6 +270,36 @@ def send_position_command(d: mujoco.MjData, cfg: Mapping[str, float]) -> None:
     for name, _, act, *_ in joint_table(m):
         if name in angles:
             d.ctrl[act] = angles[name]
+
+
+def send_velocity_command(d: mujoco.MjData, velocities: Mapping[str, float] | None) -> None:
+    """Set the ``<joint>_vel`` actuators to ``velocities`` ([deg/s], gripper [%/s]; None: 0).
+
+    Joints missing from ``velocities`` get 0, as the course's list of six does. A model
+    without velocity actuators takes only None.
+
+    Raises:
+        PlanError: velocities for a model without velocity actuators, values not finite.
+    """
+    m = d.model
+    if not actuation.has_velocity_actuators(m):
+        if velocities is None:
+            return
+        raise PlanError("send_position_command got velocities, but this model has position "
+                        "actuators only. Fix: load model/scene_with_velocity.xml, or leave "
+                        "velocity_dict out.")
+    if velocities is None:
+        velocities = {}
+    if not isinstance(velocities, Mapping):
+        raise PlanError(f"velocity_dict must be a dict joint name -> [deg/s] (gripper [%/s]), "
+                        f"got {describe_value(velocities)}. Fix: e.g. {{'shoulder_pan': 10.0}}.")
+    values = check_configuration(velocities, dict.fromkeys(
+        [j for j in JOINTS if j in velocities], (-math.inf, math.inf)), "velocity command")
+    lower, upper = m.joint("gripper").range
+    for joint in JOINTS:
+        value = values.get(joint, 0.0)
+        rate = value * (upper - lower) / 100.0 if joint == "gripper" else math.radians(value)
+        d.ctrl[m.actuator(joint + actuation.VELOCITY_SUFFIX).id] = rate
 
 
 def get_object_pose(m: mujoco.MjModel, d: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:

@@ -68,8 +68,12 @@ def _guard_passive_viewer(viewer) -> None:
         display.guard_viewer_exit(viewer)
 
 
-def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> None:
+def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float,
+             velocity_actuators: np.ndarray | None = None) -> None:
     """Step the simulation to time ``until`` [s], following ``path`` if given.
+
+    With ``velocity_actuators`` (a velocity model's ``<joint>_vel``, in ``path.goal``'s
+    order) the path's velocity [rad/s] is fed forward to them, and set to 0 at the end.
 
     A move's commands are computed ``COMMAND_BLOCK_STEPS`` steps at a time
     (one numpy evaluation of the profile per block, so memory does not grow
@@ -90,9 +94,12 @@ def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> 
     if path is not None:
         # The unit conversion is affine per joint, so interpolating in radians
         # is the same path as interpolating in user units.
-        actuators = np.array([act for name, _, act, *_ in joint_table(m) if name in path.goal])
+        actuators = positions = np.array([act for name, _, act, *_ in joint_table(m)
+                                          if name in path.goal])
         start = np.array(list(to_radians(m, {j: path.start[j] for j in path.goal}).values()))
         delta = np.array(list(to_radians(m, path.goal).values())) - start
+        if velocity_actuators is not None:
+            actuators = np.concatenate([positions, velocity_actuators])
         elapsed0 = d.time - t0  # [s] at the start of the first step
         ctrl, step = d.ctrl, actuation.step
         if np.array_equal(actuators, np.arange(m.nu)):
@@ -114,6 +121,8 @@ def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> 
                 block_start, block_stop = done, min(done + COMMAND_BLOCK_STEPS, n_steps)
                 elapsed = elapsed0 + dt * np.arange(block_start, block_stop)  # [s] per step
                 rows = start + path.fractions(elapsed)[:, None] * delta  # [rad], one per step
+                if velocity_actuators is not None:  # [rad/s] beside the goals
+                    rows = np.hstack([rows, path.rates(elapsed)[:, None] * delta])
             chunk = min(chunk, block_stop - done)
             step(m, d, chunk, rows[done - block_start:done - block_start + chunk], actuators)
         done += chunk
@@ -131,7 +140,9 @@ def _advance(m, d, viewer, until: float, path: Trajectory | None, t0: float) -> 
     if path is not None:
         # The last step's command is the profile one step before the end; a move
         # ends commanding its goal exactly (a linear move would stay short of it).
-        ctrl[actuators] = start + delta
+        ctrl[positions] = start + delta
+        if velocity_actuators is not None:
+            ctrl[velocity_actuators] = 0.0
 
 
 MOVE_SHAPES = ("move_to_pose(m, d, viewer, cfg, duration) or, with assignment 8's starting "
@@ -156,7 +167,8 @@ def _run_until_closed(step, raise_if_closed: bool) -> None:
 
 def move_to_pose(m: mujoco.MjModel, d: mujoco.MjData, viewer, *args,
                  cfg: Mapping[str, float] = MISSING, duration: float = MISSING,
-                 profile: str = "minimum_jerk", raise_if_closed: bool = False) -> None:
+                 profile: str = "minimum_jerk", raise_if_closed: bool = False,
+                 velocity: bool | None = None) -> None:
     """Move from the current command to ``cfg`` in ``duration`` [s] of simulation time.
 
     ``move_to_pose(m, d, viewer, cfg, duration)``, or assignment 8's suggested
@@ -181,14 +193,18 @@ def move_to_pose(m: mujoco.MjModel, d: mujoco.MjData, viewer, *args,
         *args: ``cfg, duration`` or ``starting_cfg, cfg, duration``.
         cfg: target configuration ([deg], gripper [0, 100]).
         duration: time for the move [s], in [0, ``MAX_DURATION``].
-        profile: "minimum_jerk" (smooth, default) or "linear" (the course's).
+        profile: a name in ``profiles.PROFILES``: "minimum_jerk" (smooth, default),
+            "linear" (the course's), "cubic" (assignment 9's), "quintic", "direct" (a step).
+        velocity: feed the path's velocity to the model's ``<joint>_vel`` actuators
+            (``model/scene_with_velocity.xml``); default: when the model has them.
         raise_if_closed: raise ViewerClosed when the viewer is closed (a
             plan runner stops that way) instead of returning.
 
     Raises:
         CallShapeError: any other shape of arguments.
         PlanError: a duration that is not a number in [0, MAX_DURATION] s, a
-            joint missing or unknown, a value that is not a number.
+            joint missing or unknown, a value that is not a number; ``velocity=True``
+            on a model without velocity actuators.
         ViewerClosed: the viewer window was closed, with ``raise_if_closed``.
     """
     start, cfg, duration = move_arguments(args, {"cfg": cfg, "duration": duration},
@@ -200,12 +216,13 @@ def move_to_pose(m: mujoco.MjModel, d: mujoco.MjData, viewer, *args,
         if warning:
             logger.warning(warning)
     path = Trajectory(command, goal, duration, profile)
+    feed = actuation.velocity_actuators(m, velocity, list(goal))
     if _viewer_closed(viewer):
         if raise_if_closed:
             raise ViewerClosed("The viewer was closed.")
         return
     t0 = d.time
-    _run_until_closed(lambda: _advance(m, d, viewer, t0 + path.duration, path, t0),
+    _run_until_closed(lambda: _advance(m, d, viewer, t0 + path.duration, path, t0, feed),
                       raise_if_closed)
 
 
