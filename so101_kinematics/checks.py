@@ -287,13 +287,19 @@ def move_arguments(args: tuple, keywords: Mapping[str, object], shapes: str,
     return start, cfg, duration
 
 
-def start_mismatch(start: Mapping[str, float] | None, command: Mapping[str, float]) -> str | None:
-    """A warning when ``start`` is more than :data:`START_MISMATCH` from ``command``, else None."""
+def start_mismatch(start: Mapping[str, float] | None, command: Mapping[str, float],
+                   allowance: Mapping[str, float] | None = None) -> str | None:
+    """A warning when ``start`` is more than :data:`START_MISMATCH` from ``command``, else None.
+
+    ``allowance``: joint -> what the servo itself leaves between a command and the pose
+    [deg] (the sag without the feed-forward): a measured start that far off is no mistake.
+    """
     if not start:
         return None
-    joint = max(start, key=lambda j: abs(start[j] - command[j]))
+    allowance = allowance or {}
+    joint = max(start, key=lambda j: abs(start[j] - command[j]) - allowance.get(j, 0.0))
     gap = abs(start[joint] - command[joint])
-    if gap <= START_MISMATCH:
+    if gap <= START_MISMATCH + allowance.get(joint, 0.0):
         return None
     return (f"move_to_pose: the starting configuration is {gap:.1f} {unit(joint)} from the last "
             f"command ({joint}: {start[joint]:g} given, {command[joint]:g} commanded); the move "

@@ -12,6 +12,7 @@ Each must end as on the course's own utils: exit 0, no traceback.
 
 from __future__ import annotations
 
+import math
 import os
 import re
 import shutil
@@ -20,6 +21,12 @@ import sys
 from pathlib import Path
 
 import pytest
+
+from so101_kinematics.gravity import holding_torques
+
+HOME_ZERO = dict.fromkeys(("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex",
+                           "wrist_roll"), 0.0) | {"gripper": 0.0}
+"""The all-zero configuration the week-9 page starts from and returns to."""
 
 REPO = Path(__file__).resolve().parent.parent
 SCRIPTS = REPO / "tests" / "course_scripts"
@@ -47,7 +54,9 @@ def warnings_in(stderr: str) -> list[str]:
 def test_week6_fk_and_pick_and_place():
     done = run("sim_week6_fk_pick_place.py")
     assert "object frame: [0.2301 0.1903 0.013 ]" in done.stdout  # MODEL_NOTES: start pose
-    assert "final shoulder_pan: 45.0" in done.stdout
+    # where the course's pick-and-place ends, within the STS3215's friction band (0.5 deg)
+    final = float(re.search(r"final shoulder_pan: ([-\d.]+)", done.stdout).group(1))
+    assert abs(final - 45.0) <= 0.6
     assert not warnings_in(done.stderr)
 
 
@@ -65,7 +74,13 @@ def test_week7_limit_mistakes_run_held_at_the_limits_with_a_word():
     assert len(held) == 2, done.stderr  # -100.268 and -180; the round numbers are within
     assert "shoulder_lift = -100.268 deg is beyond its limit -100 deg" in held[0]
     assert "shoulder_lift = -180 deg is beyond its limit -100 deg" in held[1]
-    assert "at the limits: [-110.    0.    0.   95.]" in done.stdout
+    # the limits held (shoulder_pan -110 -> its -109.99999 limit, wrist_flex 95); printed as
+    # the 2 s move ends, the STS3215 at P = 16 still trails it by a few degrees (0.1 s of
+    # its motion: servo.lag)
+    printed = re.search(r"at the limits: \[([^\]]*)\]", done.stdout).group(1).split()
+    pan, lift, elbow, wrist = (float(v) for v in printed)
+    assert abs(pan + 110.0) <= 1.0 and abs(wrist - 95.0) <= 1.5
+    assert abs(lift) <= 6.0 and abs(elbow) <= 6.0
     assert done.stdout.strip().endswith("done")
 
 
@@ -74,7 +89,7 @@ def test_week8_converters_behave_as_the_utils_do():
     gripper = float(re.search(r"final gripper: ([-\d.]+)", done.stdout).group(1))
     assert abs(gripper - 5.0) < 1.0  # d.ctrl = convert_to_list(closed): closed to 5
     pan = re.search(r"final shoulder_pan: ([-\d.]+) \(IK: ([-\d.]+)\)", done.stdout)
-    assert abs(float(pan.group(1)) - float(pan.group(2))) < 0.5
+    assert abs(float(pan.group(1)) - float(pan.group(2))) < 1.0  # friction band 0.5, a count
     assert "starting configuration is" not in done.stderr  # the measured start is no jump
 
 
@@ -85,7 +100,14 @@ def test_week8_stacks_two_blocks_with_the_page_s_helpers():
 
 def test_week9_student_s_own_cubic_loop():
     done = run("sim_week9_cubic.py")
-    assert "back home: shoulder_lift 0.0 deg" in done.stdout
+    # the student's loop steps MuJoCo itself (the model's native servos, the STS3215
+    # linearised), but each move ends in the page's hold_position, the project's: the servo
+    # model with the feed-forward, as so101_utils on the arm, holds the goal within its
+    # friction band; without it the stretched arm would sag by gravity torque over
+    # stiffness (hand calculation from the model's masses: over 4 deg)
+    sag = math.degrees(-holding_torques(HOME_ZERO)["shoulder_lift"] / 5.90)
+    home = float(re.search(r"back home: shoulder_lift ([-\d.]+) deg", done.stdout).group(1))
+    assert sag > 4.0 and abs(home) <= 1.0
 
 
 @pytest.fixture

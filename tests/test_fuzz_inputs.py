@@ -170,7 +170,8 @@ class Ran(BaseException):
     """The stub runner was reached with checked values."""
 
 
-def fake_stack(stack, *, mode, video, fps, size, camera, quality, progress, show_ui=False):
+def fake_stack(stack, *, mode, video, fps, size, camera, quality, progress, show_ui=False,
+               servo=None):
     # A stack reaches the runner only checked: 1 to 4 blocks, each level reachable, the table
     # 0 to 5 cm below the base.
     assert 1 <= len(stack.blocks) <= 4 and 0.0 <= stack.base_height <= 0.05
@@ -178,7 +179,7 @@ def fake_stack(stack, *, mode, video, fps, size, camera, quality, progress, show
 
 
 def fake_run(plan, *, cube, mode, video, fps, size, camera, quality, progress, timestep=None,
-             show_ui=False, base_height=0.0):
+             show_ui=False, base_height=0.0, servo=None):
     # Reached only with values inside their documented ranges.
     assert 1.0 <= fps <= 250.0 and all(16 <= v <= 4096 and v % 2 == 0 for v in size)
     assert 0.0 <= base_height <= 0.05
@@ -430,7 +431,7 @@ ik_arguments = st.lists(
 def test_ik_script_command_lines_run_or_name_the_problem(argv):
     import test_ik_mujoco
 
-    def fake_scene(mode, video, *, total_time, progress, show_ui):
+    def fake_scene(mode, video, *, total_time, progress, show_ui, servo=None):
         # Reached only with checked outputs and durations, and reachable targets.
         assert mode in ("headless", "record") and (video is None or video.suffix == ".mp4")
         assert 0.0 <= total_time <= 100 * 2 * MAX_DURATION

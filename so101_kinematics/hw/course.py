@@ -61,7 +61,7 @@ from so101_kinematics.hw.bus import (
     with_retries,
 )
 from so101_kinematics.hw.control import ArmSession, signals_as_interrupt, stop_on_signals
-from so101_kinematics.hw.feedforward import read_feedforward, torque_on_in_place
+from so101_kinematics.hw.feedforward import read_feedforward, sag_allowance, torque_on_in_place
 from so101_kinematics.hw.guarded import RAW_TICKS, GuardedBus, ramp_to_goal, resync
 from so101_kinematics.hw.run import (
     LIMIT_SLACK_DEG,
@@ -300,7 +300,8 @@ def course_move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING,
             value = target.get(joint)
             if is_finite_number(value) and low - LIMIT_SLACK_DEG <= value <= high + LIMIT_SLACK_DEG:
                 target[joint] = min(high, max(low, float(value)))
-        warning = start_mismatch(start, session.command)
+        warning = start_mismatch(start, session.command,
+                                 sag_allowance(session.feedforward, session.command))
         if warning:
             logger.warning(warning)
         warning = radians_warning(cfg, session.command)

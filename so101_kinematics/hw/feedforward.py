@@ -133,3 +133,13 @@ def tracking_allowance(feedforward: Feedforward | None, tolerance: dict, previou
     expected = feedforward.expected_errors(previous, speeds)
     return {j: None if allowed is None else allowed + expected.get(j, 0.0)
             for j, allowed in tolerance.items()}
+
+
+def sag_allowance(feedforward: Feedforward | None, command: dict) -> dict:
+    """How far [deg] each joint rests from ``command``: its sag without the feed-forward.
+
+    Nothing with it. A measured start that far off is no mistake.
+    """
+    if feedforward is None:
+        return {}
+    return feedforward.expected_errors(command, {})

@@ -10,8 +10,10 @@ follows it depends on the model's servo (:func:`use_servo`):
   native actuators back, so a script's own ``mujoco.mj_step`` still drives the arm.
 - ``"ideal"``: the upstream model's stiff position servo (``kp`` 998.22, ``kv`` 2.731,
   ``forcerange`` 3.35 N m; TheRobotStudio SO-ARM100 PR #141), kept for comparison.
-- a model nobody set up is stepped with its own actuators (``model/scene.xml``'s
-  native ones: the linearised STS3215, see the comment there).
+- a model loaded by MuJoCo itself (the course's ``MjModel.from_xml_path``) gets the
+  default at its first :func:`step` (the project's moves run what ``so101_utils`` runs on
+  the arm); a script's own ``mujoco.mj_step`` drives the native actuators
+  (``model/scene.xml``'s: the STS3215 linearised, see the comment there).
 - a velocity model (``model/scene_with_velocity.xml``, the course's week 9: a position
   and a ``<joint>_vel`` velocity actuator per joint, 12 controls) keeps the course's
   own actuators: ``scene.load_model`` sets no servo on it (:func:`has_velocity_actuators`),
@@ -20,6 +22,7 @@ follows it depends on the model's servo (:func:`use_servo`):
 
 from __future__ import annotations
 
+import logging
 import math
 import weakref
 from dataclasses import dataclass
@@ -69,6 +72,8 @@ class ServoSpec:
         return (f"STS3215 {self.variant}, P = {self.settings[0].p}, {self.volts:g} V, "
                 f"{ff} gravity feed-forward")
 
+
+logger = logging.getLogger(__name__)
 
 _SPECS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # model -> ServoSpec
 _BANKS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # data -> (ServoBank, time)
@@ -147,6 +152,15 @@ VELOCITY_SUFFIX = "_vel"
 """A velocity actuator is its joint's name with this suffix (the course's ``shoulder_pan_vel``)."""
 
 
+def _is_arm(m: mujoco.MjModel) -> bool:
+    """Whether ``m`` has the SO-101's six position servos, named as their joints, and no more."""
+    try:
+        return m.nu == len(JOINTS) and all(m.actuator(j).trnid[0] == m.joint(j).id
+                                           for j in JOINTS)
+    except KeyError:
+        return False
+
+
 def has_velocity_actuators(m: mujoco.MjModel) -> bool:
     """Whether ``m`` has the course's ``<joint>_vel`` velocity actuator for every joint."""
     names = {m.actuator(i).name for i in range(m.nu)}
@@ -170,6 +184,20 @@ def velocity_actuators(m: mujoco.MjModel, wanted: bool | None, joints) -> np.nda
     if not present or wanted is False:
         return None
     return np.array([int(m.actuator(j + VELOCITY_SUFFIX).id) for j in joints])
+
+
+def expected_sag(m: mujoco.MjModel, command) -> dict[str, float]:
+    """How far [deg] each arm joint of ``m`` rests from ``command`` with no feed-forward on.
+
+    The sag and the friction band the model's servo leaves (0 with the feed-forward, or an
+    ideal servo): what a check comparing a measured start with a command must allow.
+    """
+    spec = _SPECS.get(m)
+    if spec is None or spec.mode == "ideal" or spec.feedforward:
+        return {}
+    feedforward = gravity.Feedforward(dict(zip(JOINTS, spec.settings, strict=True)),
+                                      spec.volts, spec.variant, enabled=False)
+    return feedforward.expected_errors(command, {})
 
 
 def servo_spec(m: mujoco.MjModel) -> ServoSpec | None:
@@ -230,6 +258,10 @@ def step(m: mujoco.MjModel, d: mujoco.MjData, n: int = 1, commands=None,
         actuators: the controls ``commands`` sets.
     """
     spec = _SPECS.get(m)
+    if spec is None and _is_arm(m):  # loaded by MuJoCo itself: the project's default servo
+        spec = use_servo(m)
+        logger.info("A model loaded without the project's load_model: its moves run the "
+                    "default servo (%s), as so101_utils runs the arm.", spec.describe())
     if spec is None or spec.mode == "ideal":
         if commands is None:
             mujoco.mj_step(m, d, n)

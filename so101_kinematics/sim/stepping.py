@@ -212,7 +212,8 @@ def move_to_pose(m: mujoco.MjModel, d: mujoco.MjData, viewer, *args,
     goal = held_at_limits(m, cfg, "move_to_pose target")
     duration = check_duration(duration, "move_to_pose duration")
     command = get_command(m, d)
-    for warning in (start_mismatch(start, command), radians_warning(cfg, command)):
+    for warning in (start_mismatch(start, command, actuation.expected_sag(m, command)),
+                    radians_warning(cfg, command)):
         if warning:
             logger.warning(warning)
     path = Trajectory(command, goal, duration, profile)
