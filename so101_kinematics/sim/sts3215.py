@@ -72,7 +72,9 @@ class ServoBank:
         self._derive()
 
     def _derive(self) -> None:
-        """The per-servo constants of the hot loop, from the registers."""
+        """The per-servo constants of the hot loop, from the registers (and a fresh cache)."""
+        self._push = [0.0] * self.n  # [0.1 %] the last push, reused while the error stands
+        self._cached_on = [None] * self.n  # the torque state it was computed for (None: none)
         self._fixed = list(zip(
             [v or servo.TARGET_RATE_MAX for v in self.goal_velocity],  # [counts/s]
             [a * servo.ACCELERATION_UNIT or math.inf for a in self.acceleration],  # [counts/s^2]
@@ -87,7 +89,7 @@ class ServoBank:
             self.target_speed[index] = 0.0
             self.integral[index] = 0.0
             self.last_error[index] = 0.0
-
+            self._cached_on[index] = None
     def stiffness(self) -> list[float]:
         """Each servo's linearised stiffness [N m/rad] at its P and this bank's supply."""
         per_duty = self.variant.torque_per_volt * self.volts / 4000.0 * servo.COUNTS_PER_RAD
@@ -107,6 +109,7 @@ class ServoBank:
         newtons = self.variant.torque_per_volt * self.volts / 1000.0  # [N m per 0.1 %]
         half_play, period = self.backlash_half, servo.LOOP_PERIOD_S / dt
         targets, speeds, last, duties = self.target, self.target_speed, self.last_error, self.duty
+        pushes, cached = self._push, self._cached_on
         modes, on, i_gain = self.mode, self.torque_on, self.i
         sqrt, copysign = math.sqrt, math.copysign
         out = []
@@ -132,6 +135,9 @@ class ServoBank:
                     target += step
                 targets[k], speeds[k] = target, speed
             error = round(target) - round(q[k] * cpr)
+            if error == last[k] and cached[k] == on[k] and mode == 0 and not i_gain[k]:
+                out.append(newtons * pushes[k])  # the same error: the same duty, no D term
+                continue
             size = error if error >= 0 else -error
             if size > zone:
                 duty = startup + p4 * (size - zone)
@@ -162,7 +168,7 @@ class ServoBank:
                     push = cap
                 elif push < -cap:
                     push = -cap
-            duties[k] = duty
+            duties[k], pushes[k], cached[k] = duty, push, on[k]
             out.append(newtons * push)
         return out
 
