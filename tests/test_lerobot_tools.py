@@ -21,7 +21,9 @@ from pathlib import Path
 
 import pytest
 
+from so101_kinematics.gravity import feedforward
 from so101_kinematics.paths import REPO
+from so101_kinematics.servo import LEROBOT
 
 pytestmark = [pytest.mark.hw, pytest.mark.slow]
 BIN = Path(sys.executable).parent
@@ -161,9 +163,11 @@ def test_calibrate_from_the_shell_agrees_with_the_shipped_calibration(env):
     written = json.loads(next(Path(env["HF_LEROBOT_CALIBRATION"]).rglob("vlab.json")).read_text())
     for joint, shipped in SHIPPED.items():
         got = written[joint]
-        assert got["homing_offset"] == shipped["homing_offset"], joint
-        assert got["range_min"] >= shipped["range_min"], joint  # never past a joint limit
-        assert got["range_max"] <= shipped["range_max"], joint
+        # the same, but for the count a real encoder reads off at times (ENCODER_NOISE) and
+        # a count of quantisation; never past a joint limit by more
+        assert abs(got["homing_offset"] - shipped["homing_offset"]) <= 2, joint
+        assert got["range_min"] >= shipped["range_min"] - 2, joint
+        assert got["range_max"] <= shipped["range_max"] + 2, joint
         assert got["range_min"] - shipped["range_min"] <= 30, joint
         assert shipped["range_max"] - got["range_max"] <= 30, joint
 
@@ -192,8 +196,12 @@ def test_teleoperate_the_follower_follows_the_shell_moved_leader(env):
         follower.close()
         leader.close()
     assert abs(follow["shoulder_pan"] - before["shoulder_pan"]) > 20.0  # it really moved
+    # lerobot alone has no feed-forward: the follower's STS3215s at P = 16 (5 V) rest below
+    # the leader by the sag gravity causes there (the model's masses over the servo's law)
+    sag = feedforward(lead, LEROBOT, 5.0)
     for joint in ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll"):
-        assert abs(lead[joint] - follow[joint]) < 1.0, (joint, lead[joint], follow[joint])
+        assert abs(lead[joint] - follow[joint]) < abs(sag[joint]) + 1.0, (
+            joint, lead[joint], follow[joint], sag[joint])
 
 
 def test_record_a_short_episode_between_shell_started_arms(env, tmp_path):
@@ -233,4 +241,6 @@ def test_record_a_short_episode_between_shell_started_arms(env, tmp_path):
     print("follower-leader error medians:",
           dict(zip(info["features"]["action"]["names"], errors, strict=True)))
     assert moved > 20.0  # the demo swung shoulder_pan
-    assert max(errors) < 1.0, errors
+    # lerobot alone: the STS3215 at P = 16 on 5 V sags up to 5.3 deg (shoulder) and trails a
+    # moving goal by about 0.1 s of its motion; a follower that did not follow is tens off
+    assert max(errors) < 6.0, errors

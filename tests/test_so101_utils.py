@@ -161,7 +161,8 @@ def test_disable_torque_away_from_the_start_returns_there_first(arm, capsys, cap
     bus = setup_motors(load_calibration(str(CALIBRATION_PATH)), arm.port)
     away = dict(HOME, shoulder_lift=-40.0, elbow_flex=40.0)  # released here, the arm would fall
     move_to_pose(bus, away, 1.0)
-    assert_near(arm.joint_positions(), away, label="away")
+    # at the end of a 1 s move the STS3215 at P = 16 still trails by up to a degree or two
+    assert_near(arm.joint_positions(), away, tol_deg=2.0, label="away")
     bus.disable_torque()
     assert not any(arm.torque_enabled().values())
     assert_near(arm.commanded_positions(), HOME_GOAL, tol_deg=2.0, label="last goal before release")

@@ -19,6 +19,9 @@ from so101_forward_kinematics import ARM_JOINTS, JOINTS
 from so101_kinematics.calibration import load_calibration, ticks_to_user
 from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.errors import TrimError
+from so101_kinematics.gravity import feedforward
+from so101_kinematics.hw import feedforward as hw_feedforward
+from so101_kinematics.servo import LEROBOT
 from so101_kinematics.trims import TRIM_LIMIT_DEG, Trims, as_trims, load_trims
 
 REPO = Path(__file__).resolve().parent.parent
@@ -183,14 +186,22 @@ def test_trims_reach_the_wire_the_log_and_the_report(arm, tmp_path, capsys):
                                                   strict=True)) for r in lines[1:]]
     calibration = load_calibration(CALIBRATION_PATH)
     joint_of = {c.id: j for j, c in calibration.items()}
-    goals = arm.goal_log()[6:]  # the first six: the present position, written before torque on
+    # the first six: the present position, written before torque on; then the feed-forward's
+    # ramp back to where the arm stood
+    ramp = round(hw_feedforward.RAMP_S / hw_feedforward.RAMP_PERIOD_S)
+    goals = arm.goal_log()[6 * (1 + ramp):]
     assert len(goals) == 6 * len(rows)
     for k, row in enumerate(rows):
+        command = {j: float(row[f"cmd_{j}"]) for j in JOINTS}
+        sag = feedforward(command, LEROBOT, 5.0)  # the gravity feed-forward's offsets (default)
         for _, servo, ticks in goals[6 * k:6 * k + 6]:
             joint = joint_of[servo]
             sent = ticks_to_user(joint, ticks, calibration[joint])
-            expected = float(row[f"cmd_{joint}"]) + TRIMS.get(joint, 0.0)
-            assert abs(sent - expected) <= 0.1, (k, joint, sent, expected)  # 1 tick = 0.088 deg
+            expected = command[joint] + TRIMS.get(joint, 0.0) + sag[joint]
+            # 1 tick = 0.088 deg; the friction term (0.5 deg at P = 16 on 5 V) in the motion's
+            # direction; the supply the servos report (under 5 V with the arm's current) and
+            # the offsets' re-evaluation every degree of motion. A trim left out is 2-4 deg.
+            assert abs(sent - expected) <= 1.5, (k, joint, sent, expected)
 
     # the arm: the exact virtual arm stood at the waypoint plus the trims; the log at the waypoint
     waypoint = PLAN["steps"][0]["configuration"]
@@ -262,4 +273,6 @@ def test_home_check_goes_home_slowly_prints_the_fk_and_ends_released(arm, monkey
     assert speeds.max() < 1.5 * home_check.HOME_CHECK_SPEED_DEG_S  # the default cap is 100
     assert out.strip().splitlines()[-1] == "Done: back at the starting pose, torque off."
     assert not any(arm.torque_enabled().values())
-    assert all(abs(arm.commanded_positions()[j] - HOME[j]) < 2.0 for j in ARM_JOINTS)
+    # the last goal: HOME plus the gravity feed-forward's offsets there (elbow about -4 deg)
+    home_goal = {j: HOME[j] + v for j, v in feedforward(HOME, LEROBOT, 5.0).items()}
+    assert all(abs(arm.commanded_positions()[j] - home_goal[j]) < 2.0 for j in ARM_JOINTS)

@@ -92,7 +92,7 @@ def resting(goal, p=32, volts=5.0):
     The STS3215 at P (factory 32, lerobot 16) on the arm's 5 V holds a load only by being
     off its goal (so101_kinematics.gravity: the model's masses over the servo's static law).
     """
-    settings = servo.FACTORY.with_(p=p) if p == 32 else servo.LEROBOT
+    settings = servo.FACTORY.with_(p=p)
     offsets = feedforward(dict(HOME, **goal), settings, volts)
     return {j: goal[j] - offsets[j] for j in goal}
 
@@ -518,12 +518,13 @@ def test_stalled_joint_misses_its_goal_with_rising_load_and_overload(bus, fresh_
     time.sleep(0.5)
     present = bus.sync_read("Present_Position")  # sync_read ignores status bits
     assert present["elbow_flex"] == pytest.approx(90.0, abs=0.5)  # blocked, off its goal
+    p = fresh_arm.registers("wrist_flex")["P_Coefficient"]  # 32, or lerobot's 16 if it wrote it
     assert present["wrist_flex"] == pytest.approx(  # the others still move
-        resting(HOME | {"wrist_flex": 10.0})["wrist_flex"], abs=1.0)
+        resting(HOME | {"wrist_flex": 10.0}, p=p)["wrist_flex"], abs=1.0)
     with pytest.raises(RuntimeError, match="Overload error"):
         bus.read("Present_Position", "elbow_flex")
     fresh_arm.clear_faults()
-    expected = resting(HOME | {"elbow_flex": 60.0, "wrist_flex": 10.0})["elbow_flex"]
+    expected = resting(HOME | {"elbow_flex": 60.0, "wrist_flex": 10.0}, p=p)["elbow_flex"]
     assert wait_until_reached(bus, {"elbow_flex": expected})["elbow_flex"] == pytest.approx(
         expected, abs=1)
 

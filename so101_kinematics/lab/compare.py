@@ -230,8 +230,10 @@ def compare_run(path: str | Path) -> Comparison:
         notes.append(f"{broken} row(s) cut short or unreadable were left out (a partial log)")
     if not isinstance(info.get("start_pose"), dict):
         notes.append(f"no sidecar {sidecar_path(path).name} with the starting pose: the replay "
-                     "starts at the first measured pose")
+                     "starts at the first measured pose, on the default servo (the "
+                     "feed-forward on, as pick_place_hw.py runs by default)")
         info["start_pose"] = {j: rows[0][f"meas_{j}"] for j in JOINTS}
+        info.setdefault("servo", {"gravity_ff": True})
     start = start_inside_limits(info["start_pose"], notes)
     t = np.array([r["t_s"] for r in rows])
     commanded = {j: np.array([r[f"cmd_{j}"] for r in rows]) for j in JOINTS}
