@@ -519,8 +519,10 @@ def test_stalled_joint_misses_its_goal_with_rising_load_and_overload(bus, fresh_
     present = bus.sync_read("Present_Position")  # sync_read ignores status bits
     assert present["elbow_flex"] == pytest.approx(90.0, abs=0.5)  # blocked, off its goal
     p = fresh_arm.registers("wrist_flex")["P_Coefficient"]  # 32, or lerobot's 16 if it wrote it
-    assert present["wrist_flex"] == pytest.approx(  # the others still move
-        resting(HOME | {"wrist_flex": 10.0}, p=p)["wrist_flex"], abs=1.0)
+    # the others still move: to the goal less the sag, within the friction band on the
+    # approach side (0.5 deg at P = 16 on 5 V) and what is left to settle after 0.75 s
+    assert present["wrist_flex"] == pytest.approx(
+        resting(HOME | {"wrist_flex": 10.0}, p=p)["wrist_flex"], abs=1.5)
     with pytest.raises(RuntimeError, match="Overload error"):
         bus.read("Present_Position", "elbow_flex")
     fresh_arm.clear_faults()
