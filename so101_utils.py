@@ -117,7 +117,7 @@ def setup_motors(calibration, port, offset_config=None, gravity_ff=True):
     return _setup_motors(calibration, port, offset_config, gravity_ff)
 
 
-def move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING):
+def move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING, velocity_ff=False):
     """Move the arm smoothly to ``desired_position`` in ``duration`` seconds.
 
     ``move_to_pose(bus, desired_position, duration)``, or assignment 8's
@@ -136,11 +136,17 @@ def move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING):
             keep their goal.
         duration: [s]; stretched (with a warning) if a joint would exceed its
             speed cap.
+        velocity_ff: the week-9 workaround for a velocity on the real arm: each goal
+            sent leads the plan by the servo's lag (0.1 s at P = 16 on 5 V) times the
+            planned velocity, at most 10 deg, never past the move's goal
+            (``so101_kinematics/hw/lead.py``; README, "Velocity on the real arm").
     """
-    course_move_to_pose(bus, *args, desired_position=desired_position, duration=duration)
+    course_move_to_pose(bus, *args, desired_position=desired_position, duration=duration,
+                        velocity_ff=velocity_ff)
 
 
-def move_to_pose_cubic(bus, *args, desired_position=MISSING, duration=MISSING):
+def move_to_pose_cubic(bus, *args, desired_position=MISSING, duration=MISSING,
+                       velocity_ff=False):
     """Move as :func:`move_to_pose` does, along the course's cubic (assignment 9).
 
     Per joint ``q(t) = a0 + a1 t + a2 t^2 + a3 t^3`` with ``a0`` the start,
@@ -150,24 +156,27 @@ def move_to_pose_cubic(bus, *args, desired_position=MISSING, duration=MISSING):
     peak is 1.5 times the mean speed) and fault policy as :func:`move_to_pose`:
     ``move_to_pose_cubic(bus, desired_position, duration)`` or
     ``move_to_pose_cubic(bus, starting_position, desired_position, duration)``.
+    ``velocity_ff=True`` feeds the cubic's velocity ``a1 + 2 a2 t + 3 a3 t^2`` forward
+    through the goal, as :func:`move_to_pose`'s does.
     """
     course_move_to_pose(bus, *args, desired_position=desired_position, duration=duration,
-                        profile="cubic", what="move_to_pose_cubic")
+                        profile="cubic", what="move_to_pose_cubic", velocity_ff=velocity_ff)
 
 
 def move_to_pose_with_logging(bus, *args, desired_position=MISSING, duration=MISSING,
-                              profile="linear"):
+                              profile="linear", velocity_ff=False):
     """Week 8's logged move: as :func:`move_to_pose`, returning the course's DataFrame.
 
     ``move_to_pose_with_logging(bus, desired_position, duration)`` or with the
     starting position first; one row per control cycle (100 Hz): ``time`` [s] from
     the move's start, ``target_<joint>`` (the goal commanded) and ``actual_<joint>``
     (``Present_Position``), [deg], gripper 0-100. ``profile``: "linear" (the
-    course's), "cubic", "quintic" or "minimum_jerk". Needs pandas (the hw extra has it).
+    course's), "cubic", "quintic" or "minimum_jerk"; ``velocity_ff`` as for
+    :func:`move_to_pose` (``target_`` stays the plan). Needs pandas (the hw extra has it).
     """
     require_pandas()
     cycles = course_logged_move(bus, *args, desired_position=desired_position,
-                                duration=duration, profile=profile)
+                                duration=duration, profile=profile, velocity_ff=velocity_ff)
     t0 = cycles[0].t_s if cycles else 0.0
     return logging_frame([c.t_s - t0 for c in cycles], [c.command for c in cycles],
                          [c.measured for c in cycles])

@@ -27,7 +27,6 @@ import time
 from collections.abc import Callable, Mapping
 
 from so101_kinematics.calibration import calibrated_limits
-from so101_kinematics.checks import LIMIT_TOLERANCE, limit_excess, limit_message
 from so101_kinematics.clearance import check_path
 from so101_kinematics.errors import (  # noqa: F401 - the family, re-exported
     BusError,
@@ -41,7 +40,6 @@ from so101_kinematics.gravity import Feedforward
 from so101_kinematics.hw.bus import (
     PORT_SETTLE_S,
     PortLost,
-    clamp_to_limits,
     discard_stale_input,
     port_lost,
     read_pose,
@@ -49,6 +47,8 @@ from so101_kinematics.hw.bus import (
 )
 from so101_kinematics.hw.checks import check_status, check_torque, check_tracking
 from so101_kinematics.hw.feedforward import tracking_allowance
+from so101_kinematics.hw.goals import goal_for, guard, send_goal
+from so101_kinematics.hw.lead import VelocityLead
 from so101_kinematics.hw.signals import (  # noqa: F401 - stopping the loop, with the loop
     STOP_SIGNALS,
     gc_frozen,
@@ -77,7 +77,6 @@ from so101_kinematics.hw.timing import (  # noqa: F401 - the loop's time and spe
 )
 from so101_kinematics.motion import (
     Configuration,
-    JointLimitError,
     Trajectory,
     check_configuration,
     unit,
@@ -125,6 +124,8 @@ class ArmSession:
             sagging arm rests at the command; positions read are the arm's own.
         base_height: the table is this far below the base frame [m]: every move's path
             is checked against it before it starts (``clearance.check_path``).
+        velocity_lead: the velocity feed-forward (``hw/lead.py``), or None: each goal of a
+            move leads the plan by lag x planned velocity, bounded; the checks judge the plan.
     """
 
     def __init__(self, bus, *, rate_hz: float = DEFAULT_RATE_HZ, profile: str = "minimum_jerk",
@@ -135,7 +136,8 @@ class ArmSession:
                  on_cycle: Callable[[ArmSession, Cycle], None] | None = None,
                  clock: Callable[[], float] = time.perf_counter,
                  sleep: Callable[[float], None] = time.sleep, trims: Trims | None = None,
-                 feedforward: Feedforward | None = None, base_height: float = 0.0):
+                 feedforward: Feedforward | None = None, base_height: float = 0.0,
+                 velocity_lead: VelocityLead | None = None):
         check_profile(profile)
         check_rate(rate_hz)
         self.bus = bus
@@ -167,6 +169,8 @@ class ArmSession:
         self._limp_seen: set[str] = set()  # joints whose last Torque_Enable read was 0
         self.stale_bytes = 0  # late-reply bytes dropped before reads
         self.base_height = base_height
+        self.velocity_lead = velocity_lead
+        self._led: Configuration | None = None  # this cycle's led goal (None: the plan's)
 
     # measurement and command
     def _read(self) -> Configuration:
@@ -183,16 +187,8 @@ class ArmSession:
             raise BusError(f"Cannot read the arm's position: {error}") from error
 
     def _guard(self, command: Mapping[str, float]) -> Configuration:
-        """Last line of defence: refuse a command outside the calibrated range."""
-        out = {}
-        for joint in JOINTS:
-            lower, upper = self.limits[joint]
-            value = command[joint]
-            if limit_excess(value, lower, upper) > LIMIT_TOLERANCE:
-                message = limit_message(joint, value, lower, upper, "the calibrated range")
-                raise JointLimitError(f"Command {message}; nothing was sent.")
-            out[joint] = min(upper, max(lower, value))
-        return out
+        """Last line of defence: refuse a command outside the calibrated range (``hw/goals.py``)."""
+        return guard(command, self.limits)
 
     @property
     def observed(self) -> bool:
@@ -201,17 +197,10 @@ class ArmSession:
 
     def goal_for(self, command: Mapping[str, float]) -> Configuration:
         """The goal written for ``command``: plus the gravity feed-forward, in the range."""
-        if self.feedforward is None or not self.feedforward.enabled:
-            return dict(command)
-        return clamp_to_limits(self.feedforward.apply(command), self.limits)
+        return goal_for(command, self.feedforward, self.limits, self._led)
 
     def _send(self, command: Configuration) -> None:
-        try:
-            self.bus.sync_write("Goal_Position", self.trims.to_wire(self.goal_for(command)))
-        except Exception as error:  # noqa: BLE001 - a broadcast gets no reply: only the port fails
-            if port_lost(self.bus):
-                raise PortLost.during("sending Goal_Position") from error
-            logger.warning("Goal_Position write failed: %s", error)
+        send_goal(self.bus, self.trims, self.goal_for(command))
 
     def _cycle(self, command_at: Callable[[float], Mapping[str, float]]) -> float:
         """Wait for the next deadline, command, measure, check, log; returns the deadline [s]."""
@@ -255,7 +244,8 @@ class ArmSession:
             if len(self.cycles) % STATUS_EVERY == 0:
                 check_status(self.bus, self.known_faults, self._status_seen)
                 check_torque(self.bus, self._limp_seen)
-        cycle = Cycle(deadline - self._t0, self.loop.woke - self._t0, self.step, command, measured)
+        cycle = Cycle(deadline - self._t0, self.loop.woke - self._t0, self.step, command, measured,
+                      self._led and {j: self._led[j] - command[j] for j in command})
         self.cycles.append(cycle)
         if self.on_cycle is not None:
             self.on_cycle(self, cycle)
@@ -270,12 +260,14 @@ class ArmSession:
         return t_start
 
     def _run(self, command_at: Callable[[float], Mapping[str, float]], duration: float,
-             t_start: float) -> None:
+             t_start: float, lead_at: Callable[[float, Configuration], Configuration] | None = None
+             ) -> None:
         """Cycle until the segment's own clock reaches ``duration`` [s].
 
         The segment's clock advances by the time between cycles (at most
         ``MAX_ADVANCE_S``) only while the arm is observed: during an outage
-        the last goal is repeated and the plan resumes where it paused.
+        the last goal is repeated and the plan resumes where it paused. While the arm
+        is observed, ``lead_at(elapsed, planned)`` is the goal written (the velocity lead).
         """
         elapsed, last = 0.0, t_start
 
@@ -286,17 +278,24 @@ class ArmSession:
                 elapsed = min(duration, elapsed + min(step, MAX_ADVANCE_S))
             self.plan_lag_s += step if not self.observed else max(0.0, step - MAX_ADVANCE_S)
             last = deadline
-            return command_at(elapsed)
+            planned = command_at(elapsed)
+            self._led = lead_at(elapsed, planned) if lead_at and self.observed else None
+            return planned
 
-        while elapsed < duration - 1e-9:
-            self._cycle(at)
+        try:
+            while elapsed < duration - 1e-9:
+                self._cycle(at)
+        finally:
+            self._led = None
 
     def move(self, cfg: Mapping[str, float], duration: float, step: str | None = None,
-             max_speed: Mapping[str, float] | None = None, profile: str | None = None) -> Segment:
+             max_speed: Mapping[str, float] | None = None, profile: str | None = None,
+             velocity_ff: bool | None = None) -> Segment:
         """Move from the last command (the measured pose at first) to ``cfg`` in ``duration`` [s].
 
         The duration is stretched (with a warning) if a joint would exceed its speed cap;
-        ``profile`` (default the session's) is this move's time scaling.
+        ``profile`` (default the session's) is this move's time scaling; ``velocity_ff``
+        leads its goals by the servo's lag (default: as the session's ``velocity_lead``).
 
         Raises:
             JointLimitError: ``cfg`` is outside the calibrated range (nothing sent).
@@ -324,10 +323,13 @@ class ArmSession:
                 logger.warning(message)
                 self.stretched.append(message)
         path = Trajectory(start, goal, duration, profile)
+        if velocity_ff and self.velocity_lead is None:  # asked for: from the servos read
+            self.velocity_lead = VelocityLead.for_feedforward(self.feedforward, enabled=False)
+        lead = self.velocity_lead and self.velocity_lead.along(path, velocity_ff)
         t_start = self._begin()
         segment = Segment("move", self.step, t_start - self._t0, start, goal, duration, requested)
         self.segments.append(segment)
-        self._run(path.at, duration, t_start)
+        self._run(path.at, duration, t_start, lead)
         return segment
 
     def hold(self, duration: float, step: str | None = None) -> None:
@@ -358,6 +360,7 @@ class ArmSession:
             pose = None
         if pose is not None:
             goal = {j: min(self.limits[j][1], max(self.limits[j][0], pose[j])) for j in JOINTS}
+            self._led = None  # the stop's goal is where the arm is: nothing leads it
             self._send(goal)
             self.command = goal
         self._record("stop", pose)

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from so101_kinematics.calibration import find_calibration, load_calibration
+from so101_kinematics.calibration import load_calibration
 from so101_kinematics.checks import (
     MISSING,
     START_MISMATCH,  # noqa: F401 - so101_utils's setting
@@ -61,8 +61,15 @@ from so101_kinematics.hw.bus import (
     with_retries,
 )
 from so101_kinematics.hw.control import ArmSession, signals_as_interrupt, stop_on_signals
+from so101_kinematics.hw.course_calibration import (  # noqa: F401 - the course's loader
+    CourseCalibration,
+    ScriptEnded,
+    course_load_calibration,
+    refuse,
+)
 from so101_kinematics.hw.feedforward import read_feedforward, sag_allowance, torque_on_in_place
 from so101_kinematics.hw.guarded import RAW_TICKS, GuardedBus, ramp_to_goal, resync
+from so101_kinematics.hw.lead import VelocityLead
 from so101_kinematics.hw.run import (
     LIMIT_SLACK_DEG,
     RELEASE_HINT,
@@ -84,27 +91,6 @@ MAX_MOVE_S = 60.0             # longest move_to_pose duration accepted [s]
 MAX_HOLD_S = 3600.0           # longest hold_position duration accepted [s]
 
 
-class ScriptEnded(SystemExit):
-    """The helpers ended the script; ``line`` (printed to stderr) says why and how the arm is left.
-
-    A ``SystemExit``: the script stops there without a traceback, with exit
-    status ``code`` (2: refused, nothing moved; 1: a fault's ending ran).
-    ``result`` is the run's :class:`RunResult` after a fault (else None).
-    """
-
-    def __init__(self, code: int, line: str, result: RunResult | None = None):
-        super().__init__(code)
-        self.line = line
-        self.result = result
-
-
-class CourseCalibration(dict):
-    """A loaded calibration (joint -> ServoCalibration) that remembers where it came from."""
-
-    source: Path | None = None
-    robot_id: str | None = None
-
-
 @dataclass
 class CourseRun:
     """One arm set up by :func:`setup_motors`: its session, starting pose and how to release it."""
@@ -118,35 +104,6 @@ class CourseRun:
 
 
 _RUNS: dict[int, CourseRun] = {}  # id(bus handed out) -> its run, while set up and not ended
-
-
-def _refuse(error: BaseException) -> ScriptEnded:
-    line = "Refused, nothing moved: " + " ".join(str(error).split())
-    print(line, file=sys.stderr, flush=True)
-    return ScriptEnded(2, line)
-
-
-def course_load_calibration(robot_name_or_path: str | os.PathLike) -> CourseCalibration:
-    """The calibration of a robot id (where lerobot keeps it) or of a calibration JSON file.
-
-    Raises:
-        ScriptEnded: no such robot id or file, or a malformed calibration (one line, exit 2).
-    """
-    try:
-        if not isinstance(robot_name_or_path, (str, os.PathLike)) or not str(robot_name_or_path):
-            raise CalibrationError(
-                f"load_calibration needs a robot id (the --robot.id given to lerobot-calibrate) "
-                f"or a calibration JSON path, got {robot_name_or_path!r}. Fix: e.g. "
-                "load_calibration(\"follower-1\").")
-        text = os.fspath(robot_name_or_path)
-        is_path = text.endswith(".json") or os.sep in text or Path(text).is_file()
-        robot_id = None if is_path else text
-        path = Path(text) if is_path else find_calibration(text)
-        calibration = CourseCalibration(load_calibration(path, robot_id))
-    except SO101Error as error:
-        raise _refuse(error) from None
-    calibration.source, calibration.robot_id = path, robot_id
-    return calibration
 
 
 def setup_motors(calibration: Mapping[str, Any], port: str,
@@ -188,7 +145,7 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
         checked = load_calibration(calibration, robot_id)
         bus = connect(port, checked, robot_id=robot_id)
     except SO101Error as error:
-        raise _refuse(error) from None
+        raise refuse(error) from None
     armed = False
     try:
         start = trims.from_wire(starting_pose(bus, checked, port, robot_id))
@@ -202,12 +159,13 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
             release_torque(bus)
         disconnect(bus)
         if isinstance(error, SO101Error):
-            raise _refuse(error) from None
+            raise refuse(error) from None
         raise
     source = getattr(calibration, "source", None)
     arm = f"--id {robot_id}" if robot_id else f"--calibration {source or 'YOUR_CALIBRATION.json'}"
-    run = CourseRun(ArmSession(bus, trims=trims, feedforward=feedforward), start,
-                    RELEASE_HINT.format(port=port, arm=arm))
+    lead = VelocityLead.for_feedforward(feedforward, enabled=False)  # on per move, when asked
+    run = CourseRun(ArmSession(bus, trims=trims, feedforward=feedforward, velocity_lead=lead),
+                    start, RELEASE_HINT.format(port=port, arm=arm))
     run.session.command = dict(start)
     run.restore.callback(_unlock_port, bus)  # a run that ended leaves the port to other programs
     run.restore.enter_context(signals_as_interrupt())  # SIGTERM/SIGHUP between calls: as Ctrl-C
@@ -245,7 +203,7 @@ def _unlock_port(bus) -> None:
 def _run_of(bus, what: str) -> CourseRun:
     run = _RUNS.get(id(bus))
     if run is None:
-        raise _refuse(PlanError(
+        raise refuse(PlanError(
             f"{what} needs the bus returned by setup_motors (set up and not ended). Fix: "
             "bus = setup_motors(calibration, PORT_ID) before moving the arm."))
     return run
@@ -273,7 +231,8 @@ MOVE_SHAPES = ("move_to_pose(bus, desired_position, duration) or, with assignmen
 
 
 def course_move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING,
-                        profile: str | None = None, what: str = "move_to_pose") -> None:
+                        profile: str | None = None, what: str = "move_to_pose",
+                        velocity_ff: bool = False) -> None:
     """Move to the target ([deg], gripper [0, 100]) in ``duration`` [s]; joints left out stay put.
 
     ``(bus, desired_position, duration)`` or assignment 8's ``(bus,
@@ -283,7 +242,8 @@ def course_move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING,
     A target within ``LIMIT_SLACK_DEG`` outside the calibrated range (a pose
     read back with ``bus.sync_read``) is clamped into it. ``profile`` is the
     move's time scaling (default the session's; ``move_to_pose_cubic`` passes
-    "cubic"), ``what`` the name the messages use.
+    "cubic"), ``what`` the name the messages use; ``velocity_ff`` leads each goal by
+    the servo's lag times the planned velocity (``hw/lead.py``).
     """
     def move(session: ArmSession) -> None:
         start, cfg, seconds = move_arguments(
@@ -307,13 +267,13 @@ def course_move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING,
         warning = radians_warning(cfg, session.command)
         if warning:
             logger.warning(warning)
-        session.move(target, seconds, profile=profile)
+        session.move(target, seconds, profile=profile, velocity_ff=velocity_ff)
 
     _guarded(bus, what, move)
 
 
 def course_logged_move(bus, *args, desired_position=MISSING, duration=MISSING,
-                       profile: str | None = None) -> list:
+                       profile: str | None = None, velocity_ff: bool = False) -> list:
     """:func:`course_move_to_pose`, returning the move's control cycles (``timing.Cycle``)."""
     session = _run_of(bus, "move_to_pose_with_logging").session
     cycles, previous = [], session.on_cycle
@@ -326,7 +286,8 @@ def course_logged_move(bus, *args, desired_position=MISSING, duration=MISSING,
     session.on_cycle = record
     try:
         course_move_to_pose(bus, *args, desired_position=desired_position, duration=duration,
-                            profile=profile, what="move_to_pose_with_logging")
+                            profile=profile, what="move_to_pose_with_logging",
+                            velocity_ff=velocity_ff)
     finally:
         session.on_cycle = previous
     return cycles
@@ -345,7 +306,7 @@ def course_hold_position(bus, duration: float) -> None:
 def course_write_goal(bus, values: Mapping[str, Any], what: str, normalize: bool = True) -> None:
     """A student's own ``Goal_Position`` write: checked, ramped there (``hw/guarded.py``)."""
     if not normalize:
-        raise _refuse(PlanError(f"{what} {RAW_TICKS}"))
+        raise refuse(PlanError(f"{what} {RAW_TICKS}"))
     _guarded(bus, what, lambda session: ramp_to_goal(session, values, what))
 
 

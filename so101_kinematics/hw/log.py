@@ -19,6 +19,7 @@ from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.control import ArmSession, Cycle
 from so101_kinematics.motion import Plan, unit
 from so101_kinematics.outputs import (
+    OutputKind,
     atomic_output,
     csv_kind,
     stamp,
@@ -28,13 +29,18 @@ from so101_kinematics.outputs import (
 from so101_kinematics.trims import Trims
 
 FLUSH_EVERY_S = 0.5  # the log reaches the disk at least this often [s of run time]
-HEADER = (["t_s", "wall_s", "step"] + [f"cmd_{j}" for j in JOINTS]
-          + [f"meas_{j}" for j in JOINTS] + [f"trim_{j}" for j in JOINTS])
-"""CSV columns: scheduled and actual cycle start [s], step, commanded and measured joints, and
+BEFORE_LEAD = (["t_s", "wall_s", "step"] + [f"cmd_{j}" for j in JOINTS]
+               + [f"meas_{j}" for j in JOINTS] + [f"trim_{j}" for j in JOINTS])
+HEADER = BEFORE_LEAD + [f"lead_{j}" for j in JOINTS]
+"""CSV columns: scheduled and actual cycle start [s], step, commanded and measured joints,
 each joint's trim (the course's offset_config: the servo got cmd + trim and read meas + trim;
-cmd and meas are the model's angles)."""
-LOG_KIND = csv_kind(HEADER, "a CSV log of pick_place_hw.py (its header row)")
-"""How an existing log of ours is recognised (``outputs.check_output_path``)."""
+cmd and meas are the model's angles), and each joint's velocity lead (``hw/lead.py``: the goal
+led the plan by it; empty without --velocity-ff)."""
+_KINDS = (csv_kind(HEADER, ""), csv_kind(BEFORE_LEAD, ""))
+LOG_KIND = OutputKind("a CSV log of pick_place_hw.py (its header row)",
+                      lambda path: any(kind.recognise(path) for kind in _KINDS))
+"""How an existing log of ours is recognised (``outputs.check_output_path``); a log written
+before the lead's columns too."""
 
 
 def sidecar_path(path: str | Path) -> Path:
@@ -54,9 +60,10 @@ def cycle_row(cycle: Cycle, trims: Trims | None = None) -> list[str]:
     """One CSV row; the measured columns are empty when the read failed."""
     measured = [f"{cycle.measured[j]:.4f}" if cycle.measured else "" for j in JOINTS]
     trims = trims or Trims()
+    lead = [f"{cycle.lead.get(j, 0.0):.4f}" if cycle.lead else "" for j in JOINTS]
     return ([f"{cycle.t_s:.6f}", f"{cycle.wall_s:.6f}", cycle.step]
             + [f"{cycle.command[j]:.4f}" for j in JOINTS] + measured
-            + [f"{trims.offsets[j]:g}" for j in JOINTS])
+            + [f"{trims.offsets[j]:g}" for j in JOINTS] + lead)
 
 
 class CycleLog:
@@ -64,7 +71,8 @@ class CycleLog:
 
     The CSV stays plain (one header row, one row per cycle). What a replay
     needs (``run_info``: the plan, the measured starting pose, the rate, the
-    calibration) goes to a JSON sidecar beside it (:func:`sidecar_path`),
+    calibration, the servos, the velocity feed-forward: on or off, its lags, cap
+    and largest leads) goes to a JSON sidecar beside it (:func:`sidecar_path`),
     written atomically when the log is closed.
 
     Args:
@@ -82,6 +90,7 @@ class CycleLog:
         self._handle.flush()
         self._flushed_at = 0.0
         self.rows = 0
+        self._lead = None  # the session's velocity lead (hw/lead.py), recorded at the close
 
     def __call__(self, session: ArmSession, cycle: Cycle) -> None:
         """Append ``cycle``; flush once ``FLUSH_EVERY_S`` of run time passed since the last."""
@@ -91,6 +100,8 @@ class CycleLog:
             self.run_info["servo"] = {"gravity_ff": feedforward.enabled,
                                       "supply_v": feedforward.volts,
                                       "p": feedforward.settings["shoulder_lift"].p}
+        if self._lead is None:
+            self._lead = getattr(session, "velocity_lead", None)
         self._writer.writerow(cycle_row(cycle, session.trims))
         self.rows += 1
         if cycle.wall_s - self._flushed_at >= FLUSH_EVERY_S:
@@ -111,6 +122,8 @@ class CycleLog:
             self._handle.close()
             os.replace(self.temporary, self.path)
             if self.run_info is not None:
+                if self._lead is not None:
+                    self.run_info["velocity_ff"] = self._lead.record()
                 info = stamp(self.run_info, "pick_place_hw.py --log")
                 write_text_atomic(sidecar_path(self.path), json.dumps(info, indent=1))
         return self.path

@@ -62,6 +62,7 @@ from so101_kinematics.hw.control import (
     tracking_tolerances,
 )
 from so101_kinematics.hw.feedforward import read_feedforward, torque_on_in_place
+from so101_kinematics.hw.lead import VelocityLead
 from so101_kinematics.hw.preflight import (  # noqa: F401 - the run's checks, re-exported
     check_run_settings,
     validate_plan_for_arm,
@@ -293,7 +294,8 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
                return_on_abort: bool = True, trims: Trims | str | None = None,
                on_cycle: Callable[[ArmSession, Cycle], None] | None = None,
                on_start: Callable[[Configuration, float], None] | None = None,
-               gravity_ff: bool = True, base_height: float = 0.0) -> RunResult:
+               gravity_ff: bool = True, base_height: float = 0.0,
+               velocity_ff: bool = False) -> RunResult:
     """The whole hardware run: check, connect, confirm, torque on, run, return, torque off.
 
     Nothing is sent to the servos' goal registers and torque stays off until
@@ -319,6 +321,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
             duration [s] before ``confirm``.
         gravity_ff: offset each goal by the sag the servos will have (``hw/feedforward.py``).
         base_height: the table is this far below the base frame [m]: no move goes into it.
+        velocity_ff: lead each goal by the servos' lag x the planned velocity (``hw/lead.py``).
 
     Raises:
         CalibrationError, PlanError, ConnectionFailed, LerobotMissing, NotConfirmed:
@@ -347,6 +350,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
         with bus_errors("configuring the servos and enabling torque"):
             with_retries(configure, bus)
             session.feedforward = feedforward = read_feedforward(bus, gravity_ff)
+            session.velocity_lead = VelocityLead.for_feedforward(feedforward, velocity_ff)
             with_retries(lambda b: torque_on_in_place(b, feedforward, trims.to_wire(start)), bus)
         return execute(session, plan, start, return_on_abort=return_on_abort)
     except MotionAborted:

@@ -194,13 +194,18 @@ def check_rate(rate_hz) -> float:
 
 # --- The loop's timeline ------------------------------------------------------------
 class Cycle(NamedTuple):
-    """One control cycle: scheduled and wake time since start [s], step, command, measurement."""
+    """One control cycle: scheduled and wake time since start [s], step, command, measurement.
+
+    ``lead``: joint -> how far the goal written led ``command`` (the velocity feed-forward,
+    ``hw/lead.py``) [deg], or None when the plan was written as it is.
+    """
 
     t_s: float
     wall_s: float
     step: str
     command: Configuration
     measured: Configuration | None
+    lead: Configuration | None = None
 
 
 @dataclass

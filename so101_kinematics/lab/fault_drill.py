@@ -104,13 +104,15 @@ def _injector(arm, fault: str, step: str):
     return on_cycle
 
 
-def run_drill(fault: str, phase: str, folder: str | Path | None = None) -> Drill:
+def run_drill(fault: str, phase: str, folder: str | Path | None = None,
+              velocity_ff: bool = False) -> Drill:
     """Run the drill plan on a fresh virtual arm with ``fault`` injected at ``phase``.
 
     Args:
         fault: a label of :data:`FAULTS`.
         phase: a label of :data:`PHASES`.
         folder: where the CSV log goes (default: a temporary folder).
+        velocity_ff: run with the velocity lead (``--velocity-ff``, ``hw/lead.py``).
     """
     from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
 
@@ -128,7 +130,8 @@ def run_drill(fault: str, phase: str, folder: str | Path | None = None) -> Drill
             inject(session, cycle)
 
         try:
-            result = run_on_arm(arm.port, calibration, drill_plan(), on_cycle=on_cycle)
+            result = run_on_arm(arm.port, calibration, drill_plan(), on_cycle=on_cycle,
+                                velocity_ff=velocity_ff)
         except MotionAborted as error:
             result = error.result
         finally:
