@@ -72,6 +72,7 @@ PROTOCOL = "so101_kinematics/virtual/protocol.py"
 T_CONTROL, T_RUN = "tests/test_control.py", "tests/test_hw_run.py"
 T_HW, T_IK = "tests/test_pick_place_hw.py", "tests/test_inverse_kinematics.py"
 T_FK, T_SIM = "tests/test_forward_kinematics.py", "tests/test_pick_place_sim.py"
+LEAD, T_LEAD = "so101_kinematics/hw/lead.py", "tests/test_velocity_ff.py"
 
 MUTANTS: list[Mutant] = [
     # --- the servo model (issue 25) --------------------------------------------------------
@@ -139,8 +140,9 @@ MUTANTS: list[Mutant] = [
       "tests/test_mujoco_utils.py"),
     m("hw_move_jumps_to_start", "the arm's move_to_pose jumps to the starting_position given",
       "so101_kinematics/hw/course.py", "course_move_to_pose",
-      "        session.move(target, seconds)",
-      "        session.command.update(start or {})\n        session.move(target, seconds)",
+      "        session.move(target, seconds, profile=profile, velocity_ff=velocity_ff)",
+      "        session.command.update(start or {})\n"
+      "        session.move(target, seconds, profile=profile, velocity_ff=velocity_ff)",
       "tests/test_so101_utils.py"),
     m("start_mismatch_silent", "a starting configuration far from the last command not named",
       "so101_kinematics/checks.py", "start_mismatch", "if gap <= START_MISMATCH:", "if True:",
@@ -257,6 +259,21 @@ MUTANTS: list[Mutant] = [
     m("no_return_after_abort", "no slow return after an abort: the arm holds where it stopped",
       RUN, "after_abort", "                session.return_slowly(start_pose)\n"
       "                result.returned_to_start = True", "                pass", T_RUN),
+    # --- the velocity feed-forward on the arm (issue 27) ---------------------------------------
+    m("velocity_lead_sign", "the lead's sign flipped (the goal trails the plan: twice the lag)",
+      LEAD, "lead_for", "lead = {j: lag_s.get(j, 0.0) * v", "lead = {j: -lag_s.get(j, 0.0) * v",
+      f"{T_LEAD}::test_the_lead_is_lag_times_velocity_with_its_sign"),
+    m("velocity_lead_sign_virtual_arm", "the lead's sign flipped (measured on the virtual arm)",
+      LEAD, "lead_for", "lead = {j: lag_s.get(j, 0.0) * v", "lead = {j: -lag_s.get(j, 0.0) * v",
+      f"{T_LEAD}::test_velocity_ff_removes_most_of_the_lag_the_servo_model_predicts"),
+    m("velocity_lead_uncapped", "the lead's cap removed (31 deg ahead at 300 deg/s)",
+      LEAD, "lead_for", "scale = cap / largest if largest > cap else 1.0", "scale = 1.0",
+      f"{T_LEAD}::test_a_fast_move_is_led_by_less_than_the_tracking_tolerance_in_the_same_"
+      "direction"),
+    m("velocity_lead_past_the_goal", "the led goal not kept within its move (overshoots the goal)",
+      LEAD, "led_goal", "out[joint] = min(high, max(low, value + lead.get(joint, 0.0)))",
+      "out[joint] = value + lead.get(joint, 0.0)",
+      f"{T_LEAD}::test_the_led_goal_stays_on_the_move_and_is_the_plan_at_rest"),
     m("log_not_flushed", "the run's log not flushed as the run goes",
       LOG, "CycleLog.__call__", "            self._handle.flush()\n", "            pass\n",
       "tests/test_hw_log.py"),
