@@ -22,12 +22,13 @@ def test_log_csv_has_time_command_and_measurement_per_cycle(calibration, clock, 
     header = rows[0].split(",")
     assert header[:3] == ["t_s", "wall_s", "step"]
     assert header[3:] == ([f"cmd_{j}" for j in JOINTS] + [f"meas_{j}" for j in JOINTS]
-                          + [f"trim_{j}" for j in JOINTS])
+                          + [f"trim_{j}" for j in JOINTS] + [f"lead_{j}" for j in JOINTS])
     assert len(rows) == 1 + len(session.cycles)
     last = dict(zip(header, rows[-1].split(","), strict=True))
     assert float(last["cmd_wrist_flex"]) == pytest.approx(40.0)
     assert float(last["meas_wrist_flex"]) == pytest.approx(40.0)
     assert all(float(last[f"trim_{j}"]) == 0.0 for j in JOINTS)  # no trims: zeros, said
+    assert all(last[f"lead_{j}"] == "" for j in JOINTS)  # no velocity lead: the plan sent
 
 
 def test_a_trimmed_run_logs_model_angles_and_its_trims(calibration, clock, tmp_path):

@@ -30,7 +30,14 @@ KT, R, VISCOUS = 1.2116, 2.676, 0.0591
 HAND_LAG_S = (KT**2 / R + VISCOUS) / (KT / R * 5.0 * 16 / 4000 * 4096 / (2 * math.pi))
 TRACKING_TOLERANCE_DEG = 15.0  # README, "Safety": a joint this far from its plan for 0.3 s stops
 LAGS = dict.fromkeys(JOINTS, HAND_LAG_S)
-GRID = np.linspace(0.0, 1.0, 100_001)  # [s] a 1 s move's times
+GRID = np.linspace(0.0, 1.0, 100_001)  # a move's fractions of its duration
+
+
+def plan_time(path: Trajectory, command) -> float:
+    """The time [s] of ``path`` at which it commands ``command`` (its profile is monotonic)."""
+    joint = max(path.goal, key=lambda j: abs(path.goal[j] - path.start[j]))
+    fraction = (command[joint] - path.start[joint]) / (path.goal[joint] - path.start[joint])
+    return float(np.interp(fraction, path.fractions(GRID * path.duration), GRID)) * path.duration
 
 
 def test_the_lag_is_the_hand_calculation():
@@ -96,10 +103,8 @@ def test_the_goal_written_leads_the_plan_and_pauses_with_it(calibration, clock):
         if previous.measured is None:  # silent: the plan stands still, nothing leads it
             assert cycle.lead is None and goal == cycle.command
             continue
-        # the plan's time at this command (the cubic is monotonic), its velocity there
-        fraction = (cycle.command["wrist_flex"] - 30.0) / (0.0 - 30.0)
-        t = float(np.interp(fraction, path.fractions(GRID), GRID))
-        expected = HAND_LAG_S * path.velocity_at(t)["wrist_flex"]
+        # the plan's velocity where the plan is: the hand calculation of the lead
+        expected = HAND_LAG_S * path.velocity_at(plan_time(path, cycle.command))["wrist_flex"]
         led = min(30.0, max(0.0, cycle.command["wrist_flex"] + expected))  # within the move
         assert goal["wrist_flex"] == pytest.approx(led, abs=0.01)
         assert cycle.lead["wrist_flex"] == pytest.approx(goal["wrist_flex"]
@@ -119,12 +124,13 @@ def short_cubic_plan() -> Plan:
 def predicted_lag_rms(result) -> float:
     """The model's lag over the moves the figures judge: RMS of lag x planned velocity [deg]."""
     lags = []
-    for segment in [s for s in result.segments if s.kind == "move"][1:]:
+    from so101_kinematics.lab.tracking_hw import move_cycles, move_segments
+
+    for segment in move_segments(result)[1:]:
         path = Trajectory(segment.start, segment.goal, segment.duration, "cubic")
-        for cycle in result.cycles:
-            t = cycle.t_s - segment.t_start_s
-            if cycle.measured and cycle.step == segment.step and 0.0 < t <= segment.duration:
-                velocity = path.velocity_at(t)
+        for cycle in move_cycles(result, segment):
+            if cycle.measured:  # the plan's velocity where the plan is (its clock may pause)
+                velocity = path.velocity_at(plan_time(path, cycle.command))
                 lags.extend(HAND_LAG_S * velocity[j] for j in ARM_JOINTS)
     return float(np.sqrt(np.mean(np.square(lags))))
 
@@ -140,12 +146,12 @@ def runs():
 @pytest.mark.hw
 @pytest.mark.slow
 def test_the_lead_is_applied_bounded_and_zero_at_rest(runs):
+    from so101_kinematics.lab.tracking_hw import move_cycles, move_segments
+
     result = runs["lead"]["result"]
     assert result.aborted is None and result.torque_released
-    moves = [s for s in result.segments if s.kind == "move"]
-    for segment in moves:
-        cycles = [c for c in result.cycles if c.step == segment.step
-                  and segment.t_start_s < c.t_s <= segment.t_start_s + segment.duration + 1e-9]
+    for segment in move_segments(result):
+        cycles = move_cycles(result, segment)
         leads = [max(abs(c.lead[j]) for j in ARM_JOINTS) for c in cycles if c.lead]
         assert leads and max(leads) < TRACKING_TOLERANCE_DEG, segment.step
         # the planned velocity is zero at the move's end: so is the lead

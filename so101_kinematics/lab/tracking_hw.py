@@ -97,6 +97,22 @@ class RegisterProfile:
         return {"enabled": True, "mode": "registers", "moves": len(self.written)}
 
 
+def move_segments(result) -> list:
+    """The run's moves (``timing.Segment``), in order."""
+    return [s for s in result.segments if s.kind == "move"]
+
+
+def move_cycles(result, segment) -> list:
+    """The cycles of one move: from its start to the next segment's (its hold, the next move).
+
+    (By the segments' starts, not their durations: the plan's clock may have paused.)
+    """
+    later = [s.t_start_s for s in result.segments if s.t_start_s > segment.t_start_s]
+    end = min(later, default=float("inf"))
+    return [c for c in result.cycles
+            if segment.t_start_s < c.t_s <= end + 1e-9 and c.step == segment.step]
+
+
 def tracking_figures(result, plan: Plan) -> dict:
     """The tracking of a run against its plan: RMS and max over the moves, the final errors.
 
@@ -113,16 +129,13 @@ def tracking_figures(result, plan: Plan) -> dict:
         ``final_error_max_deg``: the largest of those; ``peak_lead_deg``: the largest lead
         the log shows [deg].
     """
-    moves = [s for s in result.segments if s.kind == "move"][1:]  # not the ramp from the start
     errors, leads = [], [0.0]
-    for segment in moves:
-        end = segment.t_start_s + segment.duration
-        for cycle in result.cycles:
-            if cycle.measured and segment.t_start_s < cycle.t_s <= end + 1e-9 \
-                    and cycle.step == segment.step:
+    for segment in move_segments(result)[1:]:  # not the ramp from the start
+        for cycle in move_cycles(result, segment):
+            if cycle.measured:
                 errors.extend(cycle.measured[j] - cycle.command[j] for j in ARM_JOINTS)
-                if cycle.lead:
-                    leads.extend(abs(cycle.lead[j]) for j in ARM_JOINTS)
+            if cycle.lead:
+                leads.extend(abs(cycle.lead[j]) for j in ARM_JOINTS)
     final = {}
     for step in plan.steps:
         if step.hold <= 0:
