@@ -33,7 +33,7 @@ from so101_kinematics.hw.control import (
     speed_caps,
 )
 from so101_kinematics.hw.home_check import add_calibration_check_arguments, home_check
-from so101_kinematics.hw.lead import LEAD_CAP_DEG
+from so101_kinematics.hw.lead import add_velocity_ff_argument
 from so101_kinematics.hw.log import LOG_KIND, CycleLog, plan_record, plot_log, sidecar_path
 from so101_kinematics.hw.run import (
     RELEASE_HINT,
@@ -106,10 +106,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--profile", choices=sorted(SPEED_CAPPED_PROFILES),
                         default="minimum_jerk",
                         help="time scaling of each move (default minimum_jerk, as the simulator)")
-    parser.add_argument("--velocity-ff", action=argparse.BooleanOptionalAction, default=False,
-                        help="lead each goal by the servos' lag (0.1 s at P = 16 on 5 V) times "
-                             f"the planned velocity, at most {LEAD_CAP_DEG:g} deg: the arm lags "
-                             "the plan less (default off: the plain plan, the course's baseline)")
+    add_velocity_ff_argument(parser)
     parser.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ,
                         help=f"control loop rate [Hz] ({MIN_RATE_HZ:g}-{MAX_RATE_HZ:g}, "
                              f"default {DEFAULT_RATE_HZ:g})")

@@ -48,7 +48,9 @@ configuration is solved before the arm moves, and each move is a
 ``move_to_pose`` with its checks and endings.
 
 Assignment 9's ``move_to_pose_cubic(bus, desired_position, duration)`` (or with
-the starting position first) is the same move along the course's cubic, and
+the starting position first) is the same move along the course's cubic
+(``velocity_ff=True``: the velocity fed forward through the goal, the week-9 answer to
+"only Goal_Position is sent"), and
 week 8's ``move_to_pose_with_logging(bus, desired_position, duration)`` returns
 the course's DataFrame of target and actual joints for ``plot_data(df)`` (pandas:
 in the hw extra).

@@ -230,3 +230,37 @@ def test_pick_place_hw_velocity_ff_logs_its_lead(tmp_path, capsys):
     assert info["enabled"] is True and sidecar["profile"] == "cubic"
     assert info["lag_s"]["shoulder_pan"] == pytest.approx(HAND_LAG_S, abs=1e-3)
     assert info["peak_lead_deg"]["shoulder_pan"] == pytest.approx(max(pan), abs=1e-3)
+
+
+@pytest.mark.hw
+@pytest.mark.slow
+def test_the_course_helpers_take_velocity_ff_and_keep_their_shapes_without(course_arm):
+    import so101_kinematics.hw.course as course
+    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH
+    from so101_utils import load_calibration, move_to_pose, move_to_pose_cubic, setup_motors
+
+    bus = setup_motors(load_calibration(str(DEFAULT_CALIBRATION_PATH)), course_arm.port)
+    session = course._RUNS[id(bus)].session
+    start = bus.sync_read("Present_Position")
+    target = dict(start, shoulder_pan=start["shoulder_pan"] + 20.0)
+
+    def leads_of_last_move():
+        return [c.lead for c in move_cycles_of(session)]
+
+    move_to_pose_cubic(bus, target, 1.0)  # the course's shape: the plan as it is
+    assert all(lead is None for lead in leads_of_last_move())
+    move_to_pose_cubic(bus, target, start, 1.0, velocity_ff=True)  # 30 deg/s peak
+    leads = leads_of_last_move()
+    assert max(abs(x["shoulder_pan"]) for x in leads) == pytest.approx(30.0 * HAND_LAG_S, rel=0.05)
+    assert max(abs(v) for v in leads[-1].values()) < 1e-9  # zero where the move ends
+    move_to_pose(bus, target, 1.0, velocity_ff=True)  # minimum jerk's peak: 37.5 deg/s
+    assert max(abs(x["shoulder_pan"]) for x in leads_of_last_move()) == pytest.approx(
+        37.5 * HAND_LAG_S, rel=0.05)
+    bus.disable_torque()
+
+
+def move_cycles_of(session) -> list:
+    """The cycles of the session's last move (``lab/tracking_hw.move_cycles``)."""
+    from so101_kinematics.lab.tracking_hw import move_cycles
+
+    return move_cycles(session, session.segments[-1])

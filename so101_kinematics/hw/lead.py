@@ -35,6 +35,7 @@ Example (the shoulder at 50 deg/s on 5 V at P = 16: a 5.1 deg lead)::
 
 from __future__ import annotations
 
+import argparse
 from collections.abc import Callable, Mapping
 
 from so101_kinematics import servo
@@ -49,6 +50,16 @@ on 5 V is 0.103 s x 100 deg/s = 10.3 deg: the cap leaves that whole, and keeps a
 whose real lag is smaller than the model's (a stronger supply misread, a lighter load)
 from running ahead of its plan by more than 10 deg, inside the 15 deg tracking tolerance,
 so the lead alone never trips the stall check."""
+
+
+def add_velocity_ff_argument(parser: argparse.ArgumentParser) -> None:
+    """``--velocity-ff`` / ``--no-velocity-ff`` (default off) of ``pick_place_hw.py``."""
+    parser.add_argument("--velocity-ff", action=argparse.BooleanOptionalAction, default=False,
+                        help="lead each goal by the servos' lag (read from them: "
+                             f"{lag_time(servo.LEROBOT, servo.KIT_SUPPLY_V):.2f} s at P = 16 on "
+                             f"5 V) times the planned velocity, at most {LEAD_CAP_DEG:g} deg: "
+                             "the arm lags "
+                             "the plan less (default off: the plain plan, the course's baseline)")
 
 
 def lag_time(settings: servo.Settings, volts: float, variant: str = "C001") -> float:
