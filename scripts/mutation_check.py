@@ -274,6 +274,11 @@ MUTANTS: list[Mutant] = [
       LEAD, "led_goal", "out[joint] = min(high, max(low, value + lead.get(joint, 0.0)))",
       "out[joint] = value + lead.get(joint, 0.0)",
       f"{T_LEAD}::test_the_led_goal_stays_on_the_move_and_is_the_plan_at_rest"),
+    m("velocity_lead_while_silent", "the lead kept while the arm does not answer (the goal runs "
+      "ahead of the paused plan)", CONTROL, "ArmSession._run",
+      "lead_at(elapsed, planned) if lead_at and self.observed else None",
+      "lead_at(elapsed, planned) if lead_at else None",
+      f"{T_LEAD}::test_the_goal_written_leads_the_plan_and_pauses_with_it"),
     m("log_not_flushed", "the run's log not flushed as the run goes",
       LOG, "CycleLog.__call__", "            self._handle.flush()\n", "            pass\n",
       "tests/test_hw_log.py"),
