@@ -126,8 +126,9 @@ def tracking_figures(result, plan: Plan) -> dict:
         before :func:`measure`'s ``registers`` mode is in place) [deg];
         ``final_error_deg``: held step -> the largest |measured - goal| of an arm joint
         at the end of its hold [deg];
-        ``final_error_max_deg``: the largest of those; ``peak_lead_deg``: the largest lead
-        the log shows [deg].
+        ``final_error_max_deg``: the largest of those; ``peak_lead_deg``: the largest
+        |goal written - plan| the cycles show (the lead; in ``registers`` mode the rest of
+        the move) [deg].
     """
     errors, leads = [], [0.0]
     for segment in move_segments(result)[1:]:  # not the ramp from the start
@@ -209,9 +210,9 @@ def main(argv: list[str] | None = None) -> int:
         rows[mode] = figures
         finals = ", ".join(f"{k} {v:.2f}" for k, v in figures["final_error_deg"].items())
         print(f"{mode:10s} RMS {figures['tracking_rms_deg']:.2f} deg, max "
-              f"{figures['tracking_max_deg']:.2f} deg, peak lead {figures['peak_lead_deg']:.2f}"
-              f" deg, final at each goal: {finals} (aborted: {figures['aborted']}; emulator "
-              f"slip {figures['emulator_slip_s']:.2f} s)")
+              f"{figures['tracking_max_deg']:.2f} deg, largest |goal - plan| "
+              f"{figures['peak_lead_deg']:.2f} deg, final at each goal: {finals} (aborted: "
+              f"{figures['aborted']}; emulator slip {figures['emulator_slip_s']:.2f} s)")
     if args.json:
         with open(args.json, "w", encoding="utf-8") as handle:
             json.dump(rows, handle, indent=1)
