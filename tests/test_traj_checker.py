@@ -171,6 +171,27 @@ def test_a_loop_that_never_steps_is_stopped_by_the_clock_or_the_wall(tmp_path):
         assert any(c.startswith("a loop that never ends") for c in check["causes"])
 
 
+def test_a_cubic_commanded_every_fifth_step_is_judged_when_each_command_is_new(tmp_path):
+    path = tmp_path / "every_fifth_step.py"
+    path.write_text(
+        "import mujoco\n\nfrom so101_mujoco_utils import convert_to_dictionary, "
+        "send_position_command\n\n\n"
+        "def move_to_pose_cubic(m, d, viewer, desired_position, duration):\n"
+        "    a0 = convert_to_dictionary(d.qpos)\n"
+        "    a2 = {j: 3 * (desired_position[j] - a0[j]) / duration**2 for j in a0}\n"
+        "    a3 = {j: -2 * (desired_position[j] - a0[j]) / duration**3 for j in a0}\n"
+        "    t0 = d.time\n"
+        "    while d.time - t0 < duration:\n"
+        "        t = min(max(d.time - t0, 0), duration)\n"
+        "        send_position_command(d, {j: a0[j] + a2[j] * t**2 + a3[j] * t**3 for j in a0})\n"
+        "        for _ in range(5):\n"
+        "            mujoco.mj_step(m, d)\n"
+        "        viewer.sync()\n")
+    check = check_traj_file(path)
+    assert check["verdict"] == "pass", check["causes"]
+    assert [t["syncs"] * 5 for t in check["tests"]] == [t["steps"] for t in check["tests"]]
+
+
 def test_a_misnamed_function_or_a_crash_is_not_checked(checks, tmp_path):
     misnamed = checks["misnamed_function"]
     assert misnamed["verdict"] == "error" and "'move_to_pose_cubc'" in misnamed["reason"]

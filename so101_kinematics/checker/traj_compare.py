@@ -177,8 +177,13 @@ def _factor_words(name: str, factor: float, course: str) -> str:
     return f"{name} is {factor:.3g}x the course's {course}"
 
 
-def move_causes(move: dict, t, cmd, timestep: float, tol: float, ended: str) -> tuple[list, dict]:
-    """What is wrong with one move, in the student's terms, and the fitted factors."""
+def move_causes(move: dict, t, cmd, timestep: float, tol: float, ended: str,
+                steps: int, last: float) -> tuple[list, dict]:
+    """What is wrong with one move, in the student's terms, and the fitted factors.
+
+    ``t``, ``cmd``: the times [s] a new command reached a step and the command (the
+    student's units); ``steps``: the move's steps; ``last``: the last step's time [s].
+    """
     q0, qf, duration = _vector(move["start"]), _vector(move["goal"]), move["duration"]
     causes, found = [], {}
     if len(t) == 0:
@@ -197,10 +202,10 @@ def move_causes(move: dict, t, cmd, timestep: float, tol: float, ended: str) -> 
     start = _start_cause(cmd[0], q0, qf, tol)
     if start:
         return [start], found
-    lasted = len(t) * timestep
+    lasted = steps * timestep
     if ended == "returned" and duration >= 0.5 and lasted <= max(2 * timestep,
                                                                  2 * duration / 1000.0):
-        return [f"the move ends after {len(t)} step(s) ({lasted:.3f} s), not after "
+        return [f"the move ends after {steps} step(s) ({lasted:.3f} s), not after "
                 f"{duration:g} s: the duration is divided by 1000 (seconds treated as ms?)"], found
     big = int(np.argmax(np.abs(qf - q0)[arm]))
     delta = (qf - q0)[big]
@@ -215,14 +220,14 @@ def move_causes(move: dict, t, cmd, timestep: float, tol: float, ended: str) -> 
             if steady and _near(span / duration, 1000.0):
                 causes.append(f"duration in the wrong unit: the cubic is timed for {span:g} s "
                               f"({duration:g} s taken as ms: the move would take 1000x long)")
-                return causes + _never_ends(ended, len(t), duration), found
+                return causes + _never_ends(ended, steps, duration), found
             if steady and not _near(span / duration, 1.0):
                 causes.append(f"the cubic is timed for {span:.3g} s, not the duration "
                               f"{duration:g} s ({span / duration:.3g}x)")
     if abs(delta) > tol and np.ptp(cmd[:, big]) == 0.0:
-        return [f"the command never leaves the start in {len(t)} steps: t does not advance "
+        return [f"the command never leaves the start in {steps} steps: t does not advance "
                 "(measure t inside the loop: time.time() - start_time, or d.time - t0)"] \
-            + _never_ends(ended, len(t), duration), found
+            + _never_ends(ended, steps, duration), found
     inside = t <= duration + 1e-9
     error_in = np.abs(cmd[inside] - _shifted(move, t[inside], timestep, cmd[inside])).max() \
         if inside.any() else 0.0
@@ -263,10 +268,10 @@ def move_causes(move: dict, t, cmd, timestep: float, tol: float, ended: str) -> 
             causes.append(f"time not clipped: after t = {duration:g} s the command leaves the "
                           f"goal ({past:.2f} deg off at t = {worst:.2f} s; clip t to [0, "
                           "duration])")
-    elif ended == "returned" and t[-1] < duration - 1.5 * timestep:
-        causes.append(f"the loop stops at t = {t[-1]:.3f} s, before the duration "
+    elif ended == "returned" and last < duration - 1.5 * timestep:
+        causes.append(f"the loop stops at t = {last:.3f} s, before the duration "
                       f"{duration:g} s")
-    return causes + _never_ends(ended, len(t), duration), found
+    return causes + _never_ends(ended, steps, duration), found
 
 
 def _shifted(move: dict, t, timestep: float, cmd) -> np.ndarray:
@@ -332,10 +337,14 @@ def judge(results: dict, tol: float, timestep: float = TIMESTEP_S) -> list[dict]
         ctrls = (np.array(run["ctrls"], dtype=float).reshape(len(t), -1) if len(t)
                  else np.zeros((0, len(JOINTS))))
         cmd = ctrls[:, :len(JOINTS)] * _TO_STUDENT
+        last = float(t[-1]) if len(t) else 0.0
+        new = np.r_[True, np.any(np.diff(cmd, axis=0) != 0.0, axis=1)] if len(t) else []
+        t, cmd = t[new], cmd[new]  # a command held for several steps: when it was new
         if len(t):
             test["max_error_deg"] = float(np.abs(cmd - _shifted(move, t, timestep, cmd)).max())
             test["velocity_commands"] = ctrls.shape[1] > len(JOINTS)
-        causes, found = move_causes(move, t, cmd, timestep, tol, run["ended"])
+        causes, found = move_causes(move, t, cmd, timestep, tol, run["ended"], run["steps"],
+                                    last)
         test["found"] = found
         test["causes"] = causes
         right = test["max_error_deg"] is not None and test["max_error_deg"] <= tol
