@@ -42,6 +42,7 @@ PHRASES = {
     "ms_short": r"seconds treated as ms",
     "never_ends": r"a loop that never ends",
     "stuck": r"t does not advance",
+    "velocity": r"velocity in deg/s sent as rad/s",
 }
 """A kind of mistake -> how the report names it."""
 
@@ -58,6 +59,7 @@ PLANTED = {
     "duration_in_ms": {"ms_long", "never_ends"},
     "seconds_as_ms": {"ms_short"},
     "never_ends": {"stuck", "never_ends"},
+    "velocity_not_converted": {"velocity"},
 }
 """Planted mistake (file name) -> the kinds the checker must name, and no others."""
 
@@ -82,7 +84,7 @@ def move(check: dict, name: str) -> dict:
     return next(t for t in check["tests"] if t["move"] == name)
 
 
-@pytest.mark.parametrize("name", ["correct", "correct_explicit_start"])
+@pytest.mark.parametrize("name", ["correct", "correct_explicit_start", "correct_velocity"])
 def test_a_correct_cubic_passes_every_move_with_an_ok_line(checks, name):
     check = checks[name]
     assert check["verdict"] == "pass", check
@@ -93,6 +95,15 @@ def test_a_correct_cubic_passes_every_move_with_an_ok_line(checks, name):
         # the course's loop stops at t > T: one step more than T / dt at most
         assert test["expected_steps"] <= test["steps"] <= test["expected_steps"] + 1
         assert test["syncs"] == test["steps"]
+
+
+def test_the_velocity_feed_forward_is_checked_only_when_sent(checks):
+    assert [t["velocity_commands"] for t in checks["correct_velocity"]["tests"]] == \
+        [True, True, False]  # the zero move's velocity is zero
+    assert not any(t["velocity_commands"] for t in checks["correct"]["tests"])
+    # deg/s sent as rad/s: the positions are right, the forward move's velocity is not
+    forward = move(checks["velocity_not_converted"], "forward")
+    assert forward["max_error_deg"] < 1e-3 and forward["status"] == "wrong"
 
 
 def test_both_of_the_courses_shapes_are_called(checks):

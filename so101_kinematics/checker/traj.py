@@ -89,7 +89,8 @@ def test_text(test: dict) -> str:
              else f", up to {test['max_error_deg']:.2f} deg off the course's cubic")
     lines = [f"{test['function']} ({test['what']}, {test['duration']:g} s): "
              f"{test['status'].upper() if test['status'] != 'ok' else 'ok'}{error}; "
-             f"{test['steps']} steps (expected {test['expected_steps']})"]
+             f"{test['steps']} steps (expected {test['expected_steps']})"
+             + ("; velocity feed-forward checked" if test.get("velocity_commands") else "")]
     return "\n".join(lines + [f"  {cause}" for cause in test["causes"]])
 
 

@@ -17,6 +17,7 @@ import re
 
 import numpy as np
 
+from so101_kinematics.checker.traj_fallback import FALLBACK_UTILS
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.profiles import cubic_coefficients
 
@@ -30,6 +31,11 @@ STEP_BUDGET = 5
 WALL_S = 2.0
 """Wall-clock time a move may take in the child [s] (a loop that never steps); a right move
 takes about 30 ms."""
+
+VELOCITY_TOLERANCE_DEG_S = 1.0
+"""A velocity command (the optional feed-forward) within this of ``a1 + 2 a2 t + 3 a3 t^2`` is
+right [deg/s]: one 4 ms step of the steepest move's acceleration (6 x 90 deg / (2 s)^2 =
+135 deg/s^2) is 0.54 deg/s."""
 
 TOLERANCE_DEG = 0.1
 """A command within this of the course's cubic is right [deg] (gripper: [0, 100] units)."""
@@ -56,52 +62,6 @@ a move from zeros (or from radians) shows; two durations, so a wrong power of T 
 
 _TO_STUDENT = np.array([180.0 / math.pi] * len(ARM_JOINTS) + [100.0 / math.pi])
 """ctrl [rad] -> the student's units: the course's ``convert_to_dictionary``."""
-
-FALLBACK_UTILS = '''"""so101-check-traj's stand-in for the course's so101_mujoco_utils.
-
-Used when none is beside the checked file: the course's conversions and commands,
-in radians for MuJoCo."""
-import math
-
-import mujoco
-
-JOINTS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper")
-
-
-def convert_to_dictionary(qpos):
-    return {j: qpos[i] * (100.0 if j == "gripper" else 180.0) / math.pi
-            for i, j in enumerate(JOINTS)}
-
-
-def convert_to_list(dictionary):
-    return [dictionary[j] * math.pi / (100.0 if j == "gripper" else 180.0) for j in JOINTS]
-
-
-def get_positions_dict(m, d):
-    return convert_to_dictionary(d.qpos)
-
-
-def set_initial_pose(d, position_dict):
-    d.qpos[:6] = convert_to_list(position_dict)
-
-
-def send_position_command(d, position_dict, velocity_dict=None):
-    position = convert_to_list(position_dict)
-    if velocity_dict is None and len(d.ctrl) == 6:
-        d.ctrl = position
-    else:
-        d.ctrl = position + (convert_to_list(velocity_dict) if velocity_dict else [0.0] * 6)
-
-
-def hold_position(m, d, viewer, duration):
-    here = convert_to_dictionary(d.qpos)
-    start = d.time
-    while d.time - start < duration:
-        send_position_command(d, here)
-        mujoco.mj_step(m, d)
-        viewer.sync()
-'''
-
 
 def build_request(module_name: str = "student_move") -> dict:
     """What the probe runs: the moves, the stand-in's settings, the fallback utils.
@@ -274,6 +234,33 @@ def move_causes(move: dict, t, cmd, timestep: float, tol: float, ended: str,
     return causes + _never_ends(ended, steps, duration), found
 
 
+def reference_velocity(move: dict, t) -> np.ndarray:
+    """The course's cubic's velocity ``a1 + 2 a2 t + 3 a3 t^2`` at ``t`` (clipped): (n, 6)."""
+    duration = move["duration"]
+    s = np.clip(np.asarray(t, dtype=float), 0.0, duration)[:, None] / duration
+    return (_vector(move["goal"]) - _vector(move["start"])) * 6.0 * s * (1.0 - s) / duration
+
+
+def velocity_causes(move: dict, t, vel, timestep: float) -> list[str]:
+    """What is wrong with the velocity commands (12 controls), if they are not all zero."""
+    if np.abs(vel).max() < 1e-6:
+        return []  # no feed-forward (the course's velocity_dict=None), or a zero move
+    error = min(np.abs(vel - reference_velocity(move, t + shift * timestep)).max()
+                for shift in (0, -1, 1))
+    if error <= VELOCITY_TOLERANCE_DEG_S:
+        return []
+    arm = slice(0, len(ARM_JOINTS))
+    ref = reference_velocity(move, t)[:, arm]
+    scale = float(np.sum(vel[:, arm] * ref) / max(np.sum(ref**2), 1e-12))
+    if _near(scale, 180.0 / math.pi):
+        return [f"velocity in deg/s sent as rad/s: the velocity commands are {scale:.1f}x the "
+                "cubic's (send convert_to_list(velocity_dict))"]
+    if _near(scale, -1.0):
+        return ["the velocity commands have the wrong sign"]
+    return [f"the velocity commands differ from a1 + 2 a2 t + 3 a3 t^2 by up to {error:.1f} "
+            "deg/s"]
+
+
 def _shifted(move: dict, t, timestep: float, cmd) -> np.ndarray:
     """The reference one step early, on time or late: whichever is closest to ``cmd``."""
     options = [reference(move, t + shift * timestep) for shift in (0, -1, 1)]
@@ -342,9 +329,12 @@ def judge(results: dict, tol: float, timestep: float = TIMESTEP_S) -> list[dict]
         t, cmd = t[new], cmd[new]  # a command held for several steps: when it was new
         if len(t):
             test["max_error_deg"] = float(np.abs(cmd - _shifted(move, t, timestep, cmd)).max())
-            test["velocity_commands"] = ctrls.shape[1] > len(JOINTS)
+            test["velocity_commands"] = bool(np.any(np.abs(ctrls[:, len(JOINTS):]) > 1e-6))
         causes, found = move_causes(move, t, cmd, timestep, tol, run["ended"], run["steps"],
                                     last)
+        if ctrls.shape[1] > len(JOINTS) and not causes:
+            causes = velocity_causes(move, t, ctrls[new][:, len(JOINTS):] * _TO_STUDENT,
+                                     timestep)
         test["found"] = found
         test["causes"] = causes
         right = test["max_error_deg"] is not None and test["max_error_deg"] <= tol
