@@ -219,6 +219,17 @@ def test_a_misnamed_function_or_a_crash_is_not_checked(checks, tmp_path):
     assert all(t["status"] == "broken" and "KeyError" in t["causes"][0] for t in check["tests"])
 
 
+def test_a_course_style_script_that_runs_its_moves_when_imported_is_checked(tmp_path):
+    """The week-9 script students write (tests/course_scripts), beside the course's FK and IK:
+    its module-level sequence runs on the stand-in at import, then its function is checked."""
+    for name in ("so101_forward_kinematics.py", "so101_inverse_kinematics.py"):
+        shutil.copy(REPO.parent / name, tmp_path / name)
+    shutil.copy(REPO / "course_scripts" / "sim_week9_cubic.py", tmp_path / "week9.py")
+    check = check_traj_file(tmp_path / "week9.py")
+    assert check["verdict"] == "pass", check["reason"] or check["causes"]
+    assert check["output"].startswith("back home: shoulder_lift 0.0 deg")
+
+
 def test_the_students_own_utils_file_is_checked_under_its_own_name(tmp_path):
     folder = tmp_path / "ada"
     folder.mkdir()
