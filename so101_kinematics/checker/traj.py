@@ -23,9 +23,15 @@ import sys
 from pathlib import Path
 
 from so101_kinematics.checker import traj_compare
-from so101_kinematics.checker.cli import check_outputs, exit_status, run_and_print, run_check
+from so101_kinematics.checker.cli import (
+    add_class_options,
+    check_outputs,
+    exit_status,
+    run_and_print,
+    run_check,
+)
 from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number, range_help
-from so101_kinematics.outputs import JSON_REPORT, add_overwrite_argument, stamp, write_text_atomic
+from so101_kinematics.outputs import JSON_REPORT, stamp, write_text_atomic
 
 PROBE = Path(__file__).with_name("traj_probe.py")
 
@@ -152,11 +158,7 @@ def build_parser() -> ArgumentParser:
     parser.add_argument("--json", type=Path, help="write the full comparison (JSON)")
     parser.add_argument("--gradescope", type=Path, metavar="RESULTS_JSON",
                         help="write Gradescope's results.json (one file only)")
-    parser.add_argument("--jobs", type=number(1, 256, integer=True), default=1,
-                        help="files checked at once (1)")
-    parser.add_argument("-q", "--quiet", action="store_true",
-                        help="one line per file, even for a single file")
-    add_overwrite_argument(parser)
+    add_class_options(parser)
     return parser
 
 
