@@ -260,6 +260,10 @@ MUTANTS: list[Mutant] = [
     m("log_not_flushed", "the run's log not flushed as the run goes",
       LOG, "CycleLog.__call__", "            self._handle.flush()\n", "            pass\n",
       "tests/test_hw_log.py"),
+    m("traj_clipping_unchecked", "so101-check-traj never looks past the duration (a cubic "
+      "whose time is not clipped goes unnamed)", "so101_kinematics/checker/traj_compare.py",
+      "move_causes", "after = t > duration + timestep / 2", "after = t > math.inf",
+      "tests/test_traj_checker.py"),
     m("output_written_in_place", "an output file written in place (lost if the run fails)",
       "so101_kinematics/outputs.py", "atomic_output", "temporary = temporary_beside(target)",
       "temporary = target",
