@@ -112,7 +112,10 @@ def metrics(time: Sequence[float], commanded, measured, derivatives=None,
         commanded: [deg] (n, joints): what the joints were told.
         measured: [deg] (n, joints): where they were.
         derivatives: (velocity, acceleration, jerk) of ``measured`` when known (a
-            simulator's: :func:`step_derivatives`); None: :func:`fitted_derivatives`.
+            simulator's: :func:`step_derivatives`); None: :func:`fitted_derivatives`, its
+            peaks over the samples at least half a window from either end (there the fit
+            is one-sided and reads a move starting with the log higher than the same move
+            later: 2x for linear's first move on the virtual arm).
         window_s: [s] the fit's window (without ``derivatives``).
 
     Example: a joint told to step by 2 deg that follows one sample (10 ms) late.
@@ -129,8 +132,13 @@ def metrics(time: Sequence[float], commanded, measured, derivatives=None,
         return dict.fromkeys(METRIC_KEYS, 0.0)
     commanded, measured = np.asarray(commanded, dtype=float), np.asarray(measured, dtype=float)
     error = measured - commanded
-    velocity, acceleration, jerk = (derivatives if derivatives is not None
-                                    else fitted_derivatives(t, measured, window_s))
+    if derivatives is not None:
+        velocity, acceleration, jerk = derivatives
+    else:  # the peaks where the window is centred: at the data's ends the fit extrapolates
+        velocity, acceleration, jerk = fitted_derivatives(t, measured, window_s)
+        inner = (t >= t[0] + window_s / 2 - 1e-9) & (t <= t[-1] - window_s / 2 + 1e-9)
+        if inner.any():
+            velocity, acceleration, jerk = velocity[inner], acceleration[inner], jerk[inner]
     return {"tracking_rms_deg": float(np.sqrt(np.mean(error**2))),
             "tracking_max_deg": float(np.abs(error).max()),
             "peak_velocity_deg_s": float(np.abs(velocity).max()),
