@@ -72,6 +72,7 @@ PROTOCOL = "so101_kinematics/virtual/protocol.py"
 T_CONTROL, T_RUN = "tests/test_control.py", "tests/test_hw_run.py"
 T_HW, T_IK = "tests/test_pick_place_hw.py", "tests/test_inverse_kinematics.py"
 T_FK, T_SIM = "tests/test_forward_kinematics.py", "tests/test_pick_place_sim.py"
+T_PROFILES = "tests/test_profile_compare.py"
 
 MUTANTS: list[Mutant] = [
     # --- the servo model (issue 25) --------------------------------------------------------
@@ -264,6 +265,13 @@ MUTANTS: list[Mutant] = [
       "whose time is not clipped goes unnamed)", "so101_kinematics/checker/traj_compare.py",
       "move_causes", "after = t > duration + timestep / 2", "after = t > math.inf",
       "tests/test_traj_checker.py"),
+    # --- the write-up's comparison of profiles from real runs (issue 27, Deliver 8) -------
+    m("fitted_jerk_factor", "the fitted cubic's third derivative taken as 2 c3 (not 3! c3)",
+      "so101_kinematics/motion_metrics.py", "fitted_derivatives",
+      "6.0 * c[:, 3] / scale**3", "2.0 * c[:, 3] / scale**3", T_PROFILES),
+    m("misread_reply_kept", "a misread reply (-2900 deg for one cycle) kept in the figures",
+      "so101_kinematics/lab/compare.py", "compare_run", "    if wrong:\n", "    if False:\n",
+      T_PROFILES),
     m("output_written_in_place", "an output file written in place (lost if the run fails)",
       "so101_kinematics/outputs.py", "atomic_output", "temporary = temporary_beside(target)",
       "temporary = target",
