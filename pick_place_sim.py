@@ -218,12 +218,7 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
                 args.move_duration, args.hold)
             if not args.plan and zero_duration_warning(args.move_duration, args.hold):
                 print(zero_duration_warning(args.move_duration, args.hold), file=sys.stderr)
-        if stack is not None and args.approach != "joint":
-            raise PlanError("--approach straight runs the pick-and-place (its report measures "
-                            "the lines); --stack runs joint-space moves. Fix: leave out "
-                            "--approach with --stack.")
-        if stack is None:
-            plan = plan_for_approach(args, plan, control_period(scene_model()))
+        plan = plan_for_approach(args, plan, control_period(scene_model()), stack)
         if stack is not None:
             report = run_stack(stack, mode=mode, video=video, fps=args.fps, size=args.size,
                                camera=args.camera, quality=args.quality,

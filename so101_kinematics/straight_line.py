@@ -12,8 +12,9 @@ the start's to the end's. Two ways (``ik.refine.line_task``: 7 rows, analytic Ja
 - ``"ik"``: the IK at every cycle: damped least squares iterated to convergence
   (``SOLVE_TOL``) from the last answer, so the arm stays on one branch;
 - ``"resolved_rate"``: resolved-rate control, one step per cycle:
-  ``dq = J^T (J J^T + lambda^2 I)^-1 (v + K e) dt``, the segment's velocity ``v`` fed
-  forward, the task error ``e`` fed back, the damping keeping it finite near a singularity.
+  ``dq = J^T (J J^T + lambda^2 I)^-1 (v + K e) dt``, the line's velocity ``v`` over the
+  cycle (its displacement, turn and roll over ``dt``) fed forward, the task error ``e`` at
+  the cycle's start fed back, the damping keeping it finite near a singularity.
   It integrates on the *planned* joint state (open loop on the commanded path, the Jacobian
   of the commanded configuration), not on the measured one: the real arm's positions are
   quantised and noisy, and its sag would be fed back as a path error.
@@ -109,7 +110,7 @@ def straight_path(start: Mapping[str, float], goal: Mapping[str, float], duratio
     cycles = max(1, round(duration / dt))
     theta = np.radians([start[j] for j in ARM_JOINTS])
     lower, upper = (np.array([JOINT_RANGES_RAD[j][k] for j in ARM_JOINTS]) for k in (0, 1))
-    samples = []
+    samples, here = [], (p0, a0, r0)  # where the line is at the cycle's start
     for k in range(1, cycles + 1):
         s = k / cycles
         f = cubic(s)
@@ -126,12 +127,12 @@ def straight_path(start: Mapping[str, float], goal: Mapping[str, float], duratio
                     f"{_mm(p)} mm (residual {np.max(np.abs(error)):.2g}). Fix: move the "
                     "waypoints, or use --approach joint.", "no_convergence",
                     float(np.max(np.abs(error))))
-        else:
-            rate = cubic.velocity(s) / (cycles * dt)  # d(fraction)/dt [1/s]
-            error, jac = line_task(theta, p, a, roll)
-            wanted = RATE_GAIN * error
-            wanted[:3] += rate * (pf - p0)  # [m/s]; the turn and the roll are fed back only
+        else:  # the error now, fed back; the line's motion over the cycle, fed forward
+            error, jac = line_task(theta, *here)
+            wanted = RATE_GAIN * error + np.concatenate(
+                [p - here[0], np.cross(here[1], a), [roll - here[2]]]) / dt
             theta = np.clip(theta + _solve(jac, wanted, DAMPING) * dt, lower, upper)
+        here = (p, a, roll)
         cfg = dict(zip(ARM_JOINTS, map(math.degrees, theta), strict=True))
         cfg["gripper"] = g0 + f * (gf - g0)
         samples.append(cfg)
@@ -293,8 +294,22 @@ def add_approach_arguments(parser) -> None:
                         "control with the analytic Jacobian")
 
 
-def plan_for_approach(args, plan: Plan, dt: float = CONTROL_DT) -> Plan:
-    """``plan`` as ``--approach`` asks (:func:`straighten_plan` for "straight")."""
+def plan_for_approach(args, plan: Plan | None, dt: float = CONTROL_DT, stack=None) -> Plan:
+    """``plan`` as ``--approach`` asks (:func:`straighten_plan` for "straight").
+
+    Args:
+        args: the parsed ``approach`` and ``straight_method``.
+        plan: the pick-and-place plan (None with a stack).
+        dt: the backend's control period [s].
+        stack: the ``--stack`` plan, if any: its moves stay joint-space moves.
+
+    Raises:
+        PlanError: straight lines asked for a stack, or a plan without vertical moves.
+    """
     if getattr(args, "approach", "joint") != "straight":
         return plan
+    if stack is not None:
+        raise PlanError("--approach straight: the lines run in the pick-and-place (its report "
+                        "measures them); --stack runs joint-space moves. Fix: leave out "
+                        "--approach with --stack.")
     return straighten_plan(plan, args.straight_method, dt)
