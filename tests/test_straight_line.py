@@ -33,7 +33,7 @@ ABOVE = (0.2, 0.1, 0.063)  # [m]
 BELOW = get_inverse_kinematics(list(PICK), gripper=50.0)
 TOP = get_inverse_kinematics(list(ABOVE), initial=BELOW, gripper=50.0)
 DURATION, DT = 1.0, 0.01  # [s]: n = 100 cycles
-SIM_BOUND_MM = 3.5  # measured 2.2 (ik) and 2.4 (resolved_rate) mm on the faithful servo
+SIM_BOUND_MM = 3.5  # measured 2.18 (ik) and 2.20 (resolved_rate) mm on the faithful servo
 HW_BOUND_MM = 2.5  # measured 0.99 (ik), 1.12 (resolved_rate) mm on the virtual arm; margin: load
 
 
