@@ -105,6 +105,18 @@ def test_straighten_plan_makes_each_vertical_move_a_line_and_leaves_the_rest():
             original[name].configuration
 
 
+def test_the_arm_s_plan_table_shows_each_line_as_one_waypoint():
+    from so101_kinematics.hw.teach import format_plan
+    from so101_kinematics.hw.timing import speed_caps
+
+    text = format_plan(straighten_plan(cartesian_plan(PICK, PLACE)), rate_hz=100.0,
+                       profile="minimum_jerk", max_speed=speed_caps())
+    assert "Plan: 10 waypoints" in text and "lift~" not in text
+    lift = next(line for line in text.splitlines() if line.split()[1:2] == ["lift"])
+    assert lift.split()[2] == "2.00~"  # the 2 s move, 200 cycles of 10 ms, as a line
+    assert "~ a straight line in task space" in text
+
+
 def test_a_plan_without_vertical_moves_is_refused():
     plan = Plan([Step("somewhere", dict(TOP), 1.0, 0.0)])
     with pytest.raises(PlanError, match="Fix: use --approach joint"):
