@@ -201,6 +201,10 @@ MUTANTS: list[Mutant] = [
       "object frame starts and stops at full speed",
       "so101_kinematics/straight_line.py", "straight_path", "f = cubic(s)", "f = s",
       f"{T_LINE}::test_the_ik_line_follows_the_cubic_time_scaling_with_zero_end_speeds"),
+    m("cubic_a3_sign", "the cubic's a3 with the wrong sign (3 s^2 + 2 s^3): the line overshoots "
+      "its end", "so101_kinematics/profiles.py", "cubic", "return s * s * (3.0 - 2.0 * s)",
+      "return s * s * (3.0 + 2.0 * s)",
+      f"{T_LINE}::test_the_ik_line_follows_the_cubic_time_scaling_with_zero_end_speeds"),
     m("straight_line_tilt_sign", "the approach axis's tilt error with the wrong sign (cross "
       "product operands swapped): the orientation is pushed away from top-down",
       "so101_kinematics/ik/refine.py", "line_task", "np.cross(z_t, wanted)",
