@@ -81,7 +81,9 @@ from so101_kinematics.sim.render import (
     max_fps,
 )
 from so101_kinematics.sim.stack import run_stack
+from so101_kinematics.sim.straight import control_period
 from so101_kinematics.stacking import add_stack_arguments, stack_from_arguments
+from so101_kinematics.straight_line import add_approach_arguments, plan_for_approach
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -158,6 +160,7 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
     add_cartesian_arguments(parser)
     add_stack_arguments(parser)
     add_servo_arguments(parser)
+    add_approach_arguments(parser)
     parser.add_argument("--json", type=Path, metavar="PATH", help="write the run report as JSON")
     parser.add_argument("--compare", type=Path, nargs="+", metavar="LOG.csv",
                         help="replay hardware logs (pick_place_hw.py --log, e.g. one per "
@@ -218,6 +221,7 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
                 args.move_duration, args.hold)
             if not args.plan and zero_duration_warning(args.move_duration, args.hold):
                 print(zero_duration_warning(args.move_duration, args.hold), file=sys.stderr)
+        plan = plan_for_approach(args, plan, control_period(scene_model()), stack)
         if stack is not None:
             report = run_stack(stack, mode=mode, video=video, fps=args.fps, size=args.size,
                                camera=args.camera, quality=args.quality,

@@ -73,6 +73,7 @@ T_CONTROL, T_RUN = "tests/test_control.py", "tests/test_hw_run.py"
 T_HW, T_IK = "tests/test_pick_place_hw.py", "tests/test_inverse_kinematics.py"
 T_FK, T_SIM = "tests/test_forward_kinematics.py", "tests/test_pick_place_sim.py"
 T_PROFILES = "tests/test_profile_compare.py"
+T_LINE = "tests/test_straight_line.py"
 
 MUTANTS: list[Mutant] = [
     # --- the servo model (issue 25) --------------------------------------------------------
@@ -196,6 +197,20 @@ MUTANTS: list[Mutant] = [
     m("drop_never_seen", "the cube monitor never notes a drop",
       "so101_kinematics/sim/cube.py", "CubeMonitor.check", "self.dropped = True", "pass",
       f"{T_SIM}::test_opening_the_jaws_in_the_air_is_reported_as_a_drop"),
+    # --- straight lines in task space (issue 27) ----------------------------------------------
+    m("straight_line_linear_time", "the line's cubic time scaling dropped (s for f(s)): the "
+      "object frame starts and stops at full speed",
+      "so101_kinematics/straight_line.py", "straight_path", "f = cubic(s)", "f = s",
+      f"{T_LINE}::test_the_ik_line_follows_the_cubic_time_scaling_with_zero_end_speeds"),
+    m("cubic_a3_sign", "the cubic's a3 with the wrong sign (3 s^2 + 2 s^3): the line overshoots "
+      "its end", "so101_kinematics/profiles.py", "cubic", "return s * s * (3.0 - 2.0 * s)",
+      "return s * s * (3.0 + 2.0 * s)",
+      f"{T_LINE}::test_the_ik_line_follows_the_cubic_time_scaling_with_zero_end_speeds"),
+    m("straight_line_tilt_sign", "the approach axis's tilt error with the wrong sign (cross "
+      "product operands swapped): the orientation is pushed away from top-down",
+      "so101_kinematics/ik/refine.py", "line_task", "np.cross(z_t, wanted)",
+      "np.cross(wanted, z_t)", f"{T_LINE}::test_every_sample_is_on_the_segment_top_down_"
+      "within_the_limits"),
     # --- the bus and the protocol ------------------------------------------------------------
     m("checksum_without_id", "the Feetech checksum leaves out the servo id",
       PROTOCOL, "checksum", "return ~sum(body) & 0xFF", "return ~sum(body[1:]) & 0xFF",
