@@ -8,8 +8,8 @@ the list). The repository is copied to a temporary folder once; each mutant is
 applied to the copy, its tests run with a timeout, and the copy restored. Your
 worktree is never modified.
 
-Not part of CI (about 5 minutes on 2 busy cores: 41 mutants, a baseline run
-first). Run it after changing tests or the code they guard (see README, "Development")::
+Not part of CI (every mutant in ``MUTANTS`` below, a baseline run first; ``--list``
+counts them). Run it after changing tests or the code they guard (see README, "Development")::
 
     python scripts/mutation_check.py                 # every mutant
     python scripts/mutation_check.py -k return_speed # mutants whose name contains it
@@ -176,7 +176,7 @@ MUTANTS: list[Mutant] = [
       "tests/test_fk_screenshot.py::test_frames_picture_renders"),
     # --- motion and the simulation ---------------------------------------------------------
     m("minimum_jerk_linear", "minimum jerk replaced by linear time scaling",
-      "so101_kinematics/motion.py", "minimum_jerk",
+      "so101_kinematics/profiles.py", "minimum_jerk",
       "return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))", "return s", T_CONTROL),
     m("ik_elbow_branch", "the IK tries only one elbow branch",
       "so101_kinematics/ik/search.py", "_Search.try_pitch", "for elbow in (1.0, -1.0):",
