@@ -296,9 +296,12 @@ def test_step_mode_moves_by_the_counts_written_from_where_the_joint_is(client, a
     write2(client, 5, GOAL_VELOCITY, 300)
     wait_sim(arm, 0.3)  # 90 counts away from its goal in position mode
     write2(client, 5, GOAL_VELOCITY, 0)
+    wait_sim(arm, 0.1)
+    stopped = arm.joint_positions()["wrist_roll"]
     write1(client, 5, OPERATING_MODE, 3)
     wait_sim(arm, 0.3)
     base = arm.joint_positions()["wrist_roll"]
+    assert abs(base - stopped) * COUNTS_PER_DEG <= 5  # it stays there
     for step, total in ((200, 200), (200, 400), (400 | 0x8000, 0)):
         write2(client, 5, GOAL, step)
         wait_sim(arm, 0.5)
