@@ -125,6 +125,7 @@ def test_factory_image_has_the_memory_tables_values(raw):
     # velocity-loop P, over-current protection time [10 ms], velocity-loop I
     assert [read(raw, 2, addr) for addr in (37, 38, 39)] == [10, 200, 10]
     assert read(raw, 2, 48, 2) == 1000  # Torque_Limit from Max_Torque_Limit (1000)
+    assert read(raw, 2, 44, 2) == 1000  # Goal_Time, the PWM mode's duty: initial value 1000
 
 
 def test_torque_limit_is_loaded_from_max_torque_limit_at_power_up(raw, arm):
