@@ -69,6 +69,7 @@ CHECKS, RUN, LOG = ("so101_kinematics/hw/checks.py", "so101_kinematics/hw/run.py
 FRAMES, SCENE = "so101_kinematics/frames.py", "so101_kinematics/sim/scene.py"
 CAL, PICK = "so101_kinematics/calibration.py", "so101_kinematics/sim/pick_place.py"
 PROTOCOL = "so101_kinematics/virtual/protocol.py"
+REGISTERS, T_SDK = "so101_kinematics/virtual/registers.py", "tests/test_virtual_feetech_sdk.py"
 T_CONTROL, T_RUN = "tests/test_control.py", "tests/test_hw_run.py"
 T_HW, T_IK = "tests/test_pick_place_hw.py", "tests/test_inverse_kinematics.py"
 T_FK, T_SIM = "tests/test_forward_kinematics.py", "tests/test_pick_place_sim.py"
@@ -218,6 +219,16 @@ MUTANTS: list[Mutant] = [
     m("homing_offset_sign_bit_15", "Homing_Offset's sign bit at 15 instead of 11",
       PROTOCOL, None, 'SIGN_BITS = {"Homing_Offset": 11,', 'SIGN_BITS = {"Homing_Offset": 15,',
       "tests/test_feetech_protocol.py"),
+    m("virtual_torque_limit_ignored", "the virtual servo's duty capped by Max_Torque_Limit "
+      "only: Torque_Limit (48) written through the bus ignored", REGISTERS, "servo_settings",
+      'torque_limit=min(servo.get("Torque_Limit"), servo.get("Max_Torque_Limit")))',
+      'torque_limit=servo.get("Max_Torque_Limit"))',
+      f"{T_SDK}::test_torque_limit_30_and_the_shoulder_no_longer_lifts"),
+    m("virtual_step_from_stale_goal", "step mode entered from wheel mode steps from the old "
+      "position goal, not from where the joint is", REGISTERS, "ServoRegisters.write",
+      "if servo.torque and (not was_on or (regs[33] == STEP_MODE and old_mode != STEP_MODE)):",
+      "if servo.torque and not was_on:",
+      f"{T_SDK}::test_step_mode_moves_by_the_counts_written_from_where_the_joint_is"),
     # --- the control loop and its fault policy --------------------------------------------------
     m("speed_cap_ignored", "the speed cap ignored: a move never stretched",
       TIMING, "capped_duration", "return max(float(duration), needed)",
