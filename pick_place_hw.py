@@ -50,6 +50,12 @@ from so101_kinematics.hw.teach import format_configuration, format_plan, outcome
 from so101_kinematics.lab.sheet import PAPER_MM, write_sheet
 from so101_kinematics.motion import SPEED_CAPPED_PROFILES, PlanError, check_number
 from so101_kinematics.plans import default_plan, load_plan
+from so101_kinematics.straight_line import (
+    add_approach_arguments,
+    cycle_deviations,
+    describe,
+    plan_for_approach,
+)
 from so101_kinematics.trims import load_trims
 
 logger = logging.getLogger("pick_place_hw")
@@ -146,6 +152,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--verbose", "-v", action="store_true", help="debug logging")
     add_cartesian_arguments(parser)
     stacking.add_stack_arguments(parser)
+    add_approach_arguments(parser)
     return parser
 
 
@@ -201,12 +208,17 @@ def _run(args, plan, calibration, source, release: str, stack=None) -> int:
         if log is not None:
             log.discard()  # refused before anything moved: an existing log stays as it was
         raise
+    lines = cycle_deviations(plan, result.cycles) if args.approach == "straight" else None
+    if log is not None and lines is not None:
+        log.run_info["straight_path_deviation_mm"] = lines
     if log is not None:
         print(f"Log: {log.close()} ({log.rows} cycles)")
     if args.plot and result.cycles:
         print(f"Plot: {plot_log(result.cycles, args.plot)}")
     for line in outcome_lines(plan, result, stack):
         print(line)
+    if lines is not None:
+        print(describe(lines, args.straight_method))
     print(ending(result, release), file=sys.stderr if status else sys.stdout)
     return status
 
@@ -243,6 +255,7 @@ def _main(args) -> int:
     stack = stacking.stack_from_arguments(args)
     plan = stack.plan if stack else plan_from_arguments(args) or (
         load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold))
+    plan = plan_for_approach(args, plan, 1.0 / args.rate, stack)
     if args.sheet is not None:
         validate_plan_for_arm(plan, None, base_height=args.base_height)
         path = outputs.check_output_path(args.sheet, "--sheet", inputs=(args.plan, args.trims),

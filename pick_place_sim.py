@@ -34,7 +34,8 @@ from so101_kinematics.cli import (
     servo_from_arguments,
     zero_duration_warning,
 )
-from so101_kinematics.lab.compare import LogError, compare_run, draw_report, sidecar_path
+from so101_kinematics.lab.compare import LogError, draw_report, sidecar_path
+from so101_kinematics.lab.profile_compare import compare_profiles, draw_profiles
 from so101_kinematics.motion import MAX_DURATION, PlanError
 from so101_kinematics.outputs import (
     JSON_REPORT,
@@ -80,7 +81,9 @@ from so101_kinematics.sim.render import (
     max_fps,
 )
 from so101_kinematics.sim.stack import run_stack
+from so101_kinematics.sim.straight import control_period
 from so101_kinematics.stacking import add_stack_arguments, stack_from_arguments
+from so101_kinematics.straight_line import add_approach_arguments, plan_for_approach
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -157,9 +160,12 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
     add_cartesian_arguments(parser)
     add_stack_arguments(parser)
     add_servo_arguments(parser)
+    add_approach_arguments(parser)
     parser.add_argument("--json", type=Path, metavar="PATH", help="write the run report as JSON")
-    parser.add_argument("--compare", type=Path, metavar="LOG.csv", help="replay a hardware log "
-                        "(pick_place_hw.py --log) in the simulator and compare; needs --report")
+    parser.add_argument("--compare", type=Path, nargs="+", metavar="LOG.csv",
+                        help="replay hardware logs (pick_place_hw.py --log, e.g. one per "
+                        "--profile) in the simulator and compare, per profile the arm beside "
+                        "the simulator; needs --report")
     parser.add_argument("--report", type=Path, metavar="PATH.png", help="--compare's figure")
     add_overwrite_argument(parser)
     parser.add_argument("--strict", action="store_true", help="exit 1 unless the cube is placed "
@@ -215,6 +221,7 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
                 args.move_duration, args.hold)
             if not args.plan and zero_duration_warning(args.move_duration, args.hold):
                 print(zero_duration_warning(args.move_duration, args.hold), file=sys.stderr)
+        plan = plan_for_approach(args, plan, control_period(scene_model()), stack)
         if stack is not None:
             report = run_stack(stack, mode=mode, video=video, fps=args.fps, size=args.size,
                                camera=args.camera, quality=args.quality,
@@ -241,23 +248,33 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
 
 
 def _compare(args: argparse.Namespace) -> int:
-    """--compare LOG.csv --report PATH.png [--json PATH]: the sim-versus-arm report."""
+    """--compare LOG.csv [LOG.csv ...] --report PATH.png [--json PATH]: the sim-versus-arm report.
+
+    One log: its report, then its profile's figures; several: the profiles' table.
+    """
     try:
         if args.report is None:
             raise OutputPathError("--compare needs --report PATH.png for the figure.")
-        inputs = [args.compare, sidecar_path(args.compare)]
+        inputs = [p for log in args.compare for p in (log, sidecar_path(log))]
         report = check_output_path(args.report, "--report", inputs=inputs, suffixes=(".png",),
                                    kind=PNG, overwrite=args.overwrite)
         json_path = args.json and check_output_path(args.json, "--json", inputs=inputs,
                                                     kind=JSON_REPORT, overwrite=args.overwrite)
-        result = compare_run(args.compare)
+        profiles = compare_profiles(args.compare)
     except (LogError, OutputPathError) as error:
         print(f"error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    print(result.summary())
-    print(f"Report: {draw_report(result, report, f'{args.compare}: simulator vs arm')}")
+    if len(profiles.runs) == 1:
+        result = profiles.runs[0].comparison
+        print(result.summary())
+        print(f"Report: {draw_report(result, report, f'{args.compare[0]}: simulator vs arm')}")
+        comparison = {**result.as_json(), "profile_comparison": profiles.as_json()}
+    else:
+        print(f"Report: {draw_profiles(profiles, report, 'profiles: simulator vs arm')}")
+        comparison = profiles.as_json()
+    print(profiles.table())
     if json_path:
-        comparison = stamp(result.as_json(), "pick_place_sim.py --compare")
+        comparison = stamp(comparison, "pick_place_sim.py --compare")
         write_text_atomic(json_path, json.dumps(comparison, indent=2) + "\n")
     return 0
 

@@ -8,8 +8,8 @@ the list). The repository is copied to a temporary folder once; each mutant is
 applied to the copy, its tests run with a timeout, and the copy restored. Your
 worktree is never modified.
 
-Not part of CI (about 5 minutes on 2 busy cores: 41 mutants, a baseline run
-first). Run it after changing tests or the code they guard (see README, "Development")::
+Not part of CI (every mutant in ``MUTANTS`` below, a baseline run first; ``--list``
+counts them). Run it after changing tests or the code they guard (see README, "Development")::
 
     python scripts/mutation_check.py                 # every mutant
     python scripts/mutation_check.py -k return_speed # mutants whose name contains it
@@ -69,9 +69,12 @@ CHECKS, RUN, LOG = ("so101_kinematics/hw/checks.py", "so101_kinematics/hw/run.py
 FRAMES, SCENE = "so101_kinematics/frames.py", "so101_kinematics/sim/scene.py"
 CAL, PICK = "so101_kinematics/calibration.py", "so101_kinematics/sim/pick_place.py"
 PROTOCOL = "so101_kinematics/virtual/protocol.py"
+REGISTERS, T_SDK = "so101_kinematics/virtual/registers.py", "tests/test_virtual_feetech_sdk.py"
 T_CONTROL, T_RUN = "tests/test_control.py", "tests/test_hw_run.py"
 T_HW, T_IK = "tests/test_pick_place_hw.py", "tests/test_inverse_kinematics.py"
 T_FK, T_SIM = "tests/test_forward_kinematics.py", "tests/test_pick_place_sim.py"
+T_PROFILES = "tests/test_profile_compare.py"
+T_LINE = "tests/test_straight_line.py"
 LEAD, T_LEAD = "so101_kinematics/hw/lead.py", "tests/test_velocity_ff.py"
 
 MUTANTS: list[Mutant] = [
@@ -176,7 +179,7 @@ MUTANTS: list[Mutant] = [
       "tests/test_fk_screenshot.py::test_frames_picture_renders"),
     # --- motion and the simulation ---------------------------------------------------------
     m("minimum_jerk_linear", "minimum jerk replaced by linear time scaling",
-      "so101_kinematics/motion.py", "minimum_jerk",
+      "so101_kinematics/profiles.py", "minimum_jerk",
       "return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))", "return s", T_CONTROL),
     m("ik_elbow_branch", "the IK tries only one elbow branch",
       "so101_kinematics/ik/search.py", "_Search.try_pitch", "for elbow in (1.0, -1.0):",
@@ -197,6 +200,20 @@ MUTANTS: list[Mutant] = [
     m("drop_never_seen", "the cube monitor never notes a drop",
       "so101_kinematics/sim/cube.py", "CubeMonitor.check", "self.dropped = True", "pass",
       f"{T_SIM}::test_opening_the_jaws_in_the_air_is_reported_as_a_drop"),
+    # --- straight lines in task space (issue 27) ----------------------------------------------
+    m("straight_line_linear_time", "the line's cubic time scaling dropped (s for f(s)): the "
+      "object frame starts and stops at full speed",
+      "so101_kinematics/straight_line.py", "straight_path", "f = cubic(s)", "f = s",
+      f"{T_LINE}::test_the_ik_line_follows_the_cubic_time_scaling_with_zero_end_speeds"),
+    m("cubic_a3_sign", "the cubic's a3 with the wrong sign (3 s^2 + 2 s^3): the line overshoots "
+      "its end", "so101_kinematics/profiles.py", "cubic", "return s * s * (3.0 - 2.0 * s)",
+      "return s * s * (3.0 + 2.0 * s)",
+      f"{T_LINE}::test_the_ik_line_follows_the_cubic_time_scaling_with_zero_end_speeds"),
+    m("straight_line_tilt_sign", "the approach axis's tilt error with the wrong sign (cross "
+      "product operands swapped): the orientation is pushed away from top-down",
+      "so101_kinematics/ik/refine.py", "line_task", "np.cross(z_t, wanted)",
+      "np.cross(wanted, z_t)", f"{T_LINE}::test_every_sample_is_on_the_segment_top_down_"
+      "within_the_limits"),
     # --- the bus and the protocol ------------------------------------------------------------
     m("checksum_without_id", "the Feetech checksum leaves out the servo id",
       PROTOCOL, "checksum", "return ~sum(body) & 0xFF", "return ~sum(body[1:]) & 0xFF",
@@ -204,6 +221,16 @@ MUTANTS: list[Mutant] = [
     m("homing_offset_sign_bit_15", "Homing_Offset's sign bit at 15 instead of 11",
       PROTOCOL, None, 'SIGN_BITS = {"Homing_Offset": 11,', 'SIGN_BITS = {"Homing_Offset": 15,',
       "tests/test_feetech_protocol.py"),
+    m("virtual_torque_limit_ignored", "the virtual servo's duty capped by Max_Torque_Limit "
+      "only: Torque_Limit (48) written through the bus ignored", REGISTERS, "servo_settings",
+      'torque_limit=min(servo.get("Torque_Limit"), servo.get("Max_Torque_Limit")))',
+      'torque_limit=servo.get("Max_Torque_Limit"))',
+      f"{T_SDK}::test_torque_limit_30_and_the_shoulder_no_longer_lifts"),
+    m("virtual_step_from_stale_goal", "step mode entered from wheel mode steps from the old "
+      "position goal, not from where the joint is", REGISTERS, "ServoRegisters.write",
+      "if servo.torque and (not was_on or (regs[33] == STEP_MODE and old_mode != STEP_MODE)):",
+      "if servo.torque and not was_on:",
+      f"{T_SDK}::test_step_mode_moves_by_the_counts_written_from_where_the_joint_is"),
     # --- the control loop and its fault policy --------------------------------------------------
     m("speed_cap_ignored", "the speed cap ignored: a move never stretched",
       TIMING, "capped_duration", "return max(float(duration), needed)",
@@ -282,6 +309,17 @@ MUTANTS: list[Mutant] = [
     m("log_not_flushed", "the run's log not flushed as the run goes",
       LOG, "CycleLog.__call__", "            self._handle.flush()\n", "            pass\n",
       "tests/test_hw_log.py"),
+    m("traj_clipping_unchecked", "so101-check-traj never looks past the duration (a cubic "
+      "whose time is not clipped goes unnamed)", "so101_kinematics/checker/traj_compare.py",
+      "move_causes", "after = t > duration + timestep / 2", "after = t > math.inf",
+      "tests/test_traj_checker.py"),
+    # --- the write-up's comparison of profiles from real runs (issue 27, Deliver 8) -------
+    m("fitted_jerk_factor", "the fitted cubic's third derivative taken as 2 c3 (not 3! c3)",
+      "so101_kinematics/motion_metrics.py", "fitted_derivatives",
+      "6.0 * c[:, 3] / scale**3", "2.0 * c[:, 3] / scale**3", T_PROFILES),
+    m("misread_reply_kept", "a misread reply (-2900 deg for one cycle) kept in the figures",
+      "so101_kinematics/lab/compare.py", "compare_run", "    if wrong:\n", "    if False:\n",
+      T_PROFILES),
     m("output_written_in_place", "an output file written in place (lost if the run fails)",
       "so101_kinematics/outputs.py", "atomic_output", "temporary = temporary_beside(target)",
       "temporary = target",

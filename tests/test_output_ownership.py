@@ -32,6 +32,7 @@ CALIBRATION = REPO / "calibration"
 A_SOURCE_FILE = REPO / "so101_inverse_kinematics.py"
 FK_SUBMISSION = REPO / "tests" / "fk_submissions" / "correct.py"
 IK_SUBMISSION = REPO / "tests" / "ik_submissions" / "correct.py"
+TRAJ_SUBMISSION = REPO / "tests" / "traj_submissions" / "correct.py"
 TRIMS = "shoulder_pan = 1.0\n"  # a trim file (TOML): joint -> [deg]
 # The head of an MP4 as ffmpeg writes one (ISO base media: a box size, then "ftyp").
 MP4_HEAD = b"\x00\x00\x00\x20ftypisom\x00\x00\x02\x00isomiso2avc1mp41"
@@ -264,3 +265,14 @@ def test_check_ik_refuses_a_source_file(student_file, option):
     before = student_file.read_bytes()
     done = run("-m", "so101_kinematics.checker.ik", IK_SUBMISSION, option, student_file)
     assert_refused(done, option, student_file, before)
+
+
+@pytest.mark.parametrize("option", ["--json", "--gradescope"])
+def test_check_traj_refuses_a_source_file_and_replaces_its_own(student_file, tmp_path, option):
+    before = student_file.read_bytes()
+    done = run("-m", "so101_kinematics.checker.traj", TRAJ_SUBMISSION, option, student_file)
+    assert_refused(done, option, student_file, before)
+    ours = tmp_path / "ours.json"
+    for _ in range(2):  # the second run replaces the first's file
+        done = run("-m", "so101_kinematics.checker.traj", TRAJ_SUBMISSION, "-q", option, ours)
+        assert done.returncode == 0, done.stderr

@@ -3,11 +3,17 @@
 A second client, independent of lerobot (which sits on the same SDK but never sends
 REG_WRITE, ACTION or RESET, nor changes the baud rate to anything but 1 Mbit/s).
 Expected values are Feetech's (protocol page and STS3215 memory table; see
-tests/test_virtual_protocol.py, which sends the same requests as raw packets).
+tests/test_virtual_protocol.py, which sends the same requests as raw packets), or computed
+by hand below from the memory table's units and the servo's measured motor ([BAM] in
+``../shared/SERVO_NOTES.md``: kt/R = 0.4528 N m/V, kt^2/R = 0.549 N m s/rad, R = 2.676 ohm,
+Coulomb 0.0524 N m, viscous 0.0591 N m s/rad, for the kit's C001 at its 5 V supply).
+Durations are measured on the simulation's clock (``reply_stats()["sim_time_s"]``), which
+slips behind the wall clock on a busy machine.
 """
 
 from __future__ import annotations
 
+import math
 import time
 
 import pytest
@@ -18,6 +24,11 @@ from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
 sdk = pytest.importorskip("scservo_sdk")
 MODEL_NUMBER = 777  # STS3215
 RESET = 0x06  # parameter recovery; the SDK on PyPI has no call for it: sent through txRxPacket
+# memory table addresses
+OPERATING_MODE, TORQUE_ENABLE, ACCELERATION, GOAL, GOAL_TIME, GOAL_VELOCITY = 33, 40, 41, 42, 44, 46
+TORQUE_LIMIT, PRESENT, PRESENT_VELOCITY, PRESENT_LOAD, PRESENT_VOLTAGE, PRESENT_CURRENT = \
+    48, 56, 58, 60, 62, 69
+COUNTS_PER_DEG = 4096 / 360.0  # 4096 counts a turn [memory table: 0.087 deg a count]
 
 
 @pytest.fixture
@@ -107,3 +118,232 @@ def test_two_servos_with_one_id_fail_the_sdks_transactions_but_both_obey(client,
     handler.write1ByteTxRx(port, 1, 41, 77)
     assert [arm.registers(j)["Acceleration"] for j in ("shoulder_pan", "shoulder_lift")] == \
         [77, 77]
+
+
+# --- the servo and its modes, through the SDK (issue 26's table) ----------------------------
+def sim_time(arm) -> float:
+    """The simulation's clock [s]."""
+    return arm.reply_stats()["sim_time_s"]
+
+
+def wait_sim(arm, seconds: float) -> None:
+    """Wait until ``seconds`` [s] of simulated time have passed."""
+    end = sim_time(arm) + seconds
+    while sim_time(arm) < end:
+        time.sleep(0.02)
+
+
+def signed(raw: int, sign_bit: int) -> int:
+    """A sign-magnitude register's value (the memory table's "BITn is the direction bit")."""
+    magnitude = raw & ((1 << sign_bit) - 1)
+    return -magnitude if raw & (1 << sign_bit) else magnitude
+
+
+def joint_reading(arm, joint: str) -> tuple[float, float]:
+    """(simulated time [s], the joint's angle [deg]): the time taken on either side."""
+    before = sim_time(arm)
+    angle = arm.joint_positions()[joint]
+    return (before + sim_time(arm)) / 2, angle
+
+
+def joint_speed(arm, joint: str, seconds: float = 0.3) -> float:
+    """The joint's mean speed over ``seconds`` of simulated time [counts/s]."""
+    t0, start = joint_reading(arm, joint)
+    wait_sim(arm, seconds)
+    t1, end = joint_reading(arm, joint)
+    return (end - start) * COUNTS_PER_DEG / (t1 - t0)
+
+
+def write2(client, servo_id: int, addr: int, value: int) -> None:
+    port, handler = client
+    assert handler.write2ByteTxRx(port, servo_id, addr, value) == (sdk.COMM_SUCCESS, 0)
+
+
+def write1(client, servo_id: int, addr: int, value: int) -> None:
+    port, handler = client
+    assert handler.write1ByteTxRx(port, servo_id, addr, value) == (sdk.COMM_SUCCESS, 0)
+
+
+def read(client, servo_id: int, addr: int, size: int) -> int:
+    """A register's raw value; a read that times out is tried again, as lerobot 0.6's reads
+    are (a busy machine can keep the emulator off the CPU past the SDK's ~34 ms deadline)."""
+    port, handler = client
+    call = handler.read2ByteTxRx if size == 2 else handler.read1ByteTxRx
+    for _ in range(3):
+        value, result, error = call(port, servo_id, addr)
+        if result != sdk.COMM_RX_TIMEOUT:
+            break
+        time.sleep(0.05)  # the late reply arrives, and is thrown away: it would answer the
+        port.clearPort()  # next read (FEETECH_NOTES.md, "Traps seen" 1)
+    assert (result, error) == (sdk.COMM_SUCCESS, 0)
+    return value
+
+
+def read2(client, servo_id: int, addr: int) -> int:
+    return read(client, servo_id, addr, 2)
+
+
+def read1(client, servo_id: int, addr: int) -> int:
+    return read(client, servo_id, addr, 1)
+
+
+def time_to_reach(client, arm, servo_id: int, goal: int, within: int = 10,
+                  timeout: float = 8.0) -> float:
+    """Simulated time [s] until Present_Position is ``within`` counts of ``goal``."""
+    t0 = sim_time(arm)
+    while sim_time(arm) - t0 < timeout:
+        if abs(read2(client, servo_id, PRESENT) - goal) <= within:
+            return sim_time(arm) - t0
+        time.sleep(0.01)
+    return math.inf
+
+
+def test_torque_limit_30_and_the_shoulder_no_longer_lifts(client, arm):
+    """Torque_Limit caps the duty [memory table: "controls the stall torque output"].
+
+    By hand: 3 % duty at 5 V gives 0.4528 x 5 x 0.03 = 0.068 N m; the arm's weight about
+    the shoulder in this pose needs 0.26 N m (the model's holding torque, gravity.py).
+    """
+    arm.set_pose(dict(HOME, shoulder_lift=-30.0, elbow_flex=0.0, wrist_flex=0.0))
+    start = read2(client, 2, PRESENT)
+    write2(client, 2, TORQUE_LIMIT, 30)
+    write2(client, 2, GOAL, start - 300)  # lift (against gravity) by 26 deg
+    wait_sim(arm, 1.0)
+    assert start - read2(client, 2, PRESENT) < 5  # not lifted (it sank)
+    assert signed(read2(client, 2, PRESENT_LOAD), 10) == -30  # pushing at the cap
+    write2(client, 2, TORQUE_LIMIT, 1000)
+    wait_sim(arm, 1.0)
+    assert abs(read2(client, 2, PRESENT) - (start - 300)) <= 15  # the same goal, reached
+
+
+@pytest.mark.slow
+def test_acceleration_and_goal_velocity_make_a_400_count_move_last_4_s(client, arm):
+    """Acceleration 10, Goal_Velocity 100 on shoulder_pan (no gravity about its axis).
+
+    By hand, from the memory table's units: a = 10 x 8.7 deg/s^2 = 990 counts/s^2;
+    v = 100 x 0.0146 rpm = 99.7 counts/s (Phase 12 sets bit 2: that unit). A trapezoid:
+    0.1 s ramps (5 counts each), 390 counts at v: 3.9 s; 4.1 s in all. The joint
+    follows a few counts behind the profile's target.
+    """
+    start = read2(client, 1, PRESENT)
+    write1(client, 1, ACCELERATION, 10)
+    write2(client, 1, GOAL_VELOCITY, 100)
+    write2(client, 1, GOAL, start + 400)
+    halfway = time_to_reach(client, arm, 1, start + 200, within=3)
+    cruise = read2(client, 1, PRESENT_VELOCITY)
+    duration = halfway + time_to_reach(client, arm, 1, start + 400)
+    assert 1.8 <= halfway <= 2.3  # 0.1 + 195 / 99.7 = 2.06 s
+    assert cruise == 100  # in 50 counts/s steps [TEL]
+    assert 3.8 <= duration <= 4.4
+
+
+def test_goal_time_does_not_set_a_position_moves_duration(client, arm):
+    """An SCS-style write (position, time 2000 ms, speed 0) moves as fast as time 0 does.
+
+    STS firmware uses speed and acceleration (Feetech's SMS_STS driver writes time 0 with
+    every position; the memory table makes address 44 the PWM mode's duty).
+    """
+    port, handler = client
+    durations = []
+    for goal_time in (0, 2000):
+        start = read2(client, 1, PRESENT)
+        goal = start - 400
+        data = [goal & 0xFF, goal >> 8, goal_time & 0xFF, goal_time >> 8, 0, 0]
+        assert handler.writeTxRx(port, 1, GOAL, 6, data) == (sdk.COMM_SUCCESS, 0)
+        assert read2(client, 1, GOAL_TIME) == goal_time  # stored
+        durations.append(time_to_reach(client, arm, 1, goal))
+        write2(client, 1, GOAL, start)
+        wait_sim(arm, 0.5)
+    assert durations[1] < 1.0  # under half the 2 s an SCS servo would take
+    assert abs(durations[1] - durations[0]) < 0.1
+
+
+def test_wheel_mode_spins_at_goal_velocity_either_way(client, arm):
+    """Operating_Mode 1: "constant-speed motor mode", Goal_Velocity signed by bit 15."""
+    write1(client, 5, OPERATING_MODE, 1)
+    write2(client, 5, GOAL_VELOCITY, 300)  # 300 counts/s (Phase 12's unit)
+    wait_sim(arm, 0.2)
+    assert joint_speed(arm, "wrist_roll") == pytest.approx(300, rel=0.05)
+    assert signed(read2(client, 5, PRESENT_VELOCITY), 15) == 300
+    write2(client, 5, GOAL_VELOCITY, 300 | 0x8000)
+    wait_sim(arm, 0.2)
+    assert joint_speed(arm, "wrist_roll") == pytest.approx(-300, rel=0.05)
+
+
+def test_pwm_mode_runs_open_loop_at_the_duty_written(client, arm):
+    """Operating_Mode 2: Goal_Time is the duty [0.1 %], bit 10 its direction.
+
+    By hand, the unloaded wrist_roll's steady speed at duty u and 5 V:
+    (0.4528 x 5 u - 0.0524) / (0.549 + 0.0591) rad/s: 1.031 rad/s = 672 counts/s at 30 %,
+    2.148 rad/s = 1400 counts/s at 60 %.
+    """
+    write1(client, 5, OPERATING_MODE, 2)
+    for duty, speed in ((300, 672), (600, 1400), (300 | 0x400, -672)):
+        write2(client, 5, GOAL_TIME, duty)
+        wait_sim(arm, 0.25)  # the motor's time constant: 0.0284 / 0.608 = 0.05 s
+        assert joint_speed(arm, "wrist_roll", 0.2) == pytest.approx(speed, rel=0.1), duty
+        assert signed(read2(client, 5, PRESENT_LOAD), 10) == signed(duty, 10)  # the duty
+    write2(client, 5, GOAL_TIME, 0)
+
+
+def test_step_mode_moves_by_the_counts_written_from_where_the_joint_is(client, arm):
+    """Operating_Mode 3: each Goal_Position is a relative step (bit 15 its sign).
+
+    Entered from wheel mode, the steps start where the joint stopped (the virtual arm's
+    choice: the memory table does not say). Goal_Velocity 0: the profile at full speed.
+    """
+    write1(client, 5, OPERATING_MODE, 1)
+    write2(client, 5, GOAL_VELOCITY, 300)
+    wait_sim(arm, 0.3)  # 90 counts away from its goal in position mode
+    write2(client, 5, GOAL_VELOCITY, 0)
+    wait_sim(arm, 0.1)
+    stopped = arm.joint_positions()["wrist_roll"]
+    write1(client, 5, OPERATING_MODE, 3)
+    wait_sim(arm, 0.3)
+    base = arm.joint_positions()["wrist_roll"]
+    assert abs(base - stopped) * COUNTS_PER_DEG <= 5  # it stays there
+    for step, total in ((200, 200), (200, 400), (400 | 0x8000, 0)):
+        write2(client, 5, GOAL, step)
+        wait_sim(arm, 0.5)
+        moved = (arm.joint_positions()["wrist_roll"] - base) * COUNTS_PER_DEG
+        assert moved == pytest.approx(total, abs=10), step  # dead zone, play, friction
+
+
+def test_torque_enable_128_sets_present_position_2048_and_reads_back_0_or_1(client, arm):
+    arm.set_pose(dict(HOME, wrist_roll=-60.0))  # wrist_roll's 2048 is at 0 deg
+    arm.set_torque(False, ["wrist_roll"])
+    for servo_id, torque in ((4, 1), (5, 0)):
+        assert read2(client, servo_id, PRESENT) not in range(2040, 2057)
+        write1(client, servo_id, TORQUE_ENABLE, 128)
+        assert abs(read2(client, servo_id, PRESENT) - 2048) <= 2  # a count of noise
+        assert read1(client, servo_id, TORQUE_ENABLE) == torque
+
+
+def test_readings_move_like_a_sensors(client, arm):
+    """Encoder noise at rest; current and bus voltage that follow the load.
+
+    By hand: wrist_roll stalled against its end stop at full duty (97 %, the firmware's
+    cap) draws 5 V x 0.97 / 2.676 ohm = 1.81 A = 279 units of 6.5 mA; through the supply's
+    0.1 ohm that is 0.18 V of sag (Present_Voltage in 0.1 V: about 2 units).
+    """
+    readings = {read2(client, 2, PRESENT) for _ in range(50)}
+    assert len(readings) > 1 and max(readings) - min(readings) <= 4
+    rest_volts = read1(client, 5, PRESENT_VOLTAGE)
+    assert read2(client, 5, PRESENT_CURRENT) <= 2  # holding an unloaded joint
+    write1(client, 5, OPERATING_MODE, 2)
+    write2(client, 5, GOAL_TIME, 1000)
+    wait_sim(arm, 1.0)  # at 1.4k counts/s it reaches the stop within 0.6 s
+    assert read2(client, 5, PRESENT_CURRENT) == pytest.approx(279, rel=0.1)
+    assert 1 <= rest_volts - read1(client, 5, PRESENT_VOLTAGE) <= 3
+    write2(client, 5, GOAL_TIME, 0)
+    wait_sim(arm, 0.2)
+    assert read2(client, 5, PRESENT_CURRENT) <= 2 and read1(client, 5, PRESENT_VOLTAGE) \
+        >= rest_volts - 1
+
+
+def test_unused_registers_read_the_factory_values(client):
+    """The memory table's initial values: velocity-loop P 10, over-current time 200 (10 ms),
+    velocity-loop I 10; PWM duty (Goal_Time) 1000; Torque_Limit from Max_Torque_Limit 1000."""
+    assert [read1(client, 2, addr) for addr in (37, 38, 39)] == [10, 200, 10]
+    assert read2(client, 2, GOAL_TIME) == 1000
+    assert read2(client, 2, TORQUE_LIMIT) == read2(client, 2, 16) == 1000

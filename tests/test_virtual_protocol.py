@@ -125,6 +125,7 @@ def test_factory_image_has_the_memory_tables_values(raw):
     # velocity-loop P, over-current protection time [10 ms], velocity-loop I
     assert [read(raw, 2, addr) for addr in (37, 38, 39)] == [10, 200, 10]
     assert read(raw, 2, 48, 2) == 1000  # Torque_Limit from Max_Torque_Limit (1000)
+    assert read(raw, 2, 44, 2) == 1000  # Goal_Time, the PWM mode's duty: initial value 1000
 
 
 def test_torque_limit_is_loaded_from_max_torque_limit_at_power_up(raw, arm):
@@ -180,7 +181,7 @@ def test_two_factory_servos_on_one_bus_collide():
             raw.close()
 
 
-# --- the servo model's rows of the issue (issue 25): expected to pass once it lands -----------
+# --- the servo model's rows of the issue (the model: so101_kinematics/sim/sts3215.py) ---------
 def test_acceleration_and_goal_velocity_shape_a_position_move(raw):
     """Acceleration 10 (1000 counts/s^2), Goal_Velocity 100 counts/s: 400 counts take ~4 s."""
     start = read(raw, 1, PRESENT, 2)
@@ -202,6 +203,41 @@ def test_wheel_mode_spins_at_goal_velocity(raw):
 def test_a_reading_at_rest_moves_by_a_count_or_two(raw):
     readings = {read(raw, 2, PRESENT, 2) for _ in range(50)}
     assert 1 < len(readings) and max(readings) - min(readings) <= 4
+
+
+def test_present_current_follows_the_load(raw, arm):
+    # At rest the current is the duty's: V duty / R (BAM: R = 2.676 ohm, kt/R = 0.4528 N m/V).
+    # The shoulder holds 0.26 N m of the arm's weight here (gravity.py): 0.26 / (0.4528 x 5 V)
+    # = 11.4 % duty, plus P/4 x 3.5 counts = 2.8 % across half the gear play (P = 32): 14.2 %,
+    # 5 V x 0.142 / 2.676 ohm = 0.265 A = 41 units of 6.5 mA (static friction, 0.05 N m, may
+    # carry up to 8 of them). The unloaded wrist_roll draws none. The voltage's sag under a
+    # stall: tests/test_virtual_feetech_sdk.py.
+    arm.set_pose(dict(HOME, shoulder_lift=-30.0, elbow_flex=0.0, wrist_flex=0.0))
+    time.sleep(0.5)
+    assert 33 <= read(raw, 2, 69, 2) <= 45
+    assert read(raw, 5, 69, 2) <= 2
+
+
+def test_torque_limit_caps_the_duty_and_the_shoulder_no_longer_lifts(raw, arm):
+    # Torque_Limit (48) [MEM: "controls the stall torque output"]: 3 % of 5 V's stall torque,
+    # 0.068 N m, is under the 0.26 N m the arm's weight needs about the shoulder here
+    arm.set_pose(dict(HOME, shoulder_lift=-30.0, elbow_flex=0.0, wrist_flex=0.0))
+    start = read(raw, 2, PRESENT, 2)
+    assert ask(raw, 2, fp.INST_WRITE, [48, *goal_bytes(30)]) == [(2, 0, b"")]
+    ask(raw, 2, fp.INST_WRITE, [GOAL, *goal_bytes(start - 300)])  # lift by 26 deg
+    time.sleep(1.0)
+    assert start - read(raw, 2, PRESENT, 2) < 5  # not lifted
+    assert read(raw, 2, 60, 2) == 30 | 0x400  # Present_Load: 3 %, the lifting way (bit 10)
+
+
+def test_goal_time_is_not_a_moves_duration_in_position_mode(raw):
+    # The STS moves at Goal_Velocity and Acceleration; Feetech's SMS_STS driver writes a
+    # time of 0 with every position, and the memory table makes 44 the PWM mode's duty
+    start = read(raw, 1, PRESENT, 2)
+    params = [GOAL, *goal_bytes(start + 400), *goal_bytes(2000), 0, 0]  # 2000 ms, as SCS
+    assert ask(raw, 1, fp.INST_WRITE, params) == [(1, 0, b"")]
+    time.sleep(1.0)  # half of the 2 s: an SCS servo would be 200 counts short
+    assert abs(read(raw, 1, PRESENT, 2) - (start + 400)) <= 10
 
 
 def test_step_mode_moves_by_the_counts_written(raw):

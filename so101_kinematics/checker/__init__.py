@@ -10,6 +10,11 @@ Gradescope's ``results.json`` or as one CSV row per student (:mod:`.report`).
 sibling for a student's ``so101_inverse_kinematics.py``: the same sandbox, FK(IK(p))
 at reachable targets with this package's FK (:mod:`.ik`, :mod:`.ik_targets`,
 :mod:`.ik_compare`).
+
+``so101-check-traj PATH`` (or ``python -m so101_kinematics.checker.traj PATH``) runs a
+student's ``move_to_pose_cubic`` (assignment 9) in the same sandbox against a recording
+stand-in for MuJoCo and names what differs from the course's cubic (:mod:`.traj`,
+:mod:`.traj_probe`, :mod:`.traj_compare`).
 """
 
 from so101_kinematics.checker.cli import check_file, main

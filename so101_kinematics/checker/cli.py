@@ -57,12 +57,13 @@ def check_file(path: str | Path, tolerance=(1.0, 1.0), timeout: float = sandbox.
     return check
 
 
-def run_check(path: str | Path, request: dict, tolerance, timeout: float):
+def run_check(path: str | Path, request: dict, tolerance, timeout: float,
+              probe: Path = sandbox.PROBE):
     """Run the probe on one file: ``(check, run)``, ``run`` None when there is no file.
 
     ``check`` is the JSON-ready dict both checkers fill in: file, student (the folder's
     name), verdict ("error" until judged), reason, tests, note, the module's output,
-    seconds, tolerance.
+    seconds, tolerance. ``probe`` is the child's script (the trajectory checker's own).
     """
     path = Path(path)
     check = {"file": str(path), "student": path.resolve().parent.name, "verdict": "error",
@@ -71,7 +72,7 @@ def run_check(path: str | Path, request: dict, tolerance, timeout: float):
     if not path.is_file():
         check["reason"] = f"no such file {path}" if not path.exists() else f"{path} is a folder"
         return check, None
-    run = sandbox.run_probe(path, request, timeout)
+    run = sandbox.run_probe(path, request, timeout, probe=probe)
     check["seconds"] = run.seconds
     check["output"] = run.results.get("output", "")
     check["output_size"] = run.results.get("output_size", 0)

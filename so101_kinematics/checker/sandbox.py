@@ -59,7 +59,7 @@ def child_environment() -> dict[str, str]:
 
 
 def run_probe(module_path: str | Path, request: dict, timeout: float = DEFAULT_TIMEOUT_S,
-              python: str = sys.executable) -> ProbeRun:
+              python: str = sys.executable, probe: Path = PROBE) -> ProbeRun:
     """Import ``module_path`` in a child process and evaluate ``request`` there.
 
     Args:
@@ -67,6 +67,7 @@ def run_probe(module_path: str | Path, request: dict, timeout: float = DEFAULT_T
         request: what to evaluate (see ``compare.build_request``, ``ik_compare.build_request``).
         timeout: limit for the whole child [s].
         python: the interpreter for the child.
+        probe: the child's script (``probe.py``; ``traj_probe.py`` for a trajectory).
 
     Returns:
         A :class:`ProbeRun`.
@@ -82,7 +83,7 @@ def run_probe(module_path: str | Path, request: dict, timeout: float = DEFAULT_T
         start = time.perf_counter()
         with open(Path(folder) / "stdio.txt", "wb") as stdio:
             child = subprocess.Popen(
-                [python, "-I", "-B", str(PROBE), str(request_path), str(result_path)],
+                [python, "-I", "-B", str(probe), str(request_path), str(result_path)],
                 cwd=work, env=child_environment(), stdin=subprocess.DEVNULL, stdout=stdio,
                 stderr=subprocess.STDOUT, start_new_session=True)
             try:

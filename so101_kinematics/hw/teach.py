@@ -15,6 +15,7 @@ from so101_kinematics.hw.bus import PortLost, port_lost, read_pose, recover_port
 from so101_kinematics.hw.control import READ_RETRIES, RECOVERY_TIMEOUT_S, RateLoop, capped_duration
 from so101_kinematics.motion import Configuration, Plan
 from so101_kinematics.plans import GRIPPER_CLOSED, pick_and_place_steps
+from so101_kinematics.straight_line import is_path_sample
 
 TEACH_RATE_HZ = 5.0        # live pose printing [Hz]
 MAX_TEACH_RATE_HZ = 50.0   # a terminal cannot show more [Hz]
@@ -34,14 +35,23 @@ def object_position_cm(cfg: Mapping[str, float]) -> tuple[float, float, float]:
 def format_plan(plan: Plan, *, rate_hz: float, profile: str, max_speed: Mapping[str, float],
                 start: Configuration | None = None) -> str:
     """The plan as a table (durations after the speed cap) and the cube positions to place [cm]."""
-    lines = [f"Plan: {len(plan.steps)} waypoints, {rate_hz:g} Hz, profile {profile}, speed cap "
+    waypoints = sum(not is_path_sample(step.name) for step in plan.steps)
+    lines = [f"Plan: {waypoints} waypoints, {rate_hz:g} Hz, profile {profile}, speed cap "
              f"{max_speed['shoulder_pan']:g} deg/s (gripper {max_speed['gripper']:g} %/s)"]
     header = f"  {'#':>2} {'waypoint':<16}{'move':>7}{'hold':>6}" + "".join(
         f"{j[:13]:>14}" for j in JOINTS) + "    object x, y, z [cm]"
     lines.append(header)
-    previous = start
-    for i, step in enumerate(plan.steps, 1):
-        if previous is None:
+    previous, line_s, shown = start, 0.0, 0
+    for step in plan.steps:
+        if is_path_sample(step.name):  # a straight line's sample: shown as its last step
+            line_s += step.duration
+            previous = step.configuration
+            continue
+        shown += 1
+        i = shown
+        if line_s:
+            move, line_s = f"{line_s + step.duration:>6.2f}~", 0.0
+        elif previous is None:
             move = f"{step.duration:>6.2f}*"
         else:
             capped = capped_duration(previous, step.configuration, step.duration, profile,
@@ -52,10 +62,12 @@ def format_plan(plan: Plan, *, rate_hz: float, profile: str, max_speed: Mapping[
             f"{step.configuration[j]:>14.1f}" for j in JOINTS) + f"    {x:6.1f} {y:6.1f} {z:5.1f}")
         previous = step.configuration
     if plan.return_to_start:
-        lines.append(f"  {len(plan.steps) + 1:>2} {'return_to_start':<16}"
+        lines.append(f"  {shown + 1:>2} {'return_to_start':<16}"
                      f"{plan.return_duration:>6.2f}*     back to the measured starting pose")
     else:
         lines.append("  (return_to_start: false: the arm holds the last waypoint, torque on)")
+    if any(is_path_sample(step.name) for step in plan.steps):
+        lines.append("  ~ a straight line in task space, one command per control cycle.")
     if start is None:
         lines.append("  * ramps from (or to) the arm's measured pose; stretched if the speed cap "
                      "needs it.")

@@ -17,6 +17,7 @@ from so101_kinematics.ik.geometry import (
     _LIMITS,
     _PAN,
     _QUARTER,
+    _ROLL,
     REFINE_TOL,
     SOLVE_TOL,
     _chain,
@@ -167,3 +168,31 @@ def top_down_task(theta: Sequence[float], p: Sequence[float],
         and the jaw's yaw error [rad] (1); and their (7, 5) Jacobian.
     """
     return _task(_chain(theta), np.asarray(p, dtype=float), _QUARTER, yaw)
+
+
+def line_task(theta: Sequence[float], p: Sequence[float], approach: Sequence[float],
+              roll: float) -> tuple[np.ndarray, np.ndarray]:
+    """Residual and analytic Jacobian of a pose on a straight line (``straight_line.py``).
+
+    Args:
+        theta: the arm's five joint angles [rad].
+        p: the object frame's wanted position [m].
+        approach: the wanted approach axis (the tool's -z), a unit vector; (0, 0, -1) is
+            top-down.
+        roll: the wanted wrist_roll [rad].
+
+    Returns:
+        ``(error, jacobian)``: the position error [m] (3), the approach axis's tilt from the
+        wanted one (3: the sine of the angle, about the correcting axis) and the wrist_roll
+        error [rad] (1); and their (7, 5) Jacobian (as :func:`top_down_task`'s rows).
+    """
+    chain = _chain(theta)
+    g_wt = chain[5]
+    jac = _jacobian_from_chain(chain)
+    wanted = np.asarray(approach, dtype=float)
+    z_t = -g_wt[:3, 2]  # the approach axis: wrist to fingertips
+    roll_row = np.zeros((1, len(theta)))
+    roll_row[0, _ROLL] = 1.0
+    error = np.concatenate([np.asarray(p, dtype=float) - g_wt[:3, 3], np.cross(z_t, wanted),
+                            [roll - theta[_ROLL]]])
+    return error, np.vstack([jac[:3], jac[3:] - np.outer(wanted, wanted @ jac[3:]), roll_row])

@@ -42,6 +42,8 @@ from so101_kinematics.plans import pick_and_place_steps
 from so101_kinematics.servo import LEROBOT
 
 SETTLE_WINDOW_S = 0.2  # the pick/place pose: mean measured pose over the step's last [s]
+MAX_SPEED_DEG_S = 3400 * 360.0 / 4096.0  # [deg/s] the STS3215's fastest (../shared/SERVO_NOTES.md)
+MISREAD_MARGIN_DEG = 1.0  # [deg] beyond twice that speed's travel: no servo moved so (see below)
 COLUMNS = ("t_s", "step", *(f"{kind}_{j}" for kind in ("cmd", "meas") for j in JOINTS))
 """The columns a replay needs (``hw/log.py``'s HEADER has them all)."""
 
@@ -67,6 +69,7 @@ class Comparison:
     notes: list[str] = field(default_factory=list)  # what the log lacked, and what was done
     servo: str = ""  # the arm's servos as the log records them (hw/log.py), replayed so
     sag_deg: dict[str, dict[str, float]] = field(default_factory=dict)  # role -> joint -> [deg]
+    read_s: np.ndarray | None = None  # [s] when each cycle read the arm (the log's wall_s)
 
     def as_json(self) -> dict:
         """The report's numbers (gripper values are in [%], the rest in the keys' units).
@@ -153,11 +156,33 @@ def usable_rows(rows: list[dict[str, str]]) -> tuple[list[dict[str, float | str]
         except (TypeError, ValueError, KeyError):
             broken += 1
             continue
+        try:  # the cycle's actual start: the command went out and the arm was read then
+            parsed["wall_s"] = float(row.get("wall_s") or parsed["t_s"])
+        except ValueError:
+            parsed["wall_s"] = parsed["t_s"]
         if all(math.isfinite(v) for v in parsed.values()):
             usable.append({**parsed, "step": row["step"]})
         else:
             broken += 1
     return usable, broken
+
+
+def misreads(rows: list[dict]) -> list[int]:
+    """The rows whose arm joints jumped further than any servo moves: misread replies.
+
+    A row is one when its measured arm joints jumped from both neighbours (or the only one,
+    at an end) by more than twice the servo's top speed allows (seen on the virtual arm
+    under load: every joint about -2900 deg for one cycle).
+    """
+    if len(rows) < 2:
+        return []
+    t = np.array([r["wall_s"] for r in rows])
+    q = np.array([[r[f"meas_{j}"] for j in ARM_JOINTS] for r in rows])
+    jump = np.abs(np.diff(q, axis=0)).max(axis=1)
+    impossible = jump > 2.0 * MAX_SPEED_DEG_S * np.abs(np.diff(t)) + MISREAD_MARGIN_DEG
+    before = np.concatenate([[impossible[0]], impossible])
+    after = np.concatenate([impossible, [impossible[-1]]])
+    return np.flatnonzero(before & after).tolist()
 
 
 def start_inside_limits(start: dict[str, float], notes: list[str]) -> dict[str, float]:
@@ -228,6 +253,11 @@ def compare_run(path: str | Path) -> Comparison:
     notes = []
     if broken:
         notes.append(f"{broken} row(s) cut short or unreadable were left out (a partial log)")
+    wrong = misreads(rows)
+    if wrong:
+        notes.append(f"{len(wrong)} reading(s) that no servo could move to in time were left out "
+                     f"(misread replies), the first at t = {rows[wrong[0]]['t_s']:.2f} s")
+        rows = [r for k, r in enumerate(rows) if k not in frozenset(wrong)]
     if not isinstance(info.get("start_pose"), dict):
         notes.append(f"no sidecar {sidecar_path(path).name} with the starting pose: the replay "
                      "starts at the first measured pose, on the default servo (the "
@@ -243,11 +273,12 @@ def compare_run(path: str | Path) -> Comparison:
         t, commanded, measured, simulated,
         {j: float(np.max(np.abs(commanded[j] - measured[j]))) for j in JOINTS},
         {j: float(np.sqrt(np.mean((simulated[j] - measured[j]) ** 2))) for j in JOINTS})
+    result.notes = notes
     try:
         result.trims_deg = {j: float(raw[0].get(f"trim_{j}") or 0.0) for j in JOINTS}
     except (TypeError, ValueError):
         result.notes.append("the trims of the first row are unreadable: taken as none")
-    result.notes = notes
+    result.read_s = np.array([r["wall_s"] for r in rows])
     steps = np.array([r["step"] for r in rows])
     try:
         roles = pick_and_place_steps(_plan(info["plan"]))

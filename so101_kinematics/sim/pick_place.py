@@ -18,10 +18,10 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from so101_kinematics import display
+from so101_kinematics import display, straight_line
 from so101_kinematics.errors import ViewerClosed
 from so101_kinematics.fast_fk import forward_kinematics as get_forward_kinematics
-from so101_kinematics.frames import ARM_JOINTS
+from so101_kinematics.frames import ARM_JOINTS, TOOL_SITE
 from so101_kinematics.motion import Plan, PlanError, Step, check_number, run_plan
 from so101_kinematics.paths import REPO
 from so101_kinematics.plans import default_plan, pick_and_place_steps, validate_plan
@@ -83,6 +83,7 @@ class RunReport:
     waypoint_errors_deg: dict[str, float] = field(default_factory=dict)
     video: str | None = None
     servo: str = ""
+    straight_path_deviation_mm: dict[str, float] = field(default_factory=dict)
 
     def summary(self) -> str:
         """Human-readable lines for stdout."""
@@ -122,6 +123,8 @@ class RunReport:
             if self.tilt_deg > TILT_TOLERANCE:
                 reasons.append("it ended tilted")
             lines.append("Result: FAILED - " + "; ".join(reasons or ["incomplete run"]) + ".")
+        if self.straight_path_deviation_mm:
+            lines.append(straight_line.describe(self.straight_path_deviation_mm, "measured"))
         return "\n".join(lines)
 
 
@@ -201,7 +204,7 @@ def run_pick_place(
     pick, place = pick_and_place_steps(plan)
     return execute_plan(
         m, plan, lambda run: _report(m, run.d, plan, run.monitor, run.wall, run.frames,
-                                     run.completed, run.errors, run.video),
+                                     run.completed, run.errors, run.video, run.positions),
         mode=mode, video=video, fps=fps, size=size, camera=camera, quality=quality,
         progress=progress, show_ui=show_ui,
         overlays=target_cubes(pick.configuration, place.configuration))
@@ -218,6 +221,7 @@ class Execution:
     completed: bool  # False: the viewer was closed before the end
     errors: dict[str, float]  # step name -> largest joint error when it ended [deg]
     video: str | None  # the video written, in mode "record"
+    positions: list = field(default_factory=list)  # (step, object frame [m]) at each step's end
 
 
 def execute_plan(m: mujoco.MjModel, plan: Plan, report: Callable[[Execution], object], *,
@@ -250,14 +254,18 @@ def execute_plan(m: mujoco.MjModel, plan: Plan, report: Callable[[Execution], ob
     overlays = list(overlays)
 
     errors: dict[str, float] = {}
+    positions: list[tuple[str, list[float]]] = []
     current: list[Step] = []
 
     def note_reached(step: Step | None) -> None:
         # Called when a step ends: how far the arm is from that step's target.
         if current:
             done = current.pop()
-            measured = scene.get_configuration(m, d)
-            errors[done.name] = max(abs(measured[j] - done.configuration[j]) for j in ARM_JOINTS)
+            positions.append((done.name, d.site(TOOL_SITE).xpos.tolist()))
+            if not straight_line.is_path_sample(done.name):  # a line's samples: its deviation
+                measured = scene.get_configuration(m, d)
+                errors[done.name] = max(abs(measured[j] - done.configuration[j])
+                                        for j in ARM_JOINTS)
         if step is not None:
             current.append(step)
 
@@ -290,7 +298,8 @@ def execute_plan(m: mujoco.MjModel, plan: Plan, report: Callable[[Execution], ob
         if monitor.has_cube:
             monitor.check()
         result = report(Execution(d, monitor, wall, frames, completed, errors,
-                                  str(video or DEFAULT_VIDEO) if mode == "record" else None))
+                                  str(video or DEFAULT_VIDEO) if mode == "record" else None,
+                                  positions))
         if mode == "viewer" and completed:
             print("Done: close the viewer window to see the report.", file=sys.stderr)
             try:
@@ -309,7 +318,8 @@ def execute_plan(m: mujoco.MjModel, plan: Plan, report: Callable[[Execution], ob
     return result
 
 
-def _report(m, d, plan, monitor, wall, frames, completed, errors, video) -> RunReport:
+def _report(m, d, plan, monitor, wall, frames, completed, errors, video,
+            positions=()) -> RunReport:
     """Assemble the run report from the final state."""
     cube_keys = dict.fromkeys(("cube_final_position_m", "cube_target_position_m",
                                "placement_error_m", "tilt_deg", "dropped", "max_lift_m"))
@@ -332,7 +342,8 @@ def _report(m, d, plan, monitor, wall, frames, completed, errors, video) -> RunR
                      realtime_factor=float(d.time) / wall if wall > 0 else float("inf"),
                      frames_written=frames, success=success, completed=completed,
                      waypoint_errors_deg=errors, video=video,
-                     servo=spec.describe() if spec else "")
+                     servo=spec.describe() if spec else "",
+                     straight_path_deviation_mm=straight_line.path_deviations(plan, positions))
 
 
 def choose_mode(headless: bool, record: Path | None, display: bool) -> tuple[str, Path | None]:

@@ -15,9 +15,10 @@ import math
 
 import numpy as np
 
-from so101_kinematics import trajectory_log
+from so101_kinematics import motion_metrics, trajectory_log
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.ik.course import get_inverse_kinematics
+from so101_kinematics.motion_metrics import METRIC_KEYS
 from so101_kinematics.sim import stepping
 from so101_kinematics.sim.scene import gripper_from_radians, joint_table, set_initial_pose
 
@@ -29,8 +30,6 @@ SETTLE_S = 1.0  # [s] held at the start before the log begins: the arm, placed a
                 # first sags onto its servos (not part of any move)
 INITIAL = dict.fromkeys(JOINTS, 0.0)  # the page's all-zero start, gripper 0
 ARM = JOINTS[:5]  # the figures are the arm's joints [deg]; the gripper is in [0, 100]
-METRIC_KEYS = ("tracking_rms_deg", "tracking_max_deg", "peak_velocity_deg_s",
-               "peak_acceleration_deg_s2", "peak_jerk_deg_s3")
 
 
 class StepLog:
@@ -131,21 +130,16 @@ def run_week9(m, d, viewer=None, profile: str = "cubic", velocity: bool | None =
 def metrics(log: StepLog) -> dict[str, float]:
     """Tracking and smoothness of the arm's joints over a log (:data:`METRIC_KEYS`).
 
-    ``tracking_*``: measured minus commanded [deg], RMS over every step and arm joint,
-    and the largest; ``peak_*``: the largest measured speed, acceleration, and jerk
-    (the acceleration's change per step) of any arm joint.
+    ``motion_metrics.metrics`` on the arm's joints, with the physics' own velocity and
+    acceleration (the jerk: the acceleration's change per step).
     """
     a = log.arrays()
     arm = [JOINTS.index(j) for j in ARM]
     if len(a["time"]) < 2:
         return dict.fromkeys(METRIC_KEYS, 0.0)
-    error = a["measured"][:, arm] - a["command"][:, arm]
-    jerk = np.diff(a["acceleration"][:, arm], axis=0) / np.diff(a["time"])[:, None]
-    return {"tracking_rms_deg": float(np.sqrt(np.mean(error**2))),
-            "tracking_max_deg": float(np.abs(error).max()),
-            "peak_velocity_deg_s": float(np.abs(a["velocity"][:, arm]).max()),
-            "peak_acceleration_deg_s2": float(np.abs(a["acceleration"][:, arm]).max()),
-            "peak_jerk_deg_s3": float(np.abs(jerk).max())}
+    exact = motion_metrics.step_derivatives(a["time"], a["velocity"][:, arm],
+                                            a["acceleration"][:, arm])
+    return motion_metrics.metrics(a["time"], a["command"][:, arm], a["measured"][:, arm], exact)
 
 
 def log_frame(log: StepLog):

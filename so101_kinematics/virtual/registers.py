@@ -6,21 +6,22 @@ is in the same frame (so a new Homing_Offset written with torque on moves the
 joint; lerobot writes it with torque off) and is clamped to [Min_Position_Limit,
 Max_Position_Limit] (silently: the STS status byte has no angle-limit bit;
 its bit 1 is the encoder-sensor error). Torque_Enable = 0 makes the joint
-limp (the position actuator's gains are zeroed; gravity and the joint's
-damping and friction act) and, as on the STS, Goal_Position then follows
-Present_Position so re-enabling torque does not jump. Max_Torque_Limit scales
-the actuator's force range. Lock = 0 saves EEPROM writes (addresses < 40) to
-the image restored by :meth:`VirtualSO101.power_cycle`; with Lock = 1 they act
-until the next power cycle. Present_Velocity [ticks/s] and Present_Load
-[0.1 % of the stall torque, sign bit 10] come from the simulation. Acceleration,
-speed limits and the PID coefficients are stored but do not shape the motion:
-the MuJoCo position actuator (upstream's sts3215 gains) does. Only
-Operating_Mode 0 (position) is emulated; in other modes goals are stored but
-the joint keeps its last target. A limp servo's Present_Load is 0 (what moves
-it is outside). Present_Current, Present_Temperature, Present_Voltage and the
-overheat/voltage/overload status bits follow ``virtual/electrical.py``'s model.
+limp (gravity and the joint's damping and friction act) and, as on the STS,
+Goal_Position then follows Present_Position so re-enabling torque does not jump.
+Lock = 0 saves EEPROM writes (addresses < 40) to the image restored by
+:meth:`VirtualSO101.power_cycle`; with Lock = 1 they act until the next power cycle.
+The servo's loop is ``sim/sts3215.py``'s model, fed by :func:`servo_settings`: the
+gains, dead zones, Minimum_Startup_Force, the motion profile (Acceleration,
+Goal_Velocity), the duty cap (Torque_Limit) and the Operating_Mode (0 position, 1
+wheel, 2 PWM with Goal_Time as the duty, 3 step). Goal_Time is not a move's duration
+in position mode: Feetech's STS memory table makes address 44 the PWM mode's duty
+("effective in PWM open-loop speed mode"), and Feetech's SMS_STS driver writes 0 there
+with every position (``WritePosEx``: acceleration, position, time 0, speed); only the
+SCS series' driver passes a time (``SCSCL::WritePos``). Present_Velocity [counts/s],
+Present_Load [0.1 % duty, sign bit 10], Present_Current, Present_Temperature,
+Present_Voltage and the overheat/voltage/overload status bits follow the servo model
+and ``virtual/electrical.py``; a limp servo's Present_Load is 0.
 """
-
 
 from __future__ import annotations
 
@@ -259,7 +260,7 @@ class ServoRegisters:
             self.write_goal(servo, data[0], data[1])
             return
         regs = servo.regs
-        old_id, was_on = servo.id, servo.torque
+        old_id, was_on, old_mode = servo.id, servo.torque, regs[33]
         for i, byte in enumerate(data):
             if addr + i not in READ_ONLY and addr + i < 256:
                 regs[addr + i] = byte
@@ -278,8 +279,8 @@ class ServoRegisters:
                 self.on_setup_write(servo)
         if touched & ({40} | SETTING_ADDRESSES):
             self._apply_torque(servo)
-            if servo.torque and not was_on:
-                self._hold(servo)
+            if servo.torque and (not was_on or (regs[33] == STEP_MODE and old_mode != STEP_MODE)):
+                self._hold(servo)  # step mode steps from where the joint is (a choice)
         if touched & {42, 43, 31, 32, 9, 10, 11, 12, 33}:
             if servo.torque and servo.position_mode:
                 self.d.ctrl[servo.act] = servo.goal_to_angle(servo.get("Goal_Position"))

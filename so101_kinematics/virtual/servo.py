@@ -28,9 +28,12 @@ from so101_kinematics.virtual.protocol import (
 # links to, "Initial value" column; the same values where ftservo/ftservo-wiki's
 # docs/en/reference/parameter/memory-sts.md gives one), except: Return_Delay_Time as lerobot leaves
 # it (see virtual_so101: deviations; a new servo's is FACTORY_RETURN_DELAY), Max_Voltage_Limit
-# 14.0 V (the 12 V C018's; the table's 8.0 V is the 7.4 V C001's, and the virtual arm's supply is
-# 12 V), Lock 1 (the wiki; the spreadsheet says 0). Addresses 80-86 (speed and acceleration
-# factory parameters, read-only) have no public value: they read 0.
+# 14.0 V (the 12 V C018's; the table's 8.0 V is the 7.4 V C001's, and the virtual arm's supply may
+# be 12 V: --supply; 5 V by default), Lock 1 (the wiki; the spreadsheet says 0). Goal_Time (44, the PWM mode's duty): 1000, the
+# wiki's initial value. Addresses 80-86 (the factory parameters: moving-speed threshold, DTs, speed
+# unit coefficient, minimum and maximum speed, acceleration limit and multiplier; read-only) have
+# no public value: the wiki's table gives "-" for each, Feetech's SMS_STS.h does not name them and
+# lerobot's tables.py names them without values. They read 0 (docs/virtual_arm_protocol.md).
 FACTORY = {
     "Firmware_Major_Version": FIRMWARE[0], "Firmware_Minor_Version": FIRMWARE[1],
     "Model_Number": MODEL_NUMBER, "Baud_Rate": 0, "Return_Delay_Time": 0,
@@ -42,7 +45,7 @@ FACTORY = {
     "Homing_Offset": 0, "Operating_Mode": 0, "Protective_Torque": 20, "Protection_Time": 200,
     "Overload_Torque": 80, "Velocity_closed_loop_P_proportional_coefficient": 10,
     "Over_Current_Protection_Time": 200, "Velocity_closed_loop_I_integral_coefficient": 10,
-    "Torque_Enable": 0, "Acceleration": 0, "Torque_Limit": 1000,
+    "Torque_Enable": 0, "Acceleration": 0, "Goal_Time": 1000, "Torque_Limit": 1000,
     "Lock": 1, "Present_Voltage": 120, "Present_Temperature": 25, "Maximum_Acceleration": 0,
 }
 FACTORY_ID = 1  # every STS3215 leaves the factory as ID 1 ...
