@@ -29,11 +29,12 @@ from so101_kinematics.virtual.protocol import (
 # docs/en/reference/parameter/memory-sts.md gives one), except: Return_Delay_Time as lerobot leaves
 # it (see virtual_so101: deviations; a new servo's is FACTORY_RETURN_DELAY), Max_Voltage_Limit
 # 14.0 V (the 12 V C018's; the table's 8.0 V is the 7.4 V C001's, and the virtual arm's supply may
-# be 12 V: --supply; 5 V by default), Lock 1 (the wiki; the spreadsheet says 0). Goal_Time (44, the PWM mode's duty): 1000, the
-# wiki's initial value. Addresses 80-86 (the factory parameters: moving-speed threshold, DTs, speed
-# unit coefficient, minimum and maximum speed, acceleration limit and multiplier; read-only) have
-# no public value: the wiki's table gives "-" for each, Feetech's SMS_STS.h does not name them and
-# lerobot's tables.py names them without values. They read 0 (docs/virtual_arm_protocol.md).
+# be 12 V: --supply; 5 V by default), Lock 1 (the wiki; the spreadsheet says 0). Goal_Time (44,
+# the PWM mode's duty): 1000, the wiki's initial value. Addresses 80-86 (the factory parameters:
+# moving-speed threshold, DTs, speed unit coefficient, minimum and maximum speed, acceleration
+# limit and multiplier; read-only) have no public value: the wiki's table gives "-" for each,
+# Feetech's SMS_STS.h does not name them and lerobot's tables.py names them without values. They
+# read 0 (docs/virtual_arm_protocol.md).
 FACTORY = {
     "Firmware_Major_Version": FIRMWARE[0], "Firmware_Minor_Version": FIRMWARE[1],
     "Model_Number": MODEL_NUMBER, "Baud_Rate": 0, "Return_Delay_Time": 0,
