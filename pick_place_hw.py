@@ -19,22 +19,10 @@ from so101_kinematics.cartesian_plan import add_cartesian_arguments, plan_from_a
 from so101_kinematics.clearance import check_plan_clearance
 from so101_kinematics.cli import requires
 from so101_kinematics.hw.bus import FIND_PORT_HINT, LerobotMissing, connect, disconnect, read_pose
-from so101_kinematics.hw.control import (
-    DEFAULT_RATE_HZ,
-    MAX_JOINT_SPEED_DEG_S,
-    MAX_RATE_HZ,
-    MIN_RATE_HZ,
-    OUTAGE_TOLERANCE_S,
-    SPEED_CAP_LIMIT_DEG_S,
-    TRACKING_TIMEOUT_S,
-    TRACKING_TOLERANCE_DEG,
-    TRACKING_TOLERANCE_LIMIT_DEG,
-    signals_as_interrupt,
-    speed_caps,
-)
+from so101_kinematics.hw.control import OUTAGE_TOLERANCE_S, signals_as_interrupt, speed_caps
 from so101_kinematics.hw.home_check import add_calibration_check_arguments, home_check
-from so101_kinematics.hw.lead import add_velocity_ff_argument
 from so101_kinematics.hw.log import LOG_KIND, CycleLog, plan_record, plot_log, sidecar_path
+from so101_kinematics.hw.options import add_loop_arguments
 from so101_kinematics.hw.run import (
     RELEASE_HINT,
     MotionAborted,
@@ -48,7 +36,7 @@ from so101_kinematics.hw.run import (
 )
 from so101_kinematics.hw.teach import format_configuration, format_plan, outcome_lines, teach
 from so101_kinematics.lab.sheet import PAPER_MM, write_sheet
-from so101_kinematics.motion import SPEED_CAPPED_PROFILES, PlanError, check_number
+from so101_kinematics.motion import PlanError, check_number
 from so101_kinematics.plans import default_plan, load_plan
 from so101_kinematics.straight_line import (
     add_approach_arguments,
@@ -109,21 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--hold", type=float, default=0.5,
                         help="pause after each move of the built-in plan [s] "
                              f"(0-{MAX_MOVE_DURATION_S:g}, default 0.5)")
-    parser.add_argument("--profile", choices=sorted(SPEED_CAPPED_PROFILES),
-                        default="minimum_jerk",
-                        help="time scaling of each move (default minimum_jerk, as the simulator)")
-    add_velocity_ff_argument(parser)
-    parser.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ,
-                        help=f"control loop rate [Hz] ({MIN_RATE_HZ:g}-{MAX_RATE_HZ:g}, "
-                             f"default {DEFAULT_RATE_HZ:g})")
-    parser.add_argument("--max-speed", type=float, default=MAX_JOINT_SPEED_DEG_S,
-                        help=f"speed cap of each arm joint [deg/s] (up to "
-                             f"{SPEED_CAP_LIMIT_DEG_S:g}, default {MAX_JOINT_SPEED_DEG_S:g}); "
-                             "too-short moves are stretched")
-    parser.add_argument("--tracking-tolerance", type=float, default=TRACKING_TOLERANCE_DEG,
-                        help=f"stop when a joint is this far from its command [deg] for "
-                             f"{TRACKING_TIMEOUT_S:g} s (up to {TRACKING_TOLERANCE_LIMIT_DEG:g}, "
-                             f"default {TRACKING_TOLERANCE_DEG:g})")
+    add_loop_arguments(parser)
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--dry-run", action="store_true",
                       help="validate and print the plan and cube positions; send nothing")
