@@ -232,6 +232,10 @@ MUTANTS: list[Mutant] = [
       "if servo.torque and not was_on:",
       f"{T_SDK}::test_step_mode_moves_by_the_counts_written_from_where_the_joint_is"),
     # --- the control loop and its fault policy --------------------------------------------------
+    m("misread_acted_on", "a reading outside the calibrated range taken as the arm's pose",
+      "so101_kinematics/hw/readings.py", "ReadingCheck.__call__",
+      "if not (lower - RANGE_MARGIN <= value <= upper + RANGE_MARGIN):", "if False:",
+      "tests/test_readings.py"),
     m("speed_cap_ignored", "the speed cap ignored: a move never stretched",
       TIMING, "capped_duration", "return max(float(duration), needed)",
       "return float(duration)", T_CONTROL),

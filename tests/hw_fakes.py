@@ -34,7 +34,8 @@ class FakeBus:
     ``stalled`` joints never move; ``fail_reads`` makes the next N sync_reads raise
     ConnectionError as lerobot does when a servo does not answer, and
     ``fail_until`` every read before that time of ``clock`` (an outage);
-    ``status`` holds each servo's Status register (error bits).
+    ``status`` holds each servo's Status register (error bits); ``garbled_reads`` makes the
+    next N position reads a misparsed reply (every arm joint about -2900 deg).
     """
 
     def __init__(self, calibration, pose, stalled=()):
@@ -46,6 +47,7 @@ class FakeBus:
         self.torque = dict.fromkeys(JOINTS, True)
         self.fail_reads = 0
         self.fail_until = 0.0
+        self.garbled_reads = 0  # the next N position reads come back misparsed
         self.clock = None
         self.status = dict.fromkeys(JOINTS, 0)
         self.reads = 0
@@ -71,6 +73,9 @@ class FakeBus:
         if name == "Torque_Enable":
             return {joint: int(on) for joint, on in self.torque.items()}
         self.reads += 1
+        if self.garbled_reads > 0:  # as seen once through lerobot: IDs in the high byte
+            self.garbled_reads -= 1
+            return {j: -2925.7 + 22.5 * k if j != "gripper" else 0.0 for k, j in enumerate(JOINTS)}
         return dict(self.pose)
 
     def disable_torque(self, motors=None, num_retry=0):

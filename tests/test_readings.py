@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+from hw_fakes import HOME, make_session
 
 from so101_forward_kinematics import JOINTS
 from so101_kinematics.hw.readings import Misread, ReadingCheck
@@ -50,3 +51,30 @@ def test_after_a_long_silence_any_pose_in_the_range_is_accepted():
     check = ReadingCheck(LIMITS)
     check(POSE, 0.0)
     assert check(POSE | {"shoulder_pan": 90.0}, 1.0)["shoulder_pan"] == 90.0
+
+
+# --- the control loop never acts on a misread -----------------------------------------------
+def test_a_garbled_reading_mid_move_is_a_failed_read_and_the_move_completes(calibration, clock):
+    def garble(session, cycle):
+        if len(session.cycles) == 30:
+            session.bus.garbled_reads = 1
+
+    session, bus = make_session(calibration, clock, on_cycle=garble)
+    goal = dict(HOME, wrist_flex=0.0)
+    session.move(goal, 1.0)
+    measured = [c.measured for c in session.cycles]
+    assert sum(m is None for m in measured) == 1  # one cycle unobserved, none acted on
+    assert all(m["shoulder_pan"] > -200 for m in measured if m is not None)
+    assert bus.pose == pytest.approx(goal) and session.readings.refused == 1
+
+
+def test_a_controlled_stop_on_a_garbled_reading_never_commands_it(calibration, clock):
+    # Clamped to the calibrated range, the misread would send every joint to its lower limit.
+    session, bus = make_session(calibration, clock)
+    session.move(dict(HOME, wrist_flex=40.0), 0.5)
+    sent = len(bus.goals)
+    bus.garbled_reads = 1
+    assert session.stop_here() is None  # unobserved: the servos hold their last goals
+    assert len(bus.goals) == sent
+    pose = session.wait_for_arm()  # the next reading is the arm's
+    assert pose["wrist_flex"] == pytest.approx(40.0) and bus.goals[-1] == pytest.approx(pose)

@@ -49,6 +49,7 @@ from so101_kinematics.hw.checks import check_status, check_torque, check_trackin
 from so101_kinematics.hw.feedforward import tracking_allowance
 from so101_kinematics.hw.goals import goal_for, guard, send_goal
 from so101_kinematics.hw.lead import VelocityLead
+from so101_kinematics.hw.readings import ReadingCheck
 from so101_kinematics.hw.signals import (  # noqa: F401 - stopping the loop, with the loop
     STOP_SIGNALS,
     gc_frozen,
@@ -75,12 +76,7 @@ from so101_kinematics.hw.timing import (  # noqa: F401 - the loop's time and spe
     speed_caps,
     tracking_tolerances,
 )
-from so101_kinematics.motion import (
-    Configuration,
-    Trajectory,
-    check_configuration,
-    unit,
-)
+from so101_kinematics.motion import Configuration, Trajectory, check_configuration, unit
 from so101_kinematics.trims import Trims, as_trims
 
 logger = logging.getLogger(__name__)
@@ -144,6 +140,7 @@ class ArmSession:
         self.trims = as_trims(trims)  # commands and readings here are the model's angles
         self.feedforward = feedforward
         self.limits = self.trims.limits(calibrated_limits(bus.calibration))
+        self.readings = ReadingCheck(self.limits)  # a misread is a failed read
         self.loop = RateLoop(rate_hz, clock, sleep)
         self.profile = profile
         self.max_speed = dict(max_speed or speed_caps())
@@ -174,8 +171,9 @@ class ArmSession:
 
     # measurement and command
     def _read(self) -> Configuration:
-        """Present_Position of every joint less its trim, retried in the call; raises as the bus."""
-        return self.trims.from_wire(read_pose(self.bus, READ_RETRIES))
+        """Present_Position less trims, retried in the call; raises as the bus, or Misread."""
+        return self.readings(self.trims.from_wire(read_pose(self.bus, READ_RETRIES)),
+                             self.loop.clock())
 
     def read_pose(self) -> Configuration:
         """Present_Position of every joint ([deg]; gripper [0, 100]); raises BusError, PortLost."""
