@@ -54,3 +54,15 @@ def test_fault_at_phase_ends_as_the_policy_says(fault, phase, tmp_path):
         assert drill.at_start and len(drill.torque_off) == len(JOINTS), drill
     if fault in HOLDING:
         assert not drill.torque_off and not drill.completed, drill
+
+
+@pytest.mark.parametrize(("fault", "phase"), [("bus outage 0.5 s", "carry (cube lifted)"),
+                                              ("SIGTERM", "approach")])
+def test_the_cubic_profile_with_the_velocity_lead_ends_as_the_matrix_says(fault, phase, tmp_path):
+    """Week 9's run (``--profile cubic --velocity-ff``): the policy holds as it does by default."""
+    drill = run_drill(fault, phase, tmp_path, velocity_ff=True, profile="cubic")
+    assert drill.goals_outside == 0 and drill.log_rows == drill.cycles > 0
+    if fault in RIDDEN_THROUGH:
+        assert drill.completed, drill.aborted
+    assert drill.at_start and len(drill.torque_off) == len(JOINTS), drill
+    assert drill.last_line.endswith("at the starting pose, torque off."), drill.last_line

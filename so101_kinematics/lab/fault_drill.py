@@ -105,7 +105,7 @@ def _injector(arm, fault: str, step: str):
 
 
 def run_drill(fault: str, phase: str, folder: str | Path | None = None,
-              velocity_ff: bool = False) -> Drill:
+              velocity_ff: bool = False, profile: str = "minimum_jerk") -> Drill:
     """Run the drill plan on a fresh virtual arm with ``fault`` injected at ``phase``.
 
     Args:
@@ -113,6 +113,7 @@ def run_drill(fault: str, phase: str, folder: str | Path | None = None,
         phase: a label of :data:`PHASES`.
         folder: where the CSV log goes (default: a temporary folder).
         velocity_ff: run with the velocity lead (``--velocity-ff``, ``hw/lead.py``).
+        profile: the moves' time scaling (``--profile``).
     """
     from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
 
@@ -131,7 +132,7 @@ def run_drill(fault: str, phase: str, folder: str | Path | None = None,
 
         try:
             result = run_on_arm(arm.port, calibration, drill_plan(), on_cycle=on_cycle,
-                                velocity_ff=velocity_ff)
+                                velocity_ff=velocity_ff, profile=profile)
         except MotionAborted as error:
             result = error.result
         finally:
