@@ -7,7 +7,7 @@ import logging
 import sys
 from pathlib import Path
 
-from so101_kinematics import outputs, stacking
+from so101_kinematics import outputs
 from so101_kinematics.calibration import (
     CalibrationError,
     HardwareError,
@@ -15,7 +15,6 @@ from so101_kinematics.calibration import (
     find_calibration,
     load_calibration,
 )
-from so101_kinematics.cartesian_plan import add_cartesian_arguments, plan_from_arguments
 from so101_kinematics.clearance import check_plan_clearance
 from so101_kinematics.cli import requires
 from so101_kinematics.hw.bus import FIND_PORT_HINT, LerobotMissing, connect, disconnect, read_pose
@@ -36,9 +35,11 @@ from so101_kinematics.hw.run import (
 )
 from so101_kinematics.hw.teach import format_configuration, format_plan, outcome_lines, teach
 from so101_kinematics.lab.sheet import PAPER_MM, write_sheet
-from so101_kinematics.motion import PlanError, check_number
-from so101_kinematics.plans import default_plan, load_plan
-from so101_kinematics.straight_line import (
+from so101_kinematics.planning import stacking
+from so101_kinematics.planning.cartesian_plan import add_cartesian_arguments, plan_from_arguments
+from so101_kinematics.planning.motion import PlanError, check_number
+from so101_kinematics.planning.plans import default_plan, load_plan
+from so101_kinematics.planning.straight_line import (
     add_approach_arguments,
     cycle_deviations,
     describe,

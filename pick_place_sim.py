@@ -17,11 +17,6 @@ from pathlib import Path
 from so101_forward_kinematics import (
     KinematicsInputError,
 )
-from so101_kinematics.cartesian_plan import (
-    CUBE_YAW_RANGE,
-    add_cartesian_arguments,
-    plan_from_arguments,
-)
 from so101_kinematics.cli import (
     EXIT_BAD_INPUT,
     EXIT_INTERRUPTED,
@@ -36,7 +31,6 @@ from so101_kinematics.cli import (
 )
 from so101_kinematics.lab.compare import LogError, draw_report, sidecar_path
 from so101_kinematics.lab.profile_compare import compare_profiles, draw_profiles
-from so101_kinematics.motion import MAX_DURATION, PlanError
 from so101_kinematics.outputs import (
     JSON_REPORT,
     MP4,
@@ -48,7 +42,15 @@ from so101_kinematics.outputs import (
     write_text_atomic,
 )
 from so101_kinematics.paths import REPO
-from so101_kinematics.plans import default_plan, load_plan
+from so101_kinematics.planning.cartesian_plan import (
+    CUBE_YAW_RANGE,
+    add_cartesian_arguments,
+    plan_from_arguments,
+)
+from so101_kinematics.planning.motion import MAX_DURATION, PlanError
+from so101_kinematics.planning.plans import default_plan, load_plan
+from so101_kinematics.planning.stacking import add_stack_arguments, stack_from_arguments
+from so101_kinematics.planning.straight_line import add_approach_arguments, plan_for_approach
 from so101_kinematics.sim.cube import (  # noqa: F401 - the scene, for the tests and notebooks
     CUBE_OFFSET_RANGE_MM,
     CubeStart,
@@ -82,8 +84,6 @@ from so101_kinematics.sim.render import (
 )
 from so101_kinematics.sim.stack import run_stack
 from so101_kinematics.sim.straight import control_period
-from so101_kinematics.stacking import add_stack_arguments, stack_from_arguments
-from so101_kinematics.straight_line import add_approach_arguments, plan_for_approach
 
 
 def _size(text: str) -> tuple[int, int]:

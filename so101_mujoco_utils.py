@@ -41,11 +41,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from so101_kinematics import trajectory_log
 from so101_kinematics.display import has_display  # noqa: F401 - the scripts' display check
 from so101_kinematics.errors import CallShapeError, ViewerClosed  # noqa: F401
 from so101_kinematics.frames import GRIPPER_RANGE, JOINTS, TOOL_SITE  # noqa: F401
 from so101_kinematics.ik.blocks import pick_up_moves, place_moves
+from so101_kinematics.planning import trajectory_log
+from so101_kinematics.planning.trajectory_log import plot_data  # noqa: F401 - week 8's plot
 from so101_kinematics.sim import scene, tracking
 from so101_kinematics.sim.scene import (  # noqa: F401 - the course's names
     MODEL_DIR,
@@ -71,7 +72,6 @@ from so101_kinematics.sim.stepping import (  # noqa: F401
     hold_position,
     move_to_pose,
 )
-from so101_kinematics.trajectory_log import plot_data  # noqa: F401 - week 8's plot
 
 
 def set_initial_pose(d, position_dict: Mapping[str, float]) -> None:

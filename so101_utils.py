@@ -74,8 +74,8 @@ from so101_kinematics.hw.course import (  # noqa: F401 - the course's helpers an
 )
 from so101_kinematics.hw.course import setup_motors as _setup_motors
 from so101_kinematics.ik.blocks import pick_up_moves, place_moves
-from so101_kinematics.motion import check_configuration
-from so101_kinematics.trajectory_log import (  # noqa: F401 - week 8's plot
+from so101_kinematics.planning.motion import check_configuration
+from so101_kinematics.planning.trajectory_log import (  # noqa: F401 - week 8's plot
     logging_frame,
     plot_data,
     require_pandas,
@@ -154,7 +154,7 @@ def move_to_pose_cubic(bus, *args, desired_position=MISSING, duration=MISSING,
     Per joint ``q(t) = a0 + a1 t + a2 t^2 + a3 t^3`` with ``a0`` the start,
     ``a1 = 0``, ``a2 = 3 (qf - q0) / T^2``, ``a3 = -2 (qf - q0) / T^3`` (zero
     velocity at both ends), ``t`` clipped to ``[0, duration]``
-    (``so101_kinematics/profiles.py``). Same shapes, checks, speed cap (its
+    (``so101_kinematics/planning/profiles.py``). Same shapes, checks, speed cap (its
     peak is 1.5 times the mean speed) and fault policy as :func:`move_to_pose`:
     ``move_to_pose_cubic(bus, desired_position, duration)`` or
     ``move_to_pose_cubic(bus, starting_position, desired_position, duration)``.

@@ -24,7 +24,6 @@ from so101_kinematics.cli import (
     range_help,
     report_unexpected,
 )
-from so101_kinematics.motion import MAX_DURATION, PlanError
 from so101_kinematics.outputs import (
     PNG,
     OutputPathError,
@@ -33,6 +32,7 @@ from so101_kinematics.outputs import (
     text_kind,
     write_text_atomic,
 )
+from so101_kinematics.planning.motion import MAX_DURATION, PlanError
 from so101_kinematics.sim.fk_pictures import (  # noqa: F401 - the pictures, for the tests
     DEFAULT_SCREENSHOT,
     FRAMES_PATH,

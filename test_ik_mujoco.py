@@ -28,7 +28,6 @@ from so101_kinematics.cli import (
     zero_duration_warning,
 )
 from so101_kinematics.errors import KinematicsInputError, RenderError
-from so101_kinematics.motion import MAX_DURATION, PlanError
 from so101_kinematics.outputs import (
     JSON_REPORT,
     MP4,
@@ -38,6 +37,7 @@ from so101_kinematics.outputs import (
     stamp,
     write_text_atomic,
 )
+from so101_kinematics.planning.motion import MAX_DURATION, PlanError
 from so101_kinematics.sim import actuation
 from so101_kinematics.sim.ik_demo import (  # noqa: F401 - the pieces, for the tests
     POSITION_TOLERANCE,

@@ -23,7 +23,6 @@ from so101_kinematics.cli import (
     servo_from_arguments,
 )
 from so101_kinematics.errors import KinematicsInputError, RenderError
-from so101_kinematics.motion import PROFILES, PlanError
 from so101_kinematics.outputs import (
     JSON_REPORT,
     MP4,
@@ -35,6 +34,7 @@ from so101_kinematics.outputs import (
     write_text_atomic,
 )
 from so101_kinematics.outputs import atomic_output as _atomic_output
+from so101_kinematics.planning.motion import PROFILES, PlanError
 from so101_kinematics.sim import actuation, straight, tracking
 from so101_kinematics.sim.ik_demo import open_scene
 from so101_mujoco_utils import MODEL_DIR, ViewerClosed, load_model

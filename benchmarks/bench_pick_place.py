@@ -41,7 +41,7 @@ def bench_pick_place(quick: bool) -> dict:
 
     from benchmarks.common import summarize
     from pick_place_sim import CubeStart, build_model, run_pick_place
-    from so101_kinematics.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION
+    from so101_kinematics.planning.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION
     from so101_kinematics.sim.render import QUALITY, FrameRenderer, target_cubes
 
     out: dict = {}

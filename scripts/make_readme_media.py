@@ -18,8 +18,8 @@ import numpy as np  # noqa: E402
 
 import so101_mujoco_utils as utils  # noqa: E402
 from pick_place_sim import INITIAL_KEYFRAME, CubeStart, build_model, total_duration  # noqa: E402
-from so101_kinematics.motion import run_plan  # noqa: E402
-from so101_kinematics.plans import default_plan, pick_and_place_steps  # noqa: E402
+from so101_kinematics.planning.motion import run_plan  # noqa: E402
+from so101_kinematics.planning.plans import default_plan, pick_and_place_steps  # noqa: E402
 from so101_kinematics.sim.render import QUALITY, FrameRenderer, target_cubes  # noqa: E402
 
 PNG_PATH = REPO / "docs" / "pick_place.png"

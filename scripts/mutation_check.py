@@ -179,7 +179,7 @@ MUTANTS: list[Mutant] = [
       "tests/test_fk_screenshot.py::test_frames_picture_renders"),
     # --- motion and the simulation ---------------------------------------------------------
     m("minimum_jerk_linear", "minimum jerk replaced by linear time scaling",
-      "so101_kinematics/profiles.py", "minimum_jerk",
+      "so101_kinematics/planning/profiles.py", "minimum_jerk",
       "return s * s * s * (10.0 + s * (-15.0 + 6.0 * s))", "return s", T_CONTROL),
     m("ik_elbow_branch", "the IK tries only one elbow branch",
       "so101_kinematics/ik/search.py", "_Search.try_pitch", "for elbow in (1.0, -1.0):",
@@ -203,10 +203,10 @@ MUTANTS: list[Mutant] = [
     # --- straight lines in task space (issue 27) ----------------------------------------------
     m("straight_line_linear_time", "the line's cubic time scaling dropped (s for f(s)): the "
       "object frame starts and stops at full speed",
-      "so101_kinematics/straight_line.py", "straight_path", "f = cubic(s)", "f = s",
+      "so101_kinematics/planning/straight_line.py", "straight_path", "f = cubic(s)", "f = s",
       f"{T_LINE}::test_the_ik_line_follows_the_cubic_time_scaling_with_zero_end_speeds"),
     m("cubic_a3_sign", "the cubic's a3 with the wrong sign (3 s^2 + 2 s^3): the line overshoots "
-      "its end", "so101_kinematics/profiles.py", "cubic", "return s * s * (3.0 - 2.0 * s)",
+      "its end", "so101_kinematics/planning/profiles.py", "cubic", "return s * s * (3.0 - 2.0 * s)",
       "return s * s * (3.0 + 2.0 * s)",
       f"{T_LINE}::test_the_ik_line_follows_the_cubic_time_scaling_with_zero_end_speeds"),
     m("straight_line_tilt_sign", "the approach axis's tilt error with the wrong sign (cross "
@@ -319,7 +319,7 @@ MUTANTS: list[Mutant] = [
       "tests/test_traj_checker.py"),
     # --- the write-up's comparison of profiles from real runs (issue 27, Deliver 8) -------
     m("fitted_jerk_factor", "the fitted cubic's third derivative taken as 2 c3 (not 3! c3)",
-      "so101_kinematics/motion_metrics.py", "fitted_derivatives",
+      "so101_kinematics/planning/motion_metrics.py", "fitted_derivatives",
       "6.0 * c[:, 3] / scale**3", "2.0 * c[:, 3] / scale**3", T_PROFILES),
     m("misread_reply_kept", "a misread reply (-2900 deg for one cycle) kept in the figures",
       "so101_kinematics/lab/compare.py", "compare_run", "    if wrong:\n", "    if False:\n",

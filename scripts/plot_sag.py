@@ -19,7 +19,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 from so101_kinematics.frames import JOINTS, TOOL_SITE  # noqa: E402
-from so101_kinematics.plans import STARTING_CONFIGURATION  # noqa: E402
+from so101_kinematics.planning.plans import STARTING_CONFIGURATION  # noqa: E402
 from so101_kinematics.sim import actuation  # noqa: E402
 from so101_kinematics.sim.scene import load_model, set_initial_pose  # noqa: E402
 

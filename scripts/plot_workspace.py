@@ -28,8 +28,8 @@ from so101_kinematics.outputs import (  # noqa: E402
     add_overwrite_argument,
     check_output_path,
 )
-from so101_kinematics.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION  # noqa: E402
-from so101_kinematics.stacking import (  # noqa: E402
+from so101_kinematics.planning.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION  # noqa: E402
+from so101_kinematics.planning.stacking import (  # noqa: E402
     COURSE_BLOCK_HEIGHTS,
     LAB_BASE_HEIGHT,
     min_target_height,

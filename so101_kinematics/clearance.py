@@ -15,7 +15,7 @@ was put in by hand) may move as long as it never goes lower than where it
 started: it can always get out of where it is.
 
 Example:
-    >>> from so101_kinematics.plans import STARTING_CONFIGURATION
+    >>> from so101_kinematics.planning.plans import STARTING_CONFIGURATION
     >>> height, part = lowest_point(STARTING_CONFIGURATION)
     >>> round(height * 1000, 1), part  # the course's grasp: the cube's centre 13 mm up
     (13.0, 'object_frame')
@@ -221,7 +221,7 @@ def check_plan_clearance(plan, start: Mapping[str, float] | None = None, *,
     """:func:`check_path` over a plan: its steps in order, then the return to ``start``.
 
     Args:
-        plan: a :class:`~so101_kinematics.motion.Plan` (validated configurations).
+        plan: a :class:`~so101_kinematics.planning.motion.Plan` (validated configurations).
         start: where the arm stands (measured); None before the port is open: then the
             path is checked from the first waypoint on, every point to the full margin
             (the move from the arm's pose is checked when it starts).

@@ -14,7 +14,7 @@ import math
 import sys
 from collections.abc import Callable
 
-from so101_kinematics.motion import format_range
+from so101_kinematics.planning.motion import format_range
 
 EXIT_BAD_INPUT = 2
 """Exit status for input the script refuses (nothing ran)."""

@@ -60,8 +60,8 @@ def run_default_plan(m, d, after_step) -> None:
     import mujoco
 
     import so101_mujoco_utils as utils
-    from so101_kinematics.motion import run_plan
-    from so101_kinematics.plans import default_plan
+    from so101_kinematics.planning.motion import run_plan
+    from so101_kinematics.planning.plans import default_plan
 
     mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
     mujoco.mj_forward(m, d)

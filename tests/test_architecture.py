@@ -24,7 +24,7 @@ imports the other; the core imports no backend; nothing imports the course's fil
 
 
 def layer(module: str) -> str:
-    """so101_kinematics.hw.bus -> "hw"; so101_kinematics.motion -> "core"."""
+    """so101_kinematics.hw.bus -> "hw"; so101_kinematics.planning.motion -> "core"."""
     parts = module.split(".")
     return parts[1] if len(parts) > 2 and parts[1] in MAY_IMPORT else "core"
 

@@ -16,8 +16,8 @@ from so101_kinematics import clearance
 from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.errors import ClearanceError
 from so101_kinematics.frames import JOINTS
-from so101_kinematics.plans import STARTING_CONFIGURATION, default_plan, load_plan
-from so101_kinematics.stacking import LAB_BASE_HEIGHT, stack_plan
+from so101_kinematics.planning.plans import STARTING_CONFIGURATION, default_plan, load_plan
+from so101_kinematics.planning.stacking import LAB_BASE_HEIGHT, stack_plan
 
 # The object frame under the table (the case, there 17.6 mm): the course's grasp
 # with the shoulder 8 deg further down.

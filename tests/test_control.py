@@ -24,8 +24,8 @@ from so101_kinematics.hw.control import (
     peak_speed_factor,
     speed_caps,
 )
-from so101_kinematics.motion import JointLimitError
-from so101_kinematics.plans import default_plan
+from so101_kinematics.planning.motion import JointLimitError
+from so101_kinematics.planning.plans import default_plan
 
 REPO = Path(__file__).resolve().parent.parent
 VIRTUAL_CALIBRATION = REPO / "calibration" / "virtual_so101.json"
@@ -34,7 +34,7 @@ VIRTUAL_CALIBRATION = REPO / "calibration" / "virtual_so101.json"
 # --- speed cap ---------------------------------------------------------------------------
 @pytest.mark.parametrize("profile", ["linear", "minimum_jerk"])
 def test_peak_speed_factors_are_the_profiles_steepest_slope(profile):
-    from so101_kinematics.motion import PROFILES
+    from so101_kinematics.planning.motion import PROFILES
 
     s = np.linspace(0.0, 1.0, 200_001)
     slope = np.diff([PROFILES[profile](x) for x in s]) / np.diff(s)

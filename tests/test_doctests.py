@@ -12,7 +12,7 @@ COURSE = ["so101_forward_kinematics", "so101_inverse_kinematics"]
 PACKAGE = sorted(info.name for info in pkgutil.walk_packages(so101_kinematics.__path__,
                                                              "so101_kinematics."))
 MUST_TEACH = {"so101_forward_kinematics", "so101_inverse_kinematics",
-              "so101_kinematics.cartesian_plan", "so101_kinematics.motion",
+              "so101_kinematics.planning.cartesian_plan", "so101_kinematics.planning.motion",
               "so101_kinematics.sim.meshes"}
 """Modules whose worked examples are part of what they teach: they must have some."""
 

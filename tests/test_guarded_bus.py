@@ -16,7 +16,7 @@ import so101_kinematics.hw.course as course
 from so101_kinematics.calibration import load_calibration
 from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.hw.timing import MAX_JOINT_SPEED_DEG_S
-from so101_kinematics.plans import STARTING_CONFIGURATION
+from so101_kinematics.planning.plans import STARTING_CONFIGURATION
 
 pytestmark = pytest.mark.hw
 CALIBRATION_PATH = Path(__file__).resolve().parent.parent / "calibration" / "virtual_so101.json"

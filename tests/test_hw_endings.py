@@ -24,7 +24,7 @@ from so101_forward_kinematics import ARM_JOINTS  # noqa: E402
 from so101_kinematics.calibration import load_calibration  # noqa: E402
 from so101_kinematics.constants import HOME_POSE  # noqa: E402
 from so101_kinematics.hw.bus import connect, disconnect, silent_servos  # noqa: E402
-from so101_kinematics.motion import Plan, Step  # noqa: E402
+from so101_kinematics.planning.motion import Plan, Step  # noqa: E402
 from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent

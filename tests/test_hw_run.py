@@ -13,8 +13,8 @@ from so101_kinematics.calibration import (
     ServoCalibration,
 )
 from so101_kinematics.hw.control import FreezeRequested
-from so101_kinematics.motion import JointLimitError, Plan, PlanError, Step
-from so101_kinematics.plans import default_plan
+from so101_kinematics.planning.motion import JointLimitError, Plan, PlanError, Step
+from so101_kinematics.planning.plans import default_plan
 
 REPO = Path(__file__).resolve().parent.parent
 VIRTUAL_CALIBRATION = REPO / "calibration" / "virtual_so101.json"

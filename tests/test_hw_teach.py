@@ -12,7 +12,7 @@ from so101_forward_kinematics import get_forward_kinematics
 from so101_kinematics.hw.control import (
     speed_caps,
 )
-from so101_kinematics.plans import default_plan, pick_and_place_steps
+from so101_kinematics.planning.plans import default_plan, pick_and_place_steps
 
 REPO = Path(__file__).resolve().parent.parent
 VIRTUAL_CALIBRATION = REPO / "calibration" / "virtual_so101.json"

@@ -11,8 +11,8 @@ import pytest
 from conftest import REPO
 
 import so101_inverse_kinematics as ik
-import so101_kinematics.cartesian_plan as cp
-import so101_kinematics.plans as plans
+import so101_kinematics.planning.cartesian_plan as cp
+import so101_kinematics.planning.plans as plans
 from so101_forward_kinematics import ARM_JOINTS, JOINTS, get_forward_kinematics, get_gw1
 from so101_kinematics.errors import PlanError
 

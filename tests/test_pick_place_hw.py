@@ -35,8 +35,8 @@ from so101_kinematics.hw.bus import (  # noqa: E402
     connect,
     disconnect,
 )
-from so101_kinematics.motion import JointLimitError, Plan, Step  # noqa: E402
-from so101_kinematics.plans import default_plan  # noqa: E402
+from so101_kinematics.planning.motion import JointLimitError, Plan, Step  # noqa: E402
+from so101_kinematics.planning.plans import default_plan  # noqa: E402
 from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
 
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)

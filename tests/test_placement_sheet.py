@@ -17,7 +17,7 @@ import pytest
 import pick_place_hw
 from so101_forward_kinematics import get_forward_kinematics, get_gw1
 from so101_kinematics.lab.sheet import CUBE_COLOR, ORIGIN_COLOR, PAN_AXIS_COLOR, SCALE_BAR_COLOR
-from so101_kinematics.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION
+from so101_kinematics.planning.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION
 
 MM_PER_PT = 25.4 / 72.0
 PAPER = {"a4": (210.0, 297.0), "letter": (215.9, 279.4)}  # ISO 216 and ANSI: [mm]

@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 
 import pick_place_sim
-from so101_kinematics import motion_metrics
 from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.log import HEADER, sidecar_path
 from so101_kinematics.lab.profile_compare import DEFAULT_PROFILE, compare_profiles
+from so101_kinematics.planning import motion_metrics
 
 RATE_HZ = 100.0  # [Hz] pick_place_hw.py's default loop rate
 COUNT_DEG = 360.0 / 4096.0  # [deg] one encoder count (../shared/SERVO_NOTES.md)

@@ -17,7 +17,7 @@ import pick_place_hw as cli
 from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.errors import PlanError
 from so101_kinematics.frames import ARM_JOINTS
-from so101_kinematics.plans import STARTING_CONFIGURATION, load_plan
+from so101_kinematics.planning.plans import STARTING_CONFIGURATION, load_plan
 
 CALIBRATION_PATH = Path(__file__).resolve().parent.parent / "calibration" / "virtual_so101.json"
 

@@ -9,7 +9,7 @@ import pytest
 import so101_kinematics.sim.meshes as so101_meshes
 from pick_place_sim import CubeStart, build_model
 from so101_forward_kinematics import get_forward_kinematics
-from so101_kinematics.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION
+from so101_kinematics.planning.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION
 from so101_kinematics.sim.render import (
     FINAL_RGBA,
     QUALITY,

@@ -25,7 +25,7 @@ from so101_kinematics.hw.bus import (  # noqa: E402
     disconnect,
     enable_torque_in_place,
 )
-from so101_kinematics.plans import default_plan, pick_and_place_steps  # noqa: E402
+from so101_kinematics.planning.plans import default_plan, pick_and_place_steps  # noqa: E402
 from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
 
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
@@ -120,7 +120,7 @@ def test_through_the_course_helpers_the_start_pose_rests_within_half_a_degree(co
     # joint; without it the shoulder sags degrees.
     import so101_kinematics.hw.course as course
     import so101_utils
-    from so101_kinematics.plans import STARTING_CONFIGURATION
+    from so101_kinematics.planning.plans import STARTING_CONFIGURATION
 
     def rest(gravity_ff: bool) -> float:
         bus = so101_utils.setup_motors(so101_utils.load_calibration(str(DEFAULT_CALIBRATION_PATH)),

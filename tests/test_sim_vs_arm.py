@@ -14,7 +14,7 @@ import pick_place_sim
 from so101_forward_kinematics import get_forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS
 from so101_kinematics.hw.log import sidecar_path
-from so101_kinematics.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION
+from so101_kinematics.planning.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION
 
 pytestmark = [pytest.mark.hw, pytest.mark.slow]
 OFFSET_DEG = 3.0
@@ -106,7 +106,7 @@ def read_rows(log):
 def test_a_run_stopped_before_the_pick_is_compared(hw_log, tmp_path, capsys):
     """Ctrl-C during the first move: the log has no cycle of the pick or the place step."""
     from so101_kinematics.lab.compare import _plan
-    from so101_kinematics.plans import pick_and_place_steps
+    from so101_kinematics.planning.plans import pick_and_place_steps
 
     info = json.loads(sidecar_path(hw_log).read_text())
     pick, _ = pick_and_place_steps(_plan(info["plan"]))

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 import pick_place_sim
-from so101_kinematics.motion import PlanError
+from so101_kinematics.planning.motion import PlanError
+from so101_kinematics.planning.stacking import block_height, default_starts, stack_plan
 from so101_kinematics.sim.cube import build_model
 from so101_kinematics.sim.stack import run_stack, stack_report
-from so101_kinematics.stacking import block_height, default_starts, stack_plan
 
 STACK = (0.15, 0.10)  # [m] a stack to the side of the arm's rest pose, well inside the reach
 

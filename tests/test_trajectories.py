@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from so101_kinematics.frames import JOINTS
-from so101_kinematics.motion import PROFILES, PlanError, Trajectory
-from so101_kinematics.profiles import cubic_coefficients, quintic_coefficients
+from so101_kinematics.planning.motion import PROFILES, PlanError, Trajectory
+from so101_kinematics.planning.profiles import cubic_coefficients, quintic_coefficients
 
 REPO = Path(__file__).resolve().parent.parent
 VELOCITY_SCENE = REPO / "model" / "scene_with_velocity.xml"

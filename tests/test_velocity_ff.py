@@ -20,8 +20,8 @@ from so101_kinematics import servo
 from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.lead import VelocityLead, lag_time, lead_for
-from so101_kinematics.motion import Plan, Step, Trajectory
 from so101_kinematics.paths import DOCS_DIR
+from so101_kinematics.planning.motion import Plan, Step, Trajectory
 
 # The hand calculation ([BAM]: kt = 1.2116 N m/A, R = 2.676 ohm, viscous 0.0591 N m s/rad;
 # [TEL]: P/4 of 0.1 % duty per count; 4096 counts a turn): the servo's lag per unit speed

@@ -26,8 +26,8 @@ from benchmarks.bench_hw import measure_cycle, virtual_arm_bus
 from so101_forward_kinematics import JOINTS
 from so101_kinematics import servo
 from so101_kinematics.gravity import feedforward
-from so101_kinematics.motion import JointLimitError
 from so101_kinematics.paths import REPO
+from so101_kinematics.planning.motion import JointLimitError
 from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
 
 TICK_DEG = 360.0 / 4095.0  # one encoder tick [deg]

@@ -1,7 +1,7 @@
 """Stacking through the real hardware path: lerobot's bus against the virtual arm with two cubes.
 
 The virtual arm's cubes are the simulator's (friction only); the stacking plan
-(so101_kinematics.stacking) runs through run_on_arm as pick_place_hw.py --stack
+(so101_kinematics.planning.stacking) runs through run_on_arm as pick_place_hw.py --stack
 does, and the bus's cube sensor tells where every cube ended.
 """
 
@@ -19,8 +19,8 @@ from so101_kinematics.calibration import load_calibration  # noqa: E402
 from so101_kinematics.errors import CubePositionError  # noqa: E402
 from so101_kinematics.hw import run as hw  # noqa: E402
 from so101_kinematics.hw.bus import connect, disconnect, read_cube_sensors  # noqa: E402
-from so101_kinematics.stack_report import stack_outcome  # noqa: E402
-from so101_kinematics.stacking import stack_plan  # noqa: E402
+from so101_kinematics.planning.stack_report import stack_outcome  # noqa: E402
+from so101_kinematics.planning.stacking import stack_plan  # noqa: E402
 from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
 
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)

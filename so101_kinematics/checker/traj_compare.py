@@ -2,7 +2,7 @@
 
 The probe (``traj_probe.py``) records the controls at every ``mujoco.mj_step``; here they
 are turned back into the student's units (arm [deg], gripper [0, 100]) and compared with
-the course's cubic (:func:`so101_kinematics.profiles.cubic_coefficients`, time clipped to
+the course's cubic (:func:`so101_kinematics.planning.profiles.cubic_coefficients`, time clipped to
 ``[0, duration]``) sample by sample, allowing the command to be read one step early or
 late (whether ``t`` is taken before or after the step is the student's choice). A move
 that is off is then explained, most basic first: no command, units, where it starts,
@@ -19,7 +19,7 @@ import numpy as np
 
 from so101_kinematics.checker.traj_fallback import FALLBACK_UTILS
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
-from so101_kinematics.profiles import cubic_coefficients
+from so101_kinematics.planning.profiles import cubic_coefficients
 
 TIMESTEP_S = 0.004
 """The stand-in's ``m.opt.timestep`` [s]: the project's model (``model/so101.xml``, ``<option

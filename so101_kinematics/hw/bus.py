@@ -39,7 +39,7 @@ from so101_kinematics.errors import (  # noqa: F401 - the family, re-exported
 )
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.port import FIND_PORT_HINT, claim_port, port_users  # noqa: F401
-from so101_kinematics.motion import Configuration, Limits, unit
+from so101_kinematics.planning.motion import Configuration, Limits, unit
 
 logger = logging.getLogger(__name__)
 

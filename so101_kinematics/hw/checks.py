@@ -10,7 +10,7 @@ from collections.abc import Mapping
 
 from so101_kinematics.errors import ServoFault, TorqueLost, TrackingError
 from so101_kinematics.hw.bus import discard_stale_input, recover_port
-from so101_kinematics.motion import Configuration, unit
+from so101_kinematics.planning.motion import Configuration, unit
 
 STATUS_BITS = {0x01: "input voltage out of range", 0x04: "overheated", 0x08: "overcurrent",
                0x20: "overloaded"}

@@ -76,7 +76,7 @@ from so101_kinematics.hw.timing import (  # noqa: F401 - the loop's time and spe
     speed_caps,
     tracking_tolerances,
 )
-from so101_kinematics.motion import Configuration, Trajectory, check_configuration, unit
+from so101_kinematics.planning.motion import Configuration, Trajectory, check_configuration, unit
 from so101_kinematics.trims import Trims, as_trims
 
 logger = logging.getLogger(__name__)

@@ -80,7 +80,7 @@ from so101_kinematics.hw.run import (
     format_pose,
     starting_pose,
 )
-from so101_kinematics.motion import Configuration
+from so101_kinematics.planning.motion import Configuration
 from so101_kinematics.trims import Trims, as_trims
 
 logger = logging.getLogger("so101_utils")

@@ -17,7 +17,7 @@ from so101_kinematics.errors import JointLimitError
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.gravity import Feedforward
 from so101_kinematics.hw.bus import PortLost, clamp_to_limits, port_lost
-from so101_kinematics.motion import Configuration, Limits
+from so101_kinematics.planning.motion import Configuration, Limits
 from so101_kinematics.trims import Trims
 
 logger = logging.getLogger(__name__)

@@ -25,7 +25,7 @@ from so101_kinematics.cli import add_gravity_ff_argument
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.run import MotionAborted, ending, format_pose, run_on_arm
-from so101_kinematics.motion import Configuration, Plan, Step
+from so101_kinematics.planning.motion import Configuration, Plan, Step
 from so101_kinematics.trims import TRIM_LIMIT_DEG, as_trims
 
 HOME_CONFIGURATION = dict.fromkeys(JOINTS, 0.0)  # the course's home: every joint 0, gripper 0

@@ -41,7 +41,7 @@ from collections.abc import Callable, Mapping
 from so101_kinematics import servo
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.gravity import Feedforward
-from so101_kinematics.motion import Trajectory
+from so101_kinematics.planning.motion import Trajectory
 
 LEAD_CAP_DEG = 10.0
 """The largest lead of any joint [deg] (gripper [%]). The lag the servo model gives at the

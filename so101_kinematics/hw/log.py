@@ -17,7 +17,6 @@ from pathlib import Path
 
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.control import ArmSession, Cycle
-from so101_kinematics.motion import Plan, unit
 from so101_kinematics.outputs import (
     OutputKind,
     atomic_output,
@@ -26,6 +25,7 @@ from so101_kinematics.outputs import (
     temporary_beside,
     write_text_atomic,
 )
+from so101_kinematics.planning.motion import Plan, unit
 from so101_kinematics.trims import Trims
 
 FLUSH_EVERY_S = 0.5  # the log reaches the disk at least this often [s of run time]

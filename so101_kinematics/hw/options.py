@@ -19,7 +19,7 @@ from so101_kinematics.hw.control import (
     TRACKING_TOLERANCE_LIMIT_DEG,
 )
 from so101_kinematics.hw.lead import add_velocity_ff_argument
-from so101_kinematics.motion import SPEED_CAPPED_PROFILES
+from so101_kinematics.planning.motion import SPEED_CAPPED_PROFILES
 
 
 def add_loop_arguments(parser: argparse.ArgumentParser) -> None:

@@ -14,8 +14,8 @@ from so101_kinematics.calibration import calibrated_limits
 from so101_kinematics.frames import JOINT_LIMITS
 from so101_kinematics.hw.control import TRACKING_TOLERANCE_LIMIT_DEG
 from so101_kinematics.hw.timing import SPEED_CAP_LIMIT_DEG_S, check_rate
-from so101_kinematics.motion import JointLimitError, Plan, check_number
-from so101_kinematics.plans import validate_plan
+from so101_kinematics.planning.motion import JointLimitError, Plan, check_number
+from so101_kinematics.planning.plans import validate_plan
 from so101_kinematics.trims import Trims, as_trims
 
 

@@ -67,7 +67,7 @@ from so101_kinematics.hw.preflight import (  # noqa: F401 - the run's checks, re
     check_run_settings,
     validate_plan_for_arm,
 )
-from so101_kinematics.motion import (
+from so101_kinematics.planning.motion import (
     Configuration,
     Plan,
     Step,

@@ -8,14 +8,14 @@ import sys
 import time
 from collections.abc import Mapping
 
-from so101_kinematics import stack_report
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.bus import PortLost, port_lost, read_pose, recover_port
 from so101_kinematics.hw.control import READ_RETRIES, RECOVERY_TIMEOUT_S, RateLoop, capped_duration
-from so101_kinematics.motion import Configuration, Plan
-from so101_kinematics.plans import GRIPPER_CLOSED, pick_and_place_steps
-from so101_kinematics.straight_line import is_path_sample
+from so101_kinematics.planning import stack_report
+from so101_kinematics.planning.motion import Configuration, Plan
+from so101_kinematics.planning.plans import GRIPPER_CLOSED, pick_and_place_steps
+from so101_kinematics.planning.straight_line import is_path_sample
 
 TEACH_RATE_HZ = 5.0        # live pose printing [Hz]
 MAX_TEACH_RATE_HZ = 50.0   # a terminal cannot show more [Hz]

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 from so101_kinematics.frames import JOINTS
-from so101_kinematics.motion import (
+from so101_kinematics.planning.motion import (
     PROFILES,
     SPEED_CAPPED_PROFILES,
     Configuration,

@@ -17,7 +17,7 @@ from so101_kinematics.frames import (
     joint_angles,
     joint_transform,
 )
-from so101_kinematics.plans import STARTING_CONFIGURATION
+from so101_kinematics.planning.plans import STARTING_CONFIGURATION
 
 MIN_HEIGHT = CUBE_HALF_SIZE - 0.001
 """Lowest object-frame height accepted by default [m]: a cube centre at most 1 mm into the table."""

@@ -46,7 +46,7 @@ from so101_kinematics.ik.search import (
     _pitch_windows,
     _Search,
 )
-from so101_kinematics.motion import check_number, describe_value, is_finite_number
+from so101_kinematics.planning.motion import check_number, describe_value, is_finite_number
 
 
 # ---------------------------------------------------------------------------

@@ -36,9 +36,9 @@ from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.gravity import feedforward
 from so101_kinematics.hw.log import sidecar_path
-from so101_kinematics.motion import Plan, Step
 from so101_kinematics.outputs import atomic_output
-from so101_kinematics.plans import pick_and_place_steps
+from so101_kinematics.planning.motion import Plan, Step
+from so101_kinematics.planning.plans import pick_and_place_steps
 from so101_kinematics.servo import LEROBOT
 
 SETTLE_WINDOW_S = 0.2  # the pick/place pose: mean measured pose over the step's last [s]

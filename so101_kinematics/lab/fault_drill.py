@@ -23,8 +23,8 @@ from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.log import CycleLog
 from so101_kinematics.hw.run import RELEASE_HINT, MotionAborted, ending, run_on_arm
-from so101_kinematics.motion import Plan, Step
 from so101_kinematics.paths import DOCS_DIR
+from so101_kinematics.planning.motion import Plan, Step
 
 DOC_PATH = DOCS_DIR / "hardware_safety.md"
 AT_START_DEG = 2.0  # "at the start": every arm joint within this of its starting angle [deg]

@@ -28,11 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
-from so101_kinematics import motion_metrics
 from so101_kinematics.frames import ARM_JOINTS
 from so101_kinematics.lab.compare import Comparison, compare_run, read_log
 from so101_kinematics.outputs import atomic_output
-from so101_kinematics.profiles import PROFILES
+from so101_kinematics.planning import motion_metrics
+from so101_kinematics.planning.profiles import PROFILES
 
 DEFAULT_PROFILE = "minimum_jerk"  # pick_place_hw.py --profile's default, unchanged since 17420a9
 UNKNOWN_PLAN = "?"

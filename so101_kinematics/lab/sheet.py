@@ -15,7 +15,7 @@ does not fit one page it is tiled over several, overlapping by
 On the paper the robot's x axis points up the page (away from the student
 standing at the bottom edge) and its y axis to the left, as seen from above.
 
-A stacking plan (``so101_kinematics.stacking``) draws each block's start and
+A stacking plan (``so101_kinematics.planning.stacking``) draws each block's start and
 the stack's spot instead. With the arm on a mount (``base_height``, the lab's
 15 mm) the sheet lies on the table, that far below the base frame: the x, y
 positions are the same, the header says how high the base frame is and where
@@ -33,9 +33,9 @@ import numpy as np
 
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, FIXED_TRANSFORMS
-from so101_kinematics.motion import Plan
 from so101_kinematics.outputs import atomic_output
-from so101_kinematics.plans import pick_and_place_steps
+from so101_kinematics.planning.motion import Plan
+from so101_kinematics.planning.plans import pick_and_place_steps
 
 PAPER_MM = {"a4": (210.0, 297.0), "letter": (215.9, 279.4)}
 """Paper sizes, portrait (width, height) [mm]."""
@@ -254,7 +254,7 @@ def write_sheet(plan: Plan, path: str | Path, paper: str = "a4",
         path: the PDF to write (``outputs.check_output_path`` it first).
         paper: "a4" or "letter".
         source: where the plan came from, printed in the title.
-        stack: a ``so101_kinematics.stacking.StackPlan``: draw its blocks' starts and
+        stack: a ``so101_kinematics.planning.stacking.StackPlan``: draw its blocks' starts and
             the stack's spot (its ``plan`` is then the plan).
         base_height: the table (the sheet) below the base frame [m] (the lab's mount).
 

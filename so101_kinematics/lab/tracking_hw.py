@@ -29,9 +29,9 @@ import numpy as np
 
 from so101_kinematics import servo
 from so101_kinematics.frames import ARM_JOINTS
-from so101_kinematics.motion import Plan, Trajectory
-from so101_kinematics.plans import default_plan
-from so101_kinematics.profiles import PROFILES
+from so101_kinematics.planning.motion import Plan, Trajectory
+from so101_kinematics.planning.plans import default_plan
+from so101_kinematics.planning.profiles import PROFILES
 
 MODES = ("plain", "lead", "registers")
 """The ways of getting the velocity to the arm, compared (the module's docstring)."""

@@ -16,15 +16,15 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from so101_kinematics.cartesian_plan import (
-    CUBE_YAW_RANGE,
-)
 from so101_kinematics.constants import CUBE_SIZE
 from so101_kinematics.fast_fk import forward_kinematics as get_forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINT_LIMITS, TOOL_SITE
 from so101_kinematics.ik.course import get_inverse_kinematics
-from so101_kinematics.motion import Plan, PlanError, check_number
-from so101_kinematics.plans import default_plan, pick_and_place_steps
+from so101_kinematics.planning.cartesian_plan import (
+    CUBE_YAW_RANGE,
+)
+from so101_kinematics.planning.motion import Plan, PlanError, check_number
+from so101_kinematics.planning.plans import default_plan, pick_and_place_steps
 from so101_kinematics.sim import actuation, scene
 from so101_kinematics.sim.contact_pairs import use_explicit_contact_pairs
 from so101_kinematics.sim.meshes import ensure_meshes
@@ -221,7 +221,8 @@ def check_cube_start(plan: Plan, cube: CubeStart) -> np.ndarray:
         The cube's start centre [m].
 
     Raises:
-        so101_kinematics.motion.PlanError: naming the position, the table or the reach, and the fix.
+        so101_kinematics.planning.motion.PlanError: naming the position, the table or the
+            reach, and the fix.
     """
     for axis, value in zip("xy", cube.offset, strict=True):
         check_number(value, f"cube offset {axis}", CUBE_OFFSET_RANGE_MM[0] / 1000.0,

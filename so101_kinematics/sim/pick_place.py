@@ -18,13 +18,14 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from so101_kinematics import display, straight_line
+from so101_kinematics import display
 from so101_kinematics.errors import ViewerClosed
 from so101_kinematics.fast_fk import forward_kinematics as get_forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, TOOL_SITE
-from so101_kinematics.motion import Plan, PlanError, Step, check_number, run_plan
 from so101_kinematics.paths import REPO
-from so101_kinematics.plans import default_plan, pick_and_place_steps, validate_plan
+from so101_kinematics.planning import straight_line
+from so101_kinematics.planning.motion import Plan, PlanError, Step, check_number, run_plan
+from so101_kinematics.planning.plans import default_plan, pick_and_place_steps, validate_plan
 from so101_kinematics.sim import actuation, scene, stepping
 from so101_kinematics.sim.cube import (
     CubeMonitor,
@@ -153,7 +154,7 @@ def run_pick_place(
     """Run a pick-and-place plan in simulation and measure what happened to the cube.
 
     Args:
-        plan: the plan (default: ``so101_kinematics.plans.default_plan()``); validated
+        plan: the plan (default: ``so101_kinematics.planning.plans.default_plan()``); validated
             against the joint limits before anything moves.
         cube: where the free cube starts, or ``None`` for no cube.
         mode: "headless" (as fast as possible), "viewer" (interactive, real
@@ -176,7 +177,7 @@ def run_pick_place(
         The run report.
 
     Raises:
-        so101_kinematics.motion.PlanError: the plan is invalid (nothing moved).
+        so101_kinematics.planning.motion.PlanError: the plan is invalid (nothing moved).
         so101_kinematics.sim.render.RenderError: the video cannot be written as asked.
     """
     if mode not in ("headless", "viewer", "record"):

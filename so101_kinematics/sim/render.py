@@ -80,7 +80,7 @@ def check_fps(fps, highest: float, name: str = "fps") -> float:
     Raises:
         RenderSettingError: naming the value, the range and why the maximum.
     """
-    from so101_kinematics.motion import check_number
+    from so101_kinematics.planning.motion import check_number
 
     return check_number(fps, name, MIN_FPS, highest, "frames/s", error=RenderSettingError,
                         fix=f"give at most {highest:g} (the simulation steps every "

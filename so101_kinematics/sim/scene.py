@@ -32,8 +32,8 @@ from so101_kinematics.checks import (
     unit,
 )
 from so101_kinematics.frames import GRIPPER_RANGE, JOINT_RANGES_RAD, JOINTS, TOOL_SITE
-from so101_kinematics.motion import Configuration, check_configuration
 from so101_kinematics.paths import MODEL_DIR, SCENE_PATH  # noqa: F401 - the scene's files
+from so101_kinematics.planning.motion import Configuration, check_configuration
 from so101_kinematics.sim import actuation
 from so101_kinematics.sim.meshes import ensure_meshes
 

@@ -2,7 +2,7 @@
 
 :func:`run_stack` builds the scene with one free cube per block at its start
 (the same cube as the pick-and-place's: friction alone holds it, no weld),
-runs ``so101_kinematics.stacking``'s plan through the pick-and-place's run
+runs ``so101_kinematics.planning.stacking``'s plan through the pick-and-place's run
 loop, and reports each block's final pose (:class:`StackReport`).
 """
 
@@ -16,8 +16,14 @@ from pathlib import Path
 import numpy as np
 
 from so101_kinematics.constants import CUBE_SIZE
-from so101_kinematics.motion import PlanError
-from so101_kinematics.plans import validate_plan
+from so101_kinematics.planning.motion import PlanError
+from so101_kinematics.planning.plans import validate_plan
+from so101_kinematics.planning.stack_report import (
+    STACK_TILT_TOLERANCE,
+    STACK_TOLERANCE,
+    measure_stack,
+)
+from so101_kinematics.planning.stacking import StackPlan
 from so101_kinematics.sim.cube import build_model, cube_names, scene_limits, scene_model
 from so101_kinematics.sim.pick_place import execute_plan
 from so101_kinematics.sim.render import (
@@ -31,8 +37,6 @@ from so101_kinematics.sim.render import (
     check_frame_size,
 )
 from so101_kinematics.sim.render import Overlay as _Overlay
-from so101_kinematics.stack_report import STACK_TILT_TOLERANCE, STACK_TOLERANCE, measure_stack
-from so101_kinematics.stacking import StackPlan
 
 
 @dataclass
@@ -110,7 +114,7 @@ def run_stack(
     """Run a stacking plan in simulation, the blocks on the table at their starts.
 
     Args:
-        stack: the plan and blocks (``so101_kinematics.stacking.stack_plan``).
+        stack: the plan and blocks (``so101_kinematics.planning.stacking.stack_plan``).
         mode: "headless", "viewer" or "record" (see ``run_pick_place``).
         video: MP4 path for mode "record".
         fps: video frames per second of simulated time.
@@ -125,7 +129,7 @@ def run_stack(
         The report: where each block ended, bottom block first.
 
     Raises:
-        so101_kinematics.motion.PlanError: the plan is invalid (nothing moved).
+        so101_kinematics.planning.motion.PlanError: the plan is invalid (nothing moved).
         so101_kinematics.sim.render.RenderError: the video cannot be written as asked.
     """
     if mode not in ("headless", "viewer", "record"):

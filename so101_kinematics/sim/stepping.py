@@ -44,7 +44,7 @@ from so101_kinematics.checks import (
     start_mismatch,
 )
 from so101_kinematics.errors import CallShapeError, ViewerClosed
-from so101_kinematics.motion import Trajectory, check_duration
+from so101_kinematics.planning.motion import Trajectory, check_duration
 from so101_kinematics.sim import actuation
 from so101_kinematics.sim.scene import (
     get_command,

@@ -1,9 +1,10 @@
 """A straight line in task space, two ways (assignment 9's optional part), in simulation.
 
 The path itself (the object frame along the segment with the cubic time scaling, by IK
-at every cycle or by resolved-rate control) is planned by ``so101_kinematics.straight_line``,
-the same code the arm's ``--approach straight`` runs; here it is executed on MuJoCo, one
-command per ``CONTROL_DT``, and :func:`figures` measures MuJoCo's object frame.
+at every cycle or by resolved-rate control) is planned by
+``so101_kinematics.planning.straight_line``, the same code the arm's ``--approach
+straight`` runs; here it is executed on MuJoCo, one command per ``CONTROL_DT``, and
+:func:`figures` measures MuJoCo's object frame.
 """
 
 from __future__ import annotations
@@ -13,15 +14,15 @@ import numpy as np
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, TOOL_SITE
 from so101_kinematics.ik.course import get_inverse_kinematics
-from so101_kinematics.sim import stepping
-from so101_kinematics.sim.scene import set_initial_pose
-from so101_kinematics.sim.tracking import StepLog
-from so101_kinematics.straight_line import (  # noqa: F401 - the line's vocabulary, re-exported
+from so101_kinematics.planning.straight_line import (  # noqa: F401 - the line's vocabulary, re-exported
     CONTROL_DT,
     METHODS,
     max_path_deviation_mm,
     straight_path,
 )
+from so101_kinematics.sim import stepping
+from so101_kinematics.sim.scene import set_initial_pose
+from so101_kinematics.sim.tracking import StepLog
 
 FROM = (0.25, 0.1, 0.04425)  # [m]: 3 cm above the page's first block
 TO = (0.25, -0.1, 0.04425)  # [m]: 3 cm above its second

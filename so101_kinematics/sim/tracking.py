@@ -15,10 +15,10 @@ import math
 
 import numpy as np
 
-from so101_kinematics import motion_metrics, trajectory_log
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.ik.course import get_inverse_kinematics
-from so101_kinematics.motion_metrics import METRIC_KEYS
+from so101_kinematics.planning import motion_metrics, trajectory_log
+from so101_kinematics.planning.motion_metrics import METRIC_KEYS
 from so101_kinematics.sim import stepping
 from so101_kinematics.sim.scene import gripper_from_radians, joint_table, set_initial_pose
 

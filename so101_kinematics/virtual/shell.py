@@ -194,7 +194,7 @@ def _middle(arm, args):
 
 @command("play", "play FILE", "the hand replays a waypoint file (the project's plan format)")
 def _play(arm, args):
-    from so101_kinematics.plans import load_plan
+    from so101_kinematics.planning.plans import load_plan
 
     if len(args) != 1:
         raise ShellError("give one plan file")

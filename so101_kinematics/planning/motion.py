@@ -32,7 +32,7 @@ from so101_kinematics.checks import (  # noqa: F401 - motion's vocabulary, re-ex
 )
 from so101_kinematics.errors import JointLimitError as JointLimitError
 from so101_kinematics.errors import PlanError as PlanError
-from so101_kinematics.profiles import (  # noqa: F401 - the profiles, re-exported
+from so101_kinematics.planning.profiles import (  # noqa: F401 - the profiles, re-exported
     PROFILES,
     SPEED_CAPPED_PROFILES,
     cubic,

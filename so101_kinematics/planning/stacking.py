@@ -37,12 +37,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from so101_kinematics.cartesian_plan import (
-    APPROACH_HEIGHT,
-    CUBE_YAW_RANGE,
-    DEFAULT_LIFT_HEIGHT,
-    cartesian_plan,
-)
 from so101_kinematics.cli import number, range_help
 from so101_kinematics.constants import CUBE_HALF_SIZE, CUBE_SIZE, HOME_POSE
 from so101_kinematics.errors import UnreachableError
@@ -50,7 +44,13 @@ from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS
 from so101_kinematics.ik.course import get_inverse_kinematics
 from so101_kinematics.ik.geometry import MIN_HEIGHT, POSITION_LIMIT
-from so101_kinematics.motion import Plan, PlanError, Step, check_number
+from so101_kinematics.planning.cartesian_plan import (
+    APPROACH_HEIGHT,
+    CUBE_YAW_RANGE,
+    DEFAULT_LIFT_HEIGHT,
+    cartesian_plan,
+)
+from so101_kinematics.planning.motion import Plan, PlanError, Step, check_number
 
 COURSE_BLOCK_HEIGHTS = (0.014, 0.043, 0.071, 0.100)
 """The course's block centres [m] for the 1st..4th block of a stack (its lab blocks)."""
@@ -354,7 +354,7 @@ def add_stack_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--block", action="append", type=float, nargs="+",
                        metavar="X Y [YAW]", help="a block's start on the table (centre [m], "
                        "yaw [deg]), once per block, bottom block first (default: "
-                       "so101_kinematics/stacking.py's DEFAULT_STARTS)")
+                       "so101_kinematics/planning/stacking.py's DEFAULT_STARTS)")
     low, high = BASE_HEIGHT_RANGE
     group.add_argument("--base-height", type=number(low, high, "m"), default=0.0, metavar="M",
                        help="the table is M below the robot's base frame [m], "

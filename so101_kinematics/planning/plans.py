@@ -29,7 +29,7 @@ from so101_kinematics.clearance import check_plan_clearance
 from so101_kinematics.errors import JointLimitError as JointLimitError
 from so101_kinematics.errors import PlanError as PlanError
 from so101_kinematics.frames import JOINTS
-from so101_kinematics.motion import Plan, Step
+from so101_kinematics.planning.motion import Plan, Step
 
 # The course's pick-and-place. The six configurations of the assignment are
 # start_open, start_closed, lift, carry, final_closed and final_open; the first
@@ -108,7 +108,7 @@ def pick_and_place_plan(
 
     The one place that fixes the waypoints' names, order, gripper states and
     timing, for the joint-space plan (:func:`default_plan`) and the Cartesian
-    one (``so101_kinematics.cartesian_plan``) alike.
+    one (``so101_kinematics.planning.cartesian_plan``) alike.
 
     Args:
         approach: the open gripper above the cube.

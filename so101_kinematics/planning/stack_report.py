@@ -2,7 +2,7 @@
 
 One judgement for the simulator (``so101_kinematics.sim.stack``, from the
 cubes' poses) and the hardware script (:func:`stack_outcome`, from the virtual
-arm's cube sensor), against the plan's targets (``so101_kinematics.stacking``).
+arm's cube sensor), against the plan's targets (``so101_kinematics.planning.stacking``).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from so101_kinematics.stacking import CLEARANCE, StackPlan
+from so101_kinematics.planning.stacking import CLEARANCE, StackPlan
 
 STACK_TOLERANCE = 0.005
 """[m] each block's centre this close to the one below it horizontally (the bottom one: to the

@@ -38,8 +38,8 @@ from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINT_RANGES_RAD
 from so101_kinematics.ik.geometry import SOLVE_TOL
 from so101_kinematics.ik.refine import line_task
-from so101_kinematics.motion import Configuration, Plan, Step
-from so101_kinematics.profiles import PROFILES
+from so101_kinematics.planning.motion import Configuration, Plan, Step
+from so101_kinematics.planning.profiles import PROFILES
 
 METHODS = ("ik", "resolved_rate")
 APPROACHES = ("joint", "straight")
@@ -91,7 +91,7 @@ def straight_path(start: Mapping[str, float], goal: Mapping[str, float], duratio
 
     Example (the course's lift, 2 s: 200 samples, every one on the segment)::
 
-        >>> from so101_kinematics.plans import LIFT, STARTING_CONFIGURATION as grasp
+        >>> from so101_kinematics.planning.plans import LIFT, STARTING_CONFIGURATION as grasp
         >>> lift = dict(grasp, **LIFT)
         >>> up = straight_path(grasp, lift, 2.0)
         >>> p0, pf = forward_kinematics(grasp)[0], forward_kinematics(lift)[0]

@@ -21,8 +21,12 @@ from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.ik.course import get_inverse_kinematics
 from so101_kinematics.ik.geometry import GRIPPER_OPEN, MIN_HEIGHT, POSITION_LIMIT
 from so101_kinematics.ik.solver import as_position
-from so101_kinematics.motion import Plan, PlanError, check_number
-from so101_kinematics.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION, pick_and_place_plan
+from so101_kinematics.planning.motion import Plan, PlanError, check_number
+from so101_kinematics.planning.plans import (
+    FINAL_CONFIGURATION,
+    STARTING_CONFIGURATION,
+    pick_and_place_plan,
+)
 
 DEFAULT_LIFT_HEIGHT = 0.10
 """Height of the lift and carry waypoints above the pick and place positions [m]."""
