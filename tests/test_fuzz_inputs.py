@@ -24,8 +24,8 @@ import so101_forward_kinematics as fk
 import so101_inverse_kinematics as ik
 import test_fk_mujoco
 from so101_forward_kinematics import ARM_JOINTS, JOINTS
-from so101_kinematics.motion import MAX_DURATION, PlanError
-from so101_kinematics.plans import STARTING_CONFIGURATION, load_plan
+from so101_kinematics.planning.motion import MAX_DURATION, PlanError
+from so101_kinematics.planning.plans import STARTING_CONFIGURATION, load_plan
 
 FUZZ = settings(derandomize=True, deadline=None, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
@@ -111,6 +111,17 @@ def test_plan_files_load_or_name_the_problem(plan, encoding, noise, nan_literal)
             assert isinstance(loaded.return_to_start, bool)
             assert 0.0 <= loaded.return_duration <= MAX_DURATION
         assert path.read_bytes() == content
+
+
+
+def test_a_waypoint_name_with_a_line_break_is_refused_on_one_line(tmp_path):
+    # Found by the fuzz test above: the name was echoed into a two-line error.
+    path = tmp_path / "plan.json"
+    path.write_text(json.dumps({"steps": [{"name": "up\n", "configuration": dict.fromkeys(
+        LIMITS, 0.0)}]}))
+    with pytest.raises(PlanError, match=r"the name 'up\\n' holds a line break") as error:
+        load_plan(path, LIMITS)
+    check_plan_error(error.value, path)
 
 
 # --- pick_place_sim.py -------------------------------------------------------------------

@@ -216,6 +216,9 @@ def check_plan_settings(plan: Plan, source: str = "") -> Plan:
         if not isinstance(step.name, str) or not step.name:
             raise PlanError(f"{prefix}waypoint {i + 1}: name must be non-empty text, got "
                             f"{describe_value(step.name)}. Fix: give it a name in quotes.")
+        if not step.name.isprintable():  # every message names the waypoint on one line
+            raise PlanError(f"{prefix}waypoint {i + 1}: the name {step.name!r} holds a line "
+                            "break or another control character. Fix: give it a one-line name.")
         where = f"{prefix}waypoint {i + 1} '{step.name}'"
         if step.name in seen:
             raise PlanError(f"{where}: the name is used twice. Fix: give each waypoint its own "
