@@ -120,6 +120,22 @@ def fk_result(value) -> dict:
     return {"parts": parts, "type": type(value).__name__}
 
 
+def add_import_paths(request: dict, result_path: str) -> str:
+    """Put the student's folder first on ``sys.path``, the fallback modules' last.
+
+    The request's fallback modules are the course's own files, for a student file that
+    imports one it did not hand in. Returns the fallback folder.
+    """
+    sys.path.insert(0, os.path.dirname(request["module"]))
+    fallback = os.path.join(os.path.dirname(result_path), "fallback")
+    os.makedirs(fallback, exist_ok=True)
+    for name, source in request.get("fallback_modules", {}).items():
+        with open(os.path.join(fallback, name + ".py"), "w", encoding="utf-8") as handle:
+            handle.write(source)
+    sys.path.append(fallback)
+    return fallback
+
+
 def main() -> None:
     """Import the module named in the request and evaluate what it asks for."""
     global MODULE_PATH
@@ -143,13 +159,7 @@ def main() -> None:
             os.replace(result_path + ".part", result_path)
 
     save("import")
-    sys.path.insert(0, os.path.dirname(MODULE_PATH))
-    fallback = os.path.join(os.path.dirname(result_path), "fallback")
-    os.makedirs(fallback, exist_ok=True)
-    for name, source in request.get("fallback_modules", {}).items():
-        with open(os.path.join(fallback, name + ".py"), "w", encoding="utf-8") as handle:
-            handle.write(source)
-    sys.path.append(fallback)
+    fallback = add_import_paths(request, result_path)
     sys.stdout = sys.stderr = captured
     module_name = request.get("module_name", "so101_forward_kinematics")
     spec = importlib.util.spec_from_file_location(module_name, MODULE_PATH)

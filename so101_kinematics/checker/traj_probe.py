@@ -297,13 +297,7 @@ def main() -> None:
 
     save("import")
     install_stand_ins()
-    sys.path.insert(0, os.path.dirname(probe.MODULE_PATH))
-    fallback = os.path.join(os.path.dirname(result_path), "fallback")
-    os.makedirs(fallback, exist_ok=True)
-    for name, source in request.get("fallback_modules", {}).items():
-        with open(os.path.join(fallback, name + ".py"), "w", encoding="utf-8") as handle:
-            handle.write(source)
-    sys.path.append(fallback)
+    probe.add_import_paths(request, result_path)
     sys.stdout = sys.stderr = captured
     spec = importlib.util.spec_from_file_location(request["module_name"], probe.MODULE_PATH)
     module = importlib.util.module_from_spec(spec)
