@@ -122,6 +122,7 @@ def virtual_arm_env(course_arm, tmp_path):
 
 @pytest.mark.hw
 @pytest.mark.slow
+@pytest.mark.newest_lerobot  # the course's own scripts, on a lab machine's lerobot
 def test_week8_hardware_ik_check_on_the_virtual_arm(virtual_arm_env, course_arm):
     done = run("hw_week8_ik_check.py", virtual_arm_env, headless=False)
     assert "home check, elbow_flex:" in done.stdout

@@ -27,15 +27,13 @@ HOLDING = {"wrist_flex servo lost", "USB cable pulled", "SIGHUP twice"}
 
 
 def drill_cases():
-    """Every fault at every phase; all but one phase per fault (rotating) also marked
-    ``drill_matrix``, so a second lerobot line can run each fault once (``.ci/run``'s
-    Python 3.12 leg: ``-m "hw and not drill_matrix"``) while the README's test command
-    runs the whole matrix."""
+    """Every fault at every phase; one phase per fault (rotating) also marked
+    ``newest_lerobot``: the newest lerobot line drills each fault once (``.ci/run``'s Python
+    3.12 leg), while the README's test command runs the whole matrix."""
     phases = list(PHASES)
-    for i, fault in enumerate(FAULTS):
-        for j, phase in enumerate(phases):
-            marks = () if j == i % len(phases) else (pytest.mark.drill_matrix,)
-            yield pytest.param(fault, phase, marks=marks, id=f"{fault}-{phase}")
+    return [pytest.param(fault, phase, id=f"{fault}-{phase}",
+                         marks=(pytest.mark.newest_lerobot,) if j == i % len(phases) else ())
+            for i, fault in enumerate(FAULTS) for j, phase in enumerate(phases)]
 
 
 @pytest.mark.parametrize(("fault", "phase"), drill_cases())

@@ -78,6 +78,7 @@ def log_rows(path: Path) -> list[list[str]]:
 
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT])
+@pytest.mark.newest_lerobot  # the releasing ending
 def test_a_stop_signal_mid_motion_returns_slowly_and_releases_at_the_start(arm, tmp_path, signum):
     run = start_run(arm, tmp_path)
     wait_for(swinging(arm))
@@ -96,6 +97,7 @@ def test_a_stop_signal_mid_motion_returns_slowly_and_releases_at_the_start(arm, 
     assert list(tmp_path.glob(".run.csv.*")) == []
 
 
+@pytest.mark.newest_lerobot  # lerobot's disconnect must not let go
 def test_a_second_signal_during_the_return_freezes_with_torque_on(arm, tmp_path):
     run = start_run(arm, tmp_path)
     wait_for(swinging(arm))
@@ -146,6 +148,7 @@ def test_a_second_program_on_the_port_is_told_it_is_in_use(arm):
     assert "Traceback" not in other.stderr
 
 
+@pytest.mark.newest_lerobot  # the holding ending
 def test_a_pulled_usb_cable_is_named_and_the_arm_holds(arm):
     def unplug(session, cycle):
         if cycle.step == "swing_right" and not unplug.done:

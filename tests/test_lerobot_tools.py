@@ -25,7 +25,7 @@ from so101_kinematics.gravity import feedforward
 from so101_kinematics.paths import REPO
 from so101_kinematics.servo import LEROBOT
 
-pytestmark = [pytest.mark.hw, pytest.mark.slow]
+pytestmark = [pytest.mark.hw, pytest.mark.slow, pytest.mark.newest_lerobot]
 BIN = Path(sys.executable).parent
 SHIPPED = json.loads((REPO / "calibration" / "virtual_so101.json").read_text())
 

@@ -319,6 +319,7 @@ def wait_for(condition, timeout=60.0):
 
 @pytest.mark.hw
 @pytest.mark.slow
+@pytest.mark.newest_lerobot  # the course helpers' ending
 def test_a_script_that_forgets_disable_torque_ends_back_at_the_start_released(arm, tmp_path):
     run = run_script(arm, tmp_path, "hold_position(bus, 0.2)  # and no bus.disable_torque()")
     out, err = run.communicate(timeout=120)
