@@ -389,7 +389,9 @@ def test_homing_offset_shifts_present_position(bus, fresh_arm):
     bus.write("Homing_Offset", "wrist_flex", offset + 100, normalize=False)
     try:
         after = bus.read("Present_Position", "wrist_flex", normalize=False)
-        assert after == before - 100  # Present_Position = encoder - Homing_Offset
+        # Present_Position = encoder - Homing_Offset, give or take the encoder's noise (a
+        # count either way on some reads: virtual.registers, SERVO_NOTES.md).
+        assert abs(after - (before - 100)) <= 2
         assert not bus.is_calibrated  # lerobot now sees a mismatch with its file
     finally:
         bus.write("Homing_Offset", "wrist_flex", offset, normalize=False)
@@ -454,7 +456,12 @@ def test_so101_follower_connects_without_prompting_and_moves(fresh_arm, monkeypa
         assert all(fresh_arm.torque_enabled().values())
         assert fresh_arm.registers("gripper")["Max_Torque_Limit"] == 500
         observation = robot.get_observation()
-        assert observation["elbow_flex.pos"] == pytest.approx(HOME["elbow_flex"], abs=1.0)
+        # lerobot's configure lets the arm go limp for a moment (torque off, the registers,
+        # torque on where it then is): the elbow may have sagged, by how much depends on the
+        # bus's timing. What lerobot reports must be where the arm is, within a degree.
+        truth = fresh_arm.joint_positions()["elbow_flex"]
+        assert observation["elbow_flex.pos"] == pytest.approx(truth, abs=1.0)
+        assert abs(truth - HOME["elbow_flex"]) < 15.0  # seen: 4.7 deg on a loaded machine
         robot.send_action({f"{j}.pos": v for j, v in POSE.items()})
         rest = resting(POSE, p=16)  # lerobot's P = 16, no feed-forward: the arm sags
         present = wait_until_reached(robot.bus, rest, tol=1.5)
