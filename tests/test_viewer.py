@@ -125,7 +125,7 @@ def test_the_viewer_camera_frames_like_the_scene_camera(model):
 @pytest.mark.slow
 def test_fk_viewer_shows_the_cylinder_in_the_gripper_and_exits_cleanly(display, model):
     process = start(display, "--seconds", "4", script=REPO / "test_fk_mujoco.py")
-    window = display.find_window(WINDOW_NAME)
+    window = display.find_window(WINDOW_NAME, process)
     image = wait_for_picture(display, window)
     code, output = finish(process)
     assert code == 0, output  # not 139 / -11: no crash in MuJoCo's GLFW teardown
@@ -145,7 +145,7 @@ def test_fk_viewer_shows_the_cylinder_in_the_gripper_and_exits_cleanly(display, 
 @pytest.mark.slow
 def test_fk_viewer_closed_by_the_user_ends_cleanly(display):
     process = start(display, "--seconds", "60", script=REPO / "test_fk_mujoco.py")
-    window = display.find_window(WINDOW_NAME)
+    window = display.find_window(WINDOW_NAME, process)
     wait_for_picture(display, window)
     display.close_window(window)
     code, output = finish(process, timeout=30)
@@ -157,7 +157,7 @@ def test_fk_viewer_closed_by_the_user_ends_cleanly(display):
 def test_pick_place_viewer_frames_the_work_and_exits_when_closed(display):
     process = start(display, "--move-duration", "1", "--hold", "0.2", "--no-progress",
                     script=REPO / "pick_place_sim.py")
-    window = display.find_window(WINDOW_NAME)
+    window = display.find_window(WINDOW_NAME, process)
     image = wait_for_picture(display, window)
     deadline = time.monotonic() + 90
     for line in process.stderr:  # the plan runs in real time, then the window waits
@@ -212,7 +212,7 @@ def test_ik_viewer_shows_the_last_target_cube_and_exits_when_closed(display, mod
                     # the ideal servo: half a second's move and hold is too short for the
                     # STS3215 at P = 16 to settle (up to 10 mm off: a "miss")
                     "--servo", "ideal", script=REPO / "test_ik_mujoco.py")
-    window = display.find_window(WINDOW_NAME)
+    window = display.find_window(WINDOW_NAME, process)
     wait_for_picture(display, window)
     deadline = time.monotonic() + 90
     for line in process.stderr:  # the targets run in real time, then the window waits

@@ -56,13 +56,23 @@ class VirtualDisplay:
         return subprocess.run(args, env=self.env(), capture_output=True, text=True,
                               timeout=20).stdout
 
-    def find_window(self, name: str, timeout: float = 30.0) -> int:
-        """The id of the first visible window whose title contains ``name``."""
+    def find_window(self, name: str, process: subprocess.Popen | None = None,
+                    timeout: float = 90.0) -> int:
+        """The id of the first visible window whose title contains ``name``.
+
+        With ``process``, a program that exits before its window shows fails at once with its
+        output (rather than a timeout that says nothing of why). The timeout is generous: on a
+        loaded 2-core machine, starting Python, MuJoCo and llvmpipe has taken over 30 s.
+        """
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             ids = self.run("xdotool", "search", "--onlyvisible", "--name", name).split()
             if ids:
                 return int(ids[0])
+            if process is not None and process.poll() is not None:
+                out, err = process.communicate()
+                raise RuntimeError(f"exited with {process.returncode} before a window named "
+                                   f"'{name}' showed:\n{out}{err}")
             time.sleep(0.2)
         raise TimeoutError(f"no window named '{name}' within {timeout} s")
 
