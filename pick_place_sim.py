@@ -7,7 +7,6 @@ import so101_kinematics.display as so101_display  # first: EGL when there is no 
 # isort: split
 import argparse
 import json
-import logging
 import math
 import sys
 from collections.abc import Sequence
@@ -19,13 +18,12 @@ from so101_forward_kinematics import (
 )
 from so101_kinematics.cli import (
     EXIT_BAD_INPUT,
-    EXIT_INTERRUPTED,
     ArgumentParser,
     add_servo_arguments,
     number,
     range_help,
-    report_unexpected,
     requires,
+    run_script,
     servo_from_arguments,
     zero_duration_warning,
 )
@@ -173,20 +171,9 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("-v", "--verbose", action="store_true", help="log details (and show "
                         "the traceback of an unexpected error)")
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as stop:  # bad options (one line printed) or --help: the exit code
-        return stop.code
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
-                        format="%(levelname)s %(name)s: %(message)s")
-    try:
-        return _run(parser, args)
-    except KeyboardInterrupt:
-        print("Interrupted (Ctrl-C): nothing was written; existing output files are as they "
-              "were.", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except Exception as error:
-        return report_unexpected(error, args.verbose)
+    return run_script(parser, argv, lambda args: _run(parser, args),
+                      interrupted="nothing was written; existing output files are as they were.",
+                      log_format="%(levelname)s %(name)s: %(message)s")
 
 
 def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:

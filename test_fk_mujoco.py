@@ -17,12 +17,10 @@ from so101_forward_kinematics import (
     get_forward_kinematics,
 )
 from so101_kinematics.cli import (
-    EXIT_BAD_INPUT,
-    EXIT_INTERRUPTED,
     ArgumentParser,
     number,
     range_help,
-    report_unexpected,
+    run_script,
 )
 from so101_kinematics.outputs import (
     PNG,
@@ -122,21 +120,8 @@ def main(argv: list[str] | None = None) -> int:
     add_overwrite_argument(parser)
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as stop:  # bad options (one line printed) or --help: the exit code
-        return stop.code
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    try:
-        return _run(args)
-    except (OutputPathError, PlanError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print("Interrupted (Ctrl-C): existing output files are as they were.", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except Exception as error:
-        return report_unexpected(error, args.verbose)
+    return run_script(parser, argv, _run, refused=(OutputPathError, PlanError),
+                      log_level=logging.INFO)
 
 
 def _run(args) -> int:

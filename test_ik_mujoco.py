@@ -16,14 +16,12 @@ from pathlib import Path
 
 from so101_inverse_kinematics import GRIPPER_OPEN, get_inverse_kinematics
 from so101_kinematics.cli import (
-    EXIT_BAD_INPUT,
     EXIT_FAILED,
-    EXIT_INTERRUPTED,
     ArgumentParser,
     add_servo_arguments,
     number,
     range_help,
-    report_unexpected,
+    run_script,
     servo_from_arguments,
     zero_duration_warning,
 )
@@ -148,22 +146,8 @@ by how much) or an unexpected error (rerun with -v), 2 bad input, 130 Ctrl-C."""
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="log each target (and show the traceback of an unexpected error)")
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as stop:  # bad options (one line printed) or --help: the exit code
-        return stop.code
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
-                        format="%(message)s")
-    try:
-        return _run(args)
-    except (PlanError, OutputPathError, KinematicsInputError, RenderError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print("Interrupted (Ctrl-C): existing output files are as they were.", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except Exception as error:
-        return report_unexpected(error, args.verbose)
+    return run_script(parser, argv, _run, refused=(PlanError, OutputPathError,
+                                                   KinematicsInputError, RenderError))
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -15,11 +15,9 @@ from pathlib import Path
 import mujoco
 
 from so101_kinematics.cli import (
-    EXIT_BAD_INPUT,
-    EXIT_INTERRUPTED,
     ArgumentParser,
     add_servo_arguments,
-    report_unexpected,
+    run_script,
     servo_from_arguments,
 )
 from so101_kinematics.errors import KinematicsInputError, RenderError
@@ -207,22 +205,8 @@ input, 130 Ctrl-C.""")
     add_overwrite_argument(parser)
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="log each profile (and show the traceback of an unexpected error)")
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as stop:  # bad options (one line printed) or --help: the exit code
-        return stop.code
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
-                        format="%(message)s")
-    try:
-        return run(args)
-    except (PlanError, OutputPathError, KinematicsInputError, RenderError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print("Interrupted (Ctrl-C): existing output files are as they were.", file=sys.stderr)
-        return EXIT_INTERRUPTED
-    except Exception as error:
-        return report_unexpected(error, args.verbose)
+    return run_script(parser, argv, run, refused=(PlanError, OutputPathError,
+                                                  KinematicsInputError, RenderError))
 
 
 if __name__ == "__main__":

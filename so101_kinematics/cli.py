@@ -4,15 +4,17 @@ Every script answers bad input with one line on stderr that names the option,
 the value, the allowed range and the fix, and exits with status 2
 (:class:`ArgumentParser`, :func:`number`); an unexpected exception is one
 line with a hint to rerun with ``-v`` for the traceback, exit status 1
-(:func:`report_unexpected`).
+(:func:`report_unexpected`). :func:`run_script` is the one ending every
+simulation script's ``main()`` shares.
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import math
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from so101_kinematics.planning.motion import format_range
 
@@ -131,6 +133,46 @@ def report_unexpected(error: BaseException, verbose: bool) -> int:
     print(f"error: unexpected {type(error).__name__}: {text} (a bug? rerun with -v for the "
           "traceback)", file=sys.stderr)
     return EXIT_FAILED
+
+
+def run_script(parser: argparse.ArgumentParser, argv: Sequence[str] | None,
+               run: Callable[[argparse.Namespace], int], *,
+               refused: tuple[type[Exception], ...] = (),
+               interrupted: str = "existing output files are as they were.",
+               log_format: str = "%(message)s", log_level: int | None = None) -> int:
+    """Parse the command line and run: the ending every simulation script's ``main()`` shares.
+
+    Args:
+        parser: the script's parser (an :class:`ArgumentParser`, with ``-v/--verbose``).
+        argv: the arguments (None: ``sys.argv[1:]``).
+        run: the script's work, given the parsed arguments; returns the exit code.
+        refused: the errors that mean bad input: one line, ``EXIT_BAD_INPUT``.
+        interrupted: what Ctrl-C left as it was, after "Interrupted (Ctrl-C): ".
+        log_format: the logging format.
+        log_level: the logging level (None: INFO with ``-v``, else WARNING).
+
+    Returns:
+        The exit code: the parser's (bad options, ``--help``), ``run``'s, ``EXIT_BAD_INPUT``,
+        ``EXIT_INTERRUPTED``, or ``EXIT_FAILED`` for an unexpected error (its traceback with
+        ``-v``).
+    """
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # bad options (one line printed) or --help: the exit code
+        return stop.code
+    if log_level is None:
+        log_level = logging.INFO if args.verbose else logging.WARNING
+    logging.basicConfig(level=log_level, format=log_format)
+    try:
+        return run(args)
+    except refused as error:
+        print(f"error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"Interrupted (Ctrl-C): {interrupted}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception as error:
+        return report_unexpected(error, args.verbose)
 
 
 def add_gravity_ff_argument(parser: argparse.ArgumentParser) -> None:

@@ -19,6 +19,7 @@ import so101_forward_kinematics as fk
 import so101_inverse_kinematics as ik
 import so101_mujoco_utils as utils
 import test_fk_mujoco
+from so101_kinematics import cli
 from so101_kinematics.outputs import (
     OutputPathError,
     atomic_output,
@@ -430,6 +431,34 @@ def test_an_unexpected_error_is_one_line_with_a_hint(capsys, monkeypatch):
     assert "rerun with -v" in one_line_error(err) and "ZeroDivisionError" in err
     with pytest.raises(ZeroDivisionError):
         pick_place_sim.main(["--headless", "-v"])
+
+
+def test_every_script_ending_is_one_line_and_its_exit_code(capsys):
+    # run_script is the ending test_fk_mujoco.py, test_ik_mujoco.py, test_trajectory_mujoco.py
+    # and pick_place_sim.py share: bad input 2, Ctrl-C 130, a bug 1 (traceback with -v).
+    parser = cli.ArgumentParser(prog="demo")
+    parser.add_argument("-v", "--verbose", action="store_true")
+
+    def raising(error):
+        def run(args):
+            raise error
+        return run
+
+    endings = ((raising(PlanError("steps[0]: bad")), 2, "error: steps[0]: bad"),
+               (raising(KeyboardInterrupt()), 130, "Interrupted (Ctrl-C): existing output"),
+               (raising(ZeroDivisionError("x")), 1, "error: unexpected ZeroDivisionError: x"),
+               (lambda args: 0, 0, ""))
+    for run, code, line in endings:
+        assert cli.run_script(parser, [], run, refused=(PlanError,)) == code
+        err = capsys.readouterr().err
+        if line:
+            assert one_line_error(err).startswith(line), err
+        else:
+            assert err == ""
+    assert cli.run_script(parser, ["--nonsense"], lambda args: 0) == 2  # the parser's one line
+    assert "unrecognized arguments" in one_line_error(capsys.readouterr().err)
+    with pytest.raises(ZeroDivisionError):
+        cli.run_script(parser, ["-v"], raising(ZeroDivisionError("x")))
 
 
 def test_fk_script_checks_its_outputs_before_the_hold(tmp_path, capsys, monkeypatch):
