@@ -16,7 +16,7 @@ from so101_kinematics.calibration import (
     load_calibration,
 )
 from so101_kinematics.clearance import check_plan_clearance
-from so101_kinematics.cli import requires
+from so101_kinematics.cli import ArgumentParser, requires
 from so101_kinematics.hw.bus import FIND_PORT_HINT, LerobotMissing, connect, disconnect, read_pose
 from so101_kinematics.hw.control import OUTAGE_TOLERANCE_S, signals_as_interrupt, speed_caps
 from so101_kinematics.hw.home_check import add_calibration_check_arguments, home_check
@@ -70,7 +70,7 @@ def ask(question: str, assume_yes: bool, stdin=None) -> bool:
 
 def build_parser() -> argparse.ArgumentParser:
     """The command-line interface."""
-    parser = argparse.ArgumentParser(
+    parser = ArgumentParser(
         description="The course's pick-and-place on a real SO-101 follower (lerobot Feetech bus). "
                     "Validates the plan against the model's and the arm's calibrated limits before "
                     "torque on; ramps from the measured pose; caps joint speed; reads the arm "
@@ -200,7 +200,10 @@ def _run(args, plan, calibration, source, release: str, stack=None) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 done, 1 aborted or failed, 2 refused)."""
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as stop:  # a bad option (one line printed) or --help: its exit code
+        return stop.code
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
                         format="%(levelname)s: %(message)s")
     try:

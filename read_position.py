@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import argparse
 import logging
 import sys
 from pathlib import Path
 
 from so101_kinematics.calibration import HardwareError, find_calibration, load_calibration
+from so101_kinematics.cli import ArgumentParser
 from so101_kinematics.hw.bus import FIND_PORT_HINT, connect, disconnect
 from so101_kinematics.hw.control import signals_as_interrupt
 from so101_kinematics.hw.run import release_arm
@@ -20,7 +20,7 @@ MAX_DURATION_S = 86_400.0  # --duration at most a day [s]
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 done, 1 failed, 2 refused)."""
-    parser = argparse.ArgumentParser(description=__doc__)
+    parser = ArgumentParser(description=__doc__)
     parser.add_argument("--port", required=True,
                         help=f"serial port of the arm (find it with `{FIND_PORT_HINT}`)")
     who = parser.add_mutually_exclusive_group(required=True)
@@ -35,7 +35,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="only release the torque of every servo (hold the arm: it falls), "
                              "then exit")
     parser.add_argument("--yes", "-y", action="store_true", help="do not ask before --release")
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # a bad option (one line printed) or --help: its exit code
+        return stop.code
     logging.basicConfig(level=logging.INFO, format="%(levelname)s: %(message)s")
     try:
         with signals_as_interrupt():

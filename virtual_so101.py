@@ -16,7 +16,6 @@ emulator, its faults and its deviations from a real arm are described in
 
 from __future__ import annotations
 
-import argparse
 import json
 import logging
 import os
@@ -24,6 +23,7 @@ import signal
 import sys
 from pathlib import Path
 
+from so101_kinematics.cli import ArgumentParser
 from so101_kinematics.display import has_display
 from so101_kinematics.errors import (
     CalibrationError,
@@ -62,7 +62,7 @@ def make_link(link: str, port: str) -> Path:
 
 def main(argv: list[str] | None = None) -> int:
     """Serve a virtual SO-101 until ``quit`` or Ctrl-C."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--calibration", default=str(DEFAULT_CALIBRATION_PATH),
                         help="lerobot calibration JSON (default: %(default)s)")
     mode = parser.add_mutually_exclusive_group()
@@ -99,7 +99,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--force", action="store_true",
                         help="with --write-default-calibration: replace an existing file")
     parser.add_argument("-v", "--verbose", action="store_true", help="log every fault and start-up")
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # a bad option (one line printed) or --help: its exit code
+        return stop.code
     level = logging.INFO if args.verbose else logging.WARNING
     logging.basicConfig(level=level, stream=sys.stderr,
                         format="%(levelname)s %(name)s: %(message)s")

@@ -414,6 +414,11 @@ def run_script(*argv, timeout=120):
     ["pick_place_sim.py", "--headless", "--fps", "nan"],
     ["pick_place_sim.py", "--headless", "--size", "10000x10000"],
     ["test_fk_mujoco.py", "--headless", "--seconds", "-1"],
+    # the hardware side's parsers too: no usage block above the line
+    ["pick_place_hw.py", "--dry-run", "--profile", "smooth"],
+    ["read_position.py", "--port", "/dev/null", "--rate", "fast"],
+    ["virtual_so101.py", "--base-height", "low"],
+    ["-m", "so101_kinematics.sim.meshes", "--check", "--everything", "now"],
 ])
 def test_scripts_answer_bad_options_in_one_line(argv):
     result = run_script(*argv)

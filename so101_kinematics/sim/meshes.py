@@ -20,7 +20,6 @@ cell size change.
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import importlib.util
 import logging
@@ -31,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from so101_kinematics.cli import ArgumentParser
 from so101_kinematics.errors import MeshError as MeshError
 from so101_kinematics.paths import MODEL_DIR
 
@@ -272,7 +272,7 @@ def ensure_render_meshes(cell_size: float = RENDER_CELL_SIZE, directory: Path = 
 
 def main() -> int:
     """Install the meshes and report."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true", help="only verify, copy nothing")
     args = parser.parse_args()
     logging.basicConfig(level=logging.INFO, format="%(message)s")
