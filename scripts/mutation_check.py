@@ -324,6 +324,14 @@ MUTANTS: list[Mutant] = [
     m("misread_reply_kept", "a misread reply (-2900 deg for one cycle) kept in the figures",
       "so101_kinematics/lab/compare.py", "compare_run", "    if wrong:\n", "    if False:\n",
       T_PROFILES),
+    m("replay_drops_the_lead", "the --compare replay sends the plan, not the led goals the "
+      "servos got (--velocity-ff)", "so101_kinematics/lab/compare.py", "compare_run",
+      'commanded[j] + np.array([r[f"lead_{j}"] for r in rows])', "commanded[j] + 0.0",
+      "tests/test_sim_vs_arm.py::test_a_led_run_is_replayed_with_the_goals_the_servos_got"),
+    m("replay_on_schedule", "the --compare replay sends each goal at its scheduled time, not "
+      "when the late cycle sent it", "so101_kinematics/lab/compare.py", "compare_run",
+      "simulated = replay(read_s, written,", "simulated = replay(t, written,",
+      "tests/test_sim_vs_arm.py::test_the_replay_sends_each_goal_when_the_arm_got_it"),
     m("output_written_in_place", "an output file written in place (lost if the run fails)",
       "so101_kinematics/outputs.py", "atomic_output", "temporary = temporary_beside(target)",
       "temporary = target",

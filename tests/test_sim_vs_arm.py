@@ -33,6 +33,20 @@ def hw_log(tmp_path_factory):
     return log
 
 
+@pytest.fixture(scope="module")
+def led_log(tmp_path_factory):
+    """The same plan and arm with the velocity lead (--velocity-ff)."""
+    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+
+    log = tmp_path_factory.mktemp("led") / "led.csv"
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as arm:
+        assert pick_place_hw.main(["--port", arm.port, "--calibration",
+                                   str(DEFAULT_CALIBRATION_PATH), "--yes", "--move-duration",
+                                   "0.8", "--hold", "0.2", "--velocity-ff", "--log",
+                                   str(log)]) == 0
+    return log
+
+
 def compare(log, tmp_path):
     report, out = tmp_path / "report.png", tmp_path / "report.json"
     assert pick_place_sim.main(["--compare", str(log), "--report", str(report),
@@ -62,6 +76,44 @@ def test_on_the_virtual_arm_simulator_and_arm_agree(hw_log, tmp_path):
     # pick the shoulder holds the reaching arm (gravity torque / stiffness: several degrees)
     assert report["servo"] == "STS3215 at P = 16 on 5.0 V, with the gravity feed-forward"
     assert 1.0 < abs(report["predicted_sag_deg"]["pick"]["shoulder_lift"]) < 9.0
+
+
+def test_a_led_run_is_replayed_with_the_goals_the_servos_got(led_log, tmp_path):
+    # With --velocity-ff each goal written leads the plan by the servo's lag (0.1 s at
+    # P = 16) times the planned speed: up to 10 deg on these 0.8 s moves. Replayed without
+    # its lead, the simulated arm lags the plan where the arm does not (several degrees
+    # RMS on the shoulder and elbow); replayed with it, both agree as a plain run does.
+    rows = list(csv.DictReader(led_log.open(newline="")))
+    assert max(abs(float(r["lead_shoulder_lift"] or 0.0)) for r in rows) > 2.0
+    report = compare(led_log, tmp_path)
+    assert all(report["sim_vs_arm_rms_deg"][j] < 1.0 for j in ARM_JOINTS)
+    assert report["servo"].endswith("goals led by the velocity feed-forward (replayed as "
+                                    "written)")
+
+
+def test_the_replay_sends_each_goal_when_the_arm_got_it(hw_log, tmp_path, monkeypatch):
+    # A cycle that woke late (the log's wall_s after its t_s) sent its goal late: the
+    # simulator is stepped to the wake times, not the schedule.
+    from so101_kinematics.lab import compare as compare_module
+
+    late = tmp_path / "late.csv"
+    rows, fields = read_rows(hw_log)
+    for k, row in enumerate(rows):
+        if row["wall_s"]:
+            row["wall_s"] = f"{float(row['t_s']) + (0.05 if k % 7 == 3 else 0.0):.6f}"
+    write_rows(late, rows, fields)
+    shutil.copy(sidecar_path(hw_log), sidecar_path(late))
+    seen = {}
+    real = compare_module.replay
+
+    def spy(t, commands, start, servo=None):
+        seen["t"] = np.array(t)
+        return real(t, commands, start, servo)
+
+    monkeypatch.setattr(compare_module, "replay", spy)
+    result = compare_module.compare_run(late)
+    assert np.array_equal(seen["t"], result.read_s)
+    assert np.max(seen["t"] - result.t) == pytest.approx(0.05)
 
 
 def test_a_shoulder_pan_offset_shows_as_its_shift(hw_log, tmp_path):

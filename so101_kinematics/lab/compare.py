@@ -2,8 +2,9 @@
 
 :func:`compare_run` reads a hardware log (``pick_place_hw.py --log``: the CSV
 and its ``.run.json`` sidecar, see ``hw/log.py``), starts the simulated arm
-at the run's measured starting pose and sends it the run's commands at the
-times the arm got them (the plan as it ran: speed caps and pauses included),
+at the run's measured starting pose and sends it the goals the servos got
+(the plan as it ran: speed caps, pauses and a ``--velocity-ff`` lead included)
+at the times they got them (the log's ``wall_s``, late cycles included),
 and compares, per joint, the commanded, the measured and the simulated
 angles. It also puts the cube where the measured angles put the object frame
 during the pick and the place (FK of the measured pose at the end of those
@@ -160,6 +161,11 @@ def usable_rows(rows: list[dict[str, str]]) -> tuple[list[dict[str, float | str]
             parsed["wall_s"] = float(row.get("wall_s") or parsed["t_s"])
         except ValueError:
             parsed["wall_s"] = parsed["t_s"]
+        for j in JOINTS:  # the velocity lead (--velocity-ff): the goal written was cmd + lead
+            try:
+                parsed[f"lead_{j}"] = float(row.get(f"lead_{j}") or 0.0)
+            except ValueError:
+                parsed[f"lead_{j}"] = 0.0
         if all(math.isfinite(v) for v in parsed.values()):
             usable.append({**parsed, "step": row["step"]})
         else:
@@ -266,9 +272,14 @@ def compare_run(path: str | Path) -> Comparison:
         info.setdefault("servo", {"gravity_ff": True})
     start = start_inside_limits(info["start_pose"], notes)
     t = np.array([r["t_s"] for r in rows])
+    read_s = np.array([r["wall_s"] for r in rows])
     commanded = {j: np.array([r[f"cmd_{j}"] for r in rows]) for j in JOINTS}
     measured = {j: np.array([r[f"meas_{j}"] for r in rows]) for j in JOINTS}
-    simulated = replay(t, commanded, start, info.get("servo"))
+    # The simulator gets what the servos got, when they got it: the goal as written (the
+    # plan plus the velocity lead of a --velocity-ff run) at the cycle's actual start.
+    written = {j: commanded[j] + np.array([r[f"lead_{j}"] for r in rows]) for j in JOINTS}
+    led = any(np.any(written[j] != commanded[j]) for j in JOINTS)
+    simulated = replay(read_s, written, start, info.get("servo"))
     result = Comparison(
         t, commanded, measured, simulated,
         {j: float(np.max(np.abs(commanded[j] - measured[j]))) for j in JOINTS},
@@ -278,7 +289,7 @@ def compare_run(path: str | Path) -> Comparison:
         result.trims_deg = {j: float(raw[0].get(f"trim_{j}") or 0.0) for j in JOINTS}
     except (TypeError, ValueError):
         result.notes.append("the trims of the first row are unreadable: taken as none")
-    result.read_s = np.array([r["wall_s"] for r in rows])
+    result.read_s = read_s
     steps = np.array([r["step"] for r in rows])
     try:
         roles = pick_and_place_steps(_plan(info["plan"]))
@@ -297,6 +308,8 @@ def compare_run(path: str | Path) -> Comparison:
         result.positions_mm[role] = {"planned": planned.tolist(), "measured": seen.tolist()}
         setattr(result, f"{role}_position_error_mm", float(np.linalg.norm(seen - planned)))
     _describe_servo(result, info.get("servo"), roles)
+    if led:
+        result.servo += "; goals led by the velocity feed-forward (replayed as written)"
     return result
 
 

@@ -112,8 +112,8 @@ def describe_derivatives() -> str:
 def run_figures(comparison: Comparison) -> tuple[dict[str, float], dict[str, float]]:
     """The arm's and the replay's figures over a compared log (the arm's joints).
 
-    The arm's motion is differentiated on the times it was read (the log's ``wall_s``: a
-    late cycle read it late), the replay's on the times it was sampled (``t_s``).
+    Both are differentiated on the times the arm was read (the log's ``wall_s``: a late
+    cycle read it late), which is when the replay sampled the simulator too.
     """
     commanded = np.column_stack([comparison.commanded[j] for j in ARM_JOINTS])
     measured = np.column_stack([comparison.measured[j] for j in ARM_JOINTS])
@@ -121,7 +121,7 @@ def run_figures(comparison: Comparison) -> tuple[dict[str, float], dict[str, flo
         np.column_stack([comparison.simulated[j] for j in ARM_JOINTS]))
     read = comparison.t if comparison.read_s is None else comparison.read_s
     return (motion_metrics.metrics(read, commanded, measured),
-            motion_metrics.metrics(comparison.t, commanded, simulated))
+            motion_metrics.metrics(read, commanded, simulated))
 
 
 def _profile(info: dict, name: str, notes: list[str]) -> tuple[str, bool]:
