@@ -324,6 +324,10 @@ MUTANTS: list[Mutant] = [
     m("misread_reply_kept", "a misread reply (-2900 deg for one cycle) kept in the figures",
       "so101_kinematics/lab/compare.py", "compare_run", "    if wrong:\n", "    if False:\n",
       T_PROFILES),
+    m("return_refused_at_rest", "the return to where the released arm slumped refused (the "
+      "clearance margin applied to the arm's own rest)", "so101_kinematics/clearance.py",
+      "check_path", "    if rest is not None:\n", "    if False:\n",
+      "tests/test_clearance.py::test_the_return_may_come_down_to_where_the_arm_stood_no_lower"),
     m("replay_drops_the_lead", "the --compare replay sends the plan, not the led goals the "
       "servos got (--velocity-ff)", "so101_kinematics/lab/compare.py", "compare_run",
       'commanded[j] + np.array([r[f"lead_{j}"] for r in rows])', "commanded[j] + 0.0",

@@ -164,6 +164,7 @@ def sample_path(a: Mapping[str, float], b: Mapping[str, float],
 def check_path(points: Sequence[Mapping[str, float]], names: Sequence[str] | None = None, *,
                base_height: float = 0.0, margin: float = CLEARANCE_MARGIN_M,
                where: str = "", fix: str = "", from_pose: bool = True,
+               rest: Mapping[str, float] | None = None,
                between: Callable[[], None] | None = None) -> None:
     """Refuse a path whose interpolation brings a part closer to the table than allowed.
 
@@ -177,6 +178,10 @@ def check_path(points: Sequence[Mapping[str, float]], names: Sequence[str] | Non
         fix: what to do, for the message (a default names the usual fixes).
         from_pose: the first point is where the arm stands: a start closer than the margin
             is allowed (the path may not go lower than it). False: the margin holds throughout.
+        rest: where the arm stood before the run (its measured start), or None: the path
+            may come as low as that pose, no lower. The return to it ends there: a released
+            arm slumps onto its rest or the table (the virtual arm's jaw 0.1 mm above it),
+            and a run that started there must be able to end there.
         between: called after each segment's check (the virtual arm answers its bus there).
 
     Raises:
@@ -187,6 +192,8 @@ def check_path(points: Sequence[Mapping[str, float]], names: Sequence[str] | Non
         return
     start = lowest_point(points[0], base_height)[0]
     allowed = min(margin, start - START_TOLERANCE_M) if from_pose else margin
+    if rest is not None:
+        allowed = min(allowed, lowest_point(rest, base_height)[0] - START_TOLERANCE_M)
     for index, (a, b) in enumerate(zip(points, points[1:], strict=False)):
         samples = sample_path(a, b)
         rows, per = _rows(samples)

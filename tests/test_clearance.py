@@ -92,6 +92,24 @@ def test_an_arm_starting_low_may_move_up_but_not_down():
         clearance.check_path([low, dict(low, shoulder_lift=49.0)])
 
 
+def test_the_return_may_come_down_to_where_the_arm_stood_no_lower():
+    # A released arm slumps: the virtual arm, released at the rest pose after a run, settled
+    # with elbow_flex 90 -> 96.9 and wrist_flex 30 -> 40.2 deg, its jaw pad on the table. A
+    # second run from there went through its plan and then refused its own return (the
+    # soak: every second run ended holding at 'depart').
+    rest = {"shoulder_pan": 0.0, "shoulder_lift": -89.5, "elbow_flex": 96.9,
+            "wrist_flex": 40.2, "wrist_roll": 0.1, "gripper": 9.5}
+    depart = {"shoulder_pan": 45.0, "shoulder_lift": 24.0, "elbow_flex": -32.0,
+              "wrist_flex": 93.0, "wrist_roll": 0.0, "gripper": 50.0}
+    assert abs(clearance.lowest_point(rest)[0]) < 0.001  # at the table: inside the 5 mm margin
+    with pytest.raises(ClearanceError, match="return_to_start"):
+        clearance.check_path([depart, rest], ["return_to_start"])
+    clearance.check_path([depart, rest], ["return_to_start"], rest=rest)
+    deeper = dict(rest, wrist_flex=45.0)  # the jaw pad 7.9 mm into the table (the model)
+    with pytest.raises(ClearanceError, match="mm into the table"):
+        clearance.check_path([depart, deeper], ["deeper"], rest=rest)
+
+
 def test_dry_run_refuses_a_plan_into_the_table(tmp_path, capsys):
     path = tmp_path / "press.json"
     steps = [{"name": "above", "configuration": STARTING_CONFIGURATION},

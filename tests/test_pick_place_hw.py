@@ -312,6 +312,29 @@ def test_ctrl_c_mid_motion_returns_to_the_start_and_releases(arm):
     assert duration >= angle / 20.0, f"{angle:.1f} deg in {duration:.2f} s"
 
 
+@pytest.mark.slow
+def test_a_second_run_from_where_the_released_arm_slumped_ends_as_the_first(arm):
+    # Released at its rest pose, the arm slumps onto the table (the virtual arm: elbow_flex
+    # 90 -> 97, wrist_flex 30 -> 40 deg, its jaw pad at the table, inside the 5 mm clearance
+    # margin). Run again from there, the plan's own return to that pose was refused at the
+    # end and the arm held at 'depart' (half the runs of the 20-run soak, 2026-12-02).
+    from so101_kinematics.clearance import CLEARANCE_MARGIN_M, lowest_point
+
+    plan = default_plan(move_duration=0.6, hold_duration=0.5)
+    first = hw.run_on_arm(arm.port, CALIBRATION, plan)
+    assert first.aborted is None and first.torque_released
+    deadline = time.monotonic() + 10.0  # limp: the wrist droops onto the table in about 4 s
+    while lowest_point(arm.joint_positions())[0] > 0.001 and time.monotonic() < deadline:
+        time.sleep(0.2)
+    slumped = arm.joint_positions()
+    assert lowest_point(slumped)[0] < min(0.001, CLEARANCE_MARGIN_M)
+    second = hw.run_on_arm(arm.port, CALIBRATION, plan)
+    assert second.aborted is None and second.returned_to_start and second.torque_released
+    assert hw.ending(second, "") == "Done: back at the starting pose, torque off."
+    assert_near(arm.joint_positions(), slumped, label="back where it slumped")
+    assert not any(arm.torque_enabled().values())
+
+
 def test_interrupt_inside_a_bus_transaction_is_recovered(arm):
     """KeyboardInterrupt with a reply still on the wire: the port is flushed before the return."""
     def interrupt_mid_transaction(session):

@@ -74,9 +74,10 @@ from so101_kinematics.hw.timing import (  # noqa: F401 - the loop's time and spe
     loop_timing_stats,
     peak_speed_factor,
     speed_caps,
+    stretch_warning,
     tracking_tolerances,
 )
-from so101_kinematics.planning.motion import Configuration, Trajectory, check_configuration, unit
+from so101_kinematics.planning.motion import Configuration, Trajectory, check_configuration
 from so101_kinematics.trims import Trims, as_trims
 
 logger = logging.getLogger(__name__)
@@ -119,7 +120,8 @@ class ArmSession:
             offsets are added to every goal written (within the calibrated range), so the
             sagging arm rests at the command; positions read are the arm's own.
         base_height: the table is this far below the base frame [m]: every move's path
-            is checked against it before it starts (``clearance.check_path``).
+            is checked against it before it starts (``clearance.check_path``), and may come
+            as low as ``rest_pose`` (where the arm stood: the return to it), no lower.
         velocity_lead: the velocity feed-forward (``hw/lead.py``), or None: each goal of a
             move leads the plan by lag x planned velocity, bounded; the checks judge the plan.
     """
@@ -154,6 +156,7 @@ class ArmSession:
         self.segments: list[Segment] = []
         self.stretched: list[str] = []
         self.command: Configuration | None = None  # last command sent
+        self.rest_pose: Configuration | None = None  # where the arm stood before the first move
         self.step = ""
         self.stop_reason: str | None = None
         self.outages: list[tuple[float, float]] = []  # ridden through: (start, length) [s]
@@ -305,18 +308,16 @@ class ArmSession:
             self.step = step
         if self.command is None:
             self.command = self.read_pose()  # the first move ramps from where the arm is
+            self.rest_pose = self.rest_pose or dict(self.command)
         start = dict(self.command)
-        check_path([start, goal], [self.step or "move_to_pose"], base_height=self.base_height)
+        check_path([start, goal], [self.step or "move_to_pose"], base_height=self.base_height,
+                   rest=self.rest_pose)
         requested = float(duration)
         caps = max_speed or self.max_speed
         profile = check_profile(profile or self.profile)
         duration = capped_duration(start, goal, requested, profile, caps)
         if duration > requested + 1e-9:
-            fastest = max(goal, key=lambda j: abs(goal[j] - start[j]) / caps[j])
-            distance = abs(goal[fastest] - start[fastest])
-            message = (f"'{self.step}': {requested:.2f} s is too fast for the speed cap "
-                       f"({fastest} moves {distance:.1f} {unit(fastest)}); "
-                       f"stretched to {duration:.2f} s.")
+            message = stretch_warning(self.step, start, goal, requested, duration, caps)
             if max_speed is None:
                 logger.warning(message)
                 self.stretched.append(message)

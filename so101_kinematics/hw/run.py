@@ -186,6 +186,7 @@ def execute(session: ArmSession, plan: Plan, start_pose: Configuration,
         MotionAborted: after the controlled ending; ``.result`` has the details.
     """
     result = RunResult(dict(start_pose))
+    session.rest_pose = dict(start_pose)  # every move may come as low as where the arm stood
 
     def on_step(step: Step) -> None:
         session.step = step.name
