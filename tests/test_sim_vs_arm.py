@@ -20,31 +20,27 @@ pytestmark = [pytest.mark.hw, pytest.mark.slow]
 OFFSET_DEG = 3.0
 
 
-@pytest.fixture(scope="module")
-def hw_log(tmp_path_factory):
-    """The course's plan, shortened, run on a fresh virtual arm with --log."""
+def logged_run(folder, *options: str):
+    """The course's plan, shortened, run on a fresh virtual arm with --log: the log's path."""
     from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
 
-    log = tmp_path_factory.mktemp("run") / "run.csv"
+    log = folder / "run.csv"
     with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as arm:
         assert pick_place_hw.main(["--port", arm.port, "--calibration",
                                    str(DEFAULT_CALIBRATION_PATH), "--yes", "--move-duration",
-                                   "0.8", "--hold", "0.2", "--log", str(log)]) == 0
+                                   "0.8", "--hold", "0.2", *options, "--log", str(log)]) == 0
     return log
+
+
+@pytest.fixture(scope="module")
+def hw_log(tmp_path_factory):
+    return logged_run(tmp_path_factory.mktemp("run"))
 
 
 @pytest.fixture(scope="module")
 def led_log(tmp_path_factory):
     """The same plan and arm with the velocity lead (--velocity-ff)."""
-    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
-
-    log = tmp_path_factory.mktemp("led") / "led.csv"
-    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as arm:
-        assert pick_place_hw.main(["--port", arm.port, "--calibration",
-                                   str(DEFAULT_CALIBRATION_PATH), "--yes", "--move-duration",
-                                   "0.8", "--hold", "0.2", "--velocity-ff", "--log",
-                                   str(log)]) == 0
-    return log
+    return logged_run(tmp_path_factory.mktemp("led"), "--velocity-ff")
 
 
 def compare(log, tmp_path):

@@ -167,6 +167,7 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
     run = CourseRun(ArmSession(bus, trims=trims, feedforward=feedforward, velocity_lead=lead),
                     start, RELEASE_HINT.format(port=port, arm=arm))
     run.session.command = dict(start)
+    run.session.rest_pose = dict(start)  # moves may come as low as where the arm stood
     run.restore.callback(_unlock_port, bus)  # a run that ended leaves the port to other programs
     run.restore.enter_context(signals_as_interrupt())  # SIGTERM/SIGHUP between calls: as Ctrl-C
     gc.collect()
