@@ -328,6 +328,10 @@ MUTANTS: list[Mutant] = [
       "clearance margin applied to the arm's own rest)", "so101_kinematics/clearance.py",
       "check_path", "    if rest is not None:\n", "    if False:\n",
       "tests/test_clearance.py::test_the_return_may_come_down_to_where_the_arm_stood_no_lower"),
+    m("hand_check_holds_the_bus", "the virtual hand's table check holds the bus for the whole "
+      "path (lerobot-calibrate's 1-try reads time out)", "so101_kinematics/virtual/hand.py",
+      None, 'between=getattr(self, "serve_serial", None),', "between=None,",
+      "tests/test_virtual_fidelity.py::test_the_bus_is_answered_while_the_hand_checks_a_long_path"),
     m("replay_drops_the_lead", "the --compare replay sends the plan, not the led goals the "
       "servos got (--velocity-ff)", "so101_kinematics/lab/compare.py", "compare_run",
       'commanded[j] + np.array([r[f"lead_{j}"] for r in rows])', "commanded[j] + 0.0",
