@@ -19,6 +19,7 @@ from so101_kinematics.planning.motion import (
     Configuration,
     PlanError,
     check_number,
+    unit,
 )
 
 DEFAULT_RATE_HZ = 100.0            # control loop rate [Hz]
@@ -95,8 +96,6 @@ def capped_duration(start: Mapping[str, float], goal: Mapping[str, float], durat
 def stretch_warning(step: str, start: Mapping[str, float], goal: Mapping[str, float],
                     requested: float, duration: float, max_speed: Mapping[str, float]) -> str:
     """The warning for a move the speed cap stretched from ``requested`` to ``duration`` [s]."""
-    from so101_kinematics.planning.motion import unit
-
     fastest = max(goal, key=lambda j: abs(goal[j] - start[j]) / max_speed[j])
     return (f"'{step}': {requested:.2f} s is too fast for the speed cap ({fastest} moves "
             f"{abs(goal[fastest] - start[fastest]):.1f} {unit(fastest)}); stretched to "
