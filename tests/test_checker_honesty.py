@@ -112,3 +112,68 @@ def test_name_lookups_use_mujocos_object_numbers(both):
         number = int(getattr(mujoco.mjtObj, f"mjOBJ_{kind.upper()}"))
         assert stand_in[kind] == number
         assert traj_standin.mj_name2id(sm, number, name) == mujoco.mj_name2id(m, number, name)
+
+
+ESCAPES = {
+    "a parent folder": 'open("../escape.txt", "w").write("x")',
+    "an absolute path": 'open(OUTSIDE, "w").write("x")',
+    "os.open": 'import os\nos.close(os.open(OUTSIDE, os.O_WRONLY | os.O_CREAT))',
+    "a symlink out": 'import os\nos.symlink(os.path.dirname(OUTSIDE), "out")\n'
+                     'open(os.path.join("out", os.path.basename(OUTSIDE)), "w").write("x")',
+    "a rename out": 'open("inside.txt", "w").write("x")\nimport os\n'
+                    'os.replace("inside.txt", OUTSIDE)',
+    "a remove": 'import os\nos.remove(VICTIM)',
+    "a mkdir": 'import os\nos.mkdir(OUTSIDE)',
+}
+"""What a submission does at import (caught or not), each outside its temporary folder."""
+
+
+@pytest.mark.parametrize("caught", [False, True])
+@pytest.mark.parametrize("how", list(ESCAPES))
+def test_a_submission_cannot_write_outside_its_temporary_folder(tmp_path, how, caught):
+    """Issue 33: a submission that wrote outside its folder scored 100. Each way out is refused,
+    nothing is written (or removed), and the check names the path instead of scoring it."""
+    outside, victim = tmp_path / "outside" / "escape.txt", tmp_path / "victim.txt"
+    outside.parent.mkdir()
+    victim.write_text("keep me")
+    body = ESCAPES[how]
+    if caught:
+        body = "try:\n" + "".join(f"    {line}\n" for line in body.splitlines()) + \
+            "except OSError:\n    pass\n"
+    module = tmp_path / "student" / "so101_forward_kinematics.py"
+    module.parent.mkdir()
+    module.write_text(f"OUTSIDE = {str(outside)!r}\nVICTIM = {str(victim)!r}\n{body}\n"
+                      + (REPO / "tests" / "fk_submissions" / "correct.py").read_text())
+    check = check_file(module, count=20)
+    assert check["verdict"] == "error"
+    assert check["reason"].startswith("it writes outside its temporary folder: ")
+    assert report.gradescope_results(check, report.DEFAULT_POINTS)["score"] == 0
+    assert not outside.exists() and not (tmp_path / "student" / "escape.txt").exists()
+    assert victim.read_text() == "keep me"
+    assert sorted(p.name for p in module.parent.iterdir()) == ["so101_forward_kinematics.py"]
+
+
+def test_writes_inside_the_temporary_folder_home_and_tmpdir_are_allowed(tmp_path):
+    module = tmp_path / "so101_forward_kinematics.py"
+    module.write_text(
+        "import os, tempfile\nopen('log.txt', 'w').write('x')\nos.mkdir('plots')\n"
+        "os.replace('log.txt', 'plots/log.txt')\n"
+        "open(os.path.expanduser('~/cache.txt'), 'w').write('x')\n"
+        "tempfile.NamedTemporaryFile().close()\n"
+        "import shutil\nos.makedirs('a/b')\nopen('a/b/c', 'w').close()\nshutil.rmtree('a')\n"
+        + (REPO / "tests" / "fk_submissions" / "correct.py").read_text())
+    check = check_file(module, count=20)
+    assert check["verdict"] == "pass", check["reason"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["so101_forward_kinematics.py"]
+
+
+@pytest.mark.parametrize("checker", ["ik", "traj"])
+def test_the_ik_and_trajectory_checkers_refuse_the_same_writes(tmp_path, checker):
+    outside = tmp_path / "escape.txt"
+    module = tmp_path / "student" / "submission.py"
+    module.parent.mkdir()
+    module.write_text(f"open({str(outside)!r}, 'w').write('x')\n")
+    check = (check_ik_file(module, count=5) if checker == "ik"
+             else traj.check_traj_file(module))
+    assert check["verdict"] == "error" and "writes outside" in check["reason"], check["reason"]
+    assert not outside.exists()

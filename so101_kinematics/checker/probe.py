@@ -36,6 +36,66 @@ FACTORS = ("get_gw1", "get_g12", "get_g23", "get_g34", "get_g45")
 IK_SAVE_EVERY = 25
 """IK targets between two writes of the results (a hang keeps the answers before it)."""
 
+REFUSED: list[str] = []
+"""The writes outside the working folder :func:`confine` refused ("open for writing PATH")."""
+
+_WRITE_FLAGS = os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_TRUNC | os.O_APPEND
+
+_WRITES = {"os.remove": ("remove", (0,), 1), "os.rmdir": ("remove the folder", (0,), 1),
+           "os.mkdir": ("make the folder", (0,), 2), "os.rename": ("rename", (0, 1), 2),
+           "os.link": ("link", (1,), 3), "os.symlink": ("link", (1,), 2),
+           "os.truncate": ("truncate", (0,), None), "os.chmod": ("chmod", (0,), 2),
+           "os.chown": ("chown", (0,), 3), "os.utime": ("touch", (0,), 3),
+           "shutil.rmtree": ("remove the tree", (0,), 1)}
+"""Audit event -> (what it does, the arguments that are paths it changes, the ``dir_fd``
+argument's index): every file-changing event of the standard library (``os.replace`` and
+``os.unlink`` raise ``os.rename`` and ``os.remove``; ``open`` is checked apart, by its mode)."""
+
+
+def confine(folder: str, own_files: tuple[str, ...] = ()) -> None:
+    """From now on, refuse every write outside ``folder`` in this process (an audit hook).
+
+    A write outside (``open`` for writing, remove, rename, mkdir, link, chmod, ...) raises
+    ``PermissionError`` naming the path, and is recorded in :data:`REFUSED`, so the checker
+    names it even when the student's code catches the error. Paths are resolved (``..``,
+    symlinks, ``dir_fd``) before they are compared. ``own_files`` are the probe's results.
+    The hook cannot be removed, but it is no security boundary against deliberately hostile
+    code: a C extension (``ctypes``) or a program the module starts is not audited.
+    """
+    root = os.path.realpath(folder)
+    own = {os.path.realpath(path) for path in own_files}
+
+    def inside(path, dir_fd=None) -> bool:
+        if isinstance(path, int):
+            return True  # an open descriptor: its opening was checked
+        path = os.fsdecode(os.fspath(path))
+        if isinstance(dir_fd, int) and dir_fd >= 0 and not os.path.isabs(path):
+            path = os.path.join(os.readlink(f"/proc/self/fd/{dir_fd}"), path)
+        real = os.path.realpath(path)
+        return real == root or real.startswith(root + os.sep) or real in own
+
+    def hook(event: str, args: tuple) -> None:
+        if event == "open":
+            path, mode, flags = args
+            writes = (any(c in mode for c in "wax+") if isinstance(mode, str)
+                      else bool((flags or 0) & _WRITE_FLAGS))
+            changes = [("open for writing", path, None)] if writes else []
+        elif event in _WRITES:
+            what, indices, fd_index = _WRITES[event]
+            dir_fd = args[fd_index] if fd_index is not None and fd_index < len(args) else None
+            changes = [(what, args[i], dir_fd) for i in indices]
+        else:
+            return
+        for what, path, dir_fd in changes:
+            if path is not None and not inside(path, dir_fd):
+                refused = f"{what} {os.fsdecode(os.fspath(path))}"
+                REFUSED.append(refused)
+                raise PermissionError(
+                    f"so101-check refused to {refused}: a submission runs in a temporary "
+                    "folder and may write only there (e.g. a plain file name)")
+
+    sys.addaudithook(hook)
+
 
 class BoundedOutput(io.TextIOBase):
     """A text stream that keeps the first ``OUTPUT_LIMIT`` characters and counts the rest."""
@@ -136,6 +196,11 @@ def add_import_paths(request: dict, result_path: str) -> str:
     return fallback
 
 
+def own_files(result_path: str) -> tuple[str, ...]:
+    """The files the probe itself writes after the student's import (its results)."""
+    return tuple(result_path + suffix for suffix in ("", ".part", ".stage"))
+
+
 def main() -> None:
     """Import the module named in the request and evaluate what it asks for."""
     global MODULE_PATH
@@ -160,6 +225,8 @@ def main() -> None:
 
     save("import")
     fallback = add_import_paths(request, result_path)
+    results["refused_writes"] = REFUSED
+    confine(os.getcwd(), own_files(result_path))
     sys.stdout = sys.stderr = captured
     module_name = request.get("module_name", "so101_forward_kinematics")
     spec = importlib.util.spec_from_file_location(module_name, MODULE_PATH)

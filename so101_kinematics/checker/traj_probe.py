@@ -234,6 +234,8 @@ def main() -> None:
     save("import")
     install_stand_ins()
     probe.add_import_paths(request, result_path)
+    results["refused_writes"] = probe.REFUSED
+    probe.confine(os.getcwd(), probe.own_files(result_path))
     sys.stdout = sys.stderr = captured
     spec = importlib.util.spec_from_file_location(request["module_name"], probe.MODULE_PATH)
     module = importlib.util.module_from_spec(spec)
