@@ -345,6 +345,12 @@ MUTANTS: list[Mutant] = [
       "root = os.path.realpath(folder)", "root = os.path.dirname(os.path.realpath(folder))",
       "tests/test_checker_honesty.py::test_a_submission_cannot_write_outside_its_temporary_"
       "folder"),
+    m("fk_input_change_unseen", "the FK probe calls the student's FK on a dict it never looks at "
+      "again (a changed input reads as a wrong product order)",
+      "so101_kinematics/checker/probe.py", "fk_call", "        if after != before:\n",
+      "        if False:\n",
+      "tests/test_checker_honesty.py::test_an_fk_that_changes_its_input_is_named_not_a_product_"
+      "order"),
     m("hand_check_holds_the_bus", "the virtual hand's table check holds the bus for the whole "
       "path (lerobot-calibrate's 1-try reads time out)", "so101_kinematics/virtual/hand.py",
       None, 'between=getattr(self, "serve_serial", None),', "between=None,",

@@ -177,3 +177,58 @@ def test_the_ik_and_trajectory_checkers_refuse_the_same_writes(tmp_path, checker
              else traj.check_traj_file(module))
     assert check["verdict"] == "error" and "writes outside" in check["reason"], check["reason"]
     assert not outside.exists()
+
+
+CORRECT_FK = (REPO / "tests" / "fk_submissions" / "correct.py").read_text()
+FACTORS_ONLY = CORRECT_FK[:CORRECT_FK.index("def get_forward_kinematics")]
+COURSE_FK_BODY = """    gw1 = get_gw1(position_dict['shoulder_pan'])
+    g12 = get_g12(position_dict['shoulder_lift'])
+    g23 = get_g23(position_dict['elbow_flex'])
+    g34 = get_g34(position_dict['wrist_flex'])
+    g45 = get_g45(position_dict['wrist_roll'])
+    gwt = gw1 @ g12 @ g23 @ g34 @ g45 @ get_g5t()
+"""
+
+
+def _fk_test(tmp_path, first_lines: str, returns: str) -> dict:
+    """The FK test of a course-style module whose FK starts with ``first_lines``."""
+    module = tmp_path / "so101_forward_kinematics.py"
+    module.write_text(FACTORS_ONLY + "def get_forward_kinematics(position_dict):\n"
+                      + first_lines + COURSE_FK_BODY + f"    return {returns}\n")
+    check = check_file(module, count=50)
+    return next(t for t in check["tests"] if t["function"] == "get_forward_kinematics")
+
+
+def test_an_fk_that_changes_its_input_is_named_not_a_product_order(tmp_path):
+    """A clamp written back into the caller's dict: it was diagnosed as a wrong product order."""
+    fk = _fk_test(tmp_path, "    for joint in position_dict:\n        position_dict[joint] = "
+                  "max(-90.0, min(90.0, position_dict[joint]))\n", "gwt[0:3, 3], gwt[0:3, 0:3]")
+    assert fk["status"] == "wrong"
+    (cause,) = [c for c in fk["causes"] if "changes the configuration it is given" in c]
+    assert "-> 90.0" in cause and "cfg = dict(position_dict)" in cause
+    assert not any("order of the product" in c for c in fk["causes"])
+
+
+def test_an_fk_that_changes_its_input_fails_even_when_its_pose_is_right(tmp_path):
+    fk = _fk_test(tmp_path, "    position_dict.pop('gripper', None)\n",
+                  "gwt[0:3, 3], gwt[0:3, 0:3]")
+    assert fk["status"] == "wrong" and fk["max_error_mm"] < 0.01
+    assert any("(gripper deleted; in 53 of 53 calls)" in c for c in fk["causes"]), fk["causes"]
+
+
+def test_nan_returned_by_the_fk_is_named_with_where(tmp_path):
+    fk = _fk_test(tmp_path, "    scale = np.sqrt(position_dict['shoulder_pan'])\n",
+                  "gwt[0:3, 3] * scale / scale, gwt[0:3, 0:3]")
+    assert fk["status"] == "broken"
+    # sqrt of a negative pan, and 0/0 at pan 0: the course's starting pose (pan -45) first
+    (cause,) = fk["causes"]
+    assert cause.startswith("returns NaN or infinite numbers at ")
+    assert "the first at the course's starting configuration" in cause
+
+
+def test_a_4x4_return_is_named_broken_with_its_pose_right(tmp_path):
+    """It was "WRONG, max 0.00 mm": the pose is right, the form breaks the course's script."""
+    fk = _fk_test(tmp_path, "", "gwt")
+    assert fk["status"] == "broken" and fk["max_error_mm"] < 0.01
+    assert "(the pose in it is right)" in fk["causes"][0]
+    assert "Fix: return gwt[0:3, 3], gwt[0:3, 0:3]" in fk["causes"][0]

@@ -17,7 +17,7 @@ import functools
 
 import numpy as np
 
-from so101_kinematics.checker import diagnose
+from so101_kinematics.checker import diagnose, fk_returns
 from so101_kinematics.fast_fk import forward_kinematics_batch
 from so101_kinematics.frames import ARM_JOINTS, JOINT_LIMITS, joint_transform
 
@@ -173,7 +173,7 @@ def _fk_arrays(calls: list[dict]):
                 matrix = np.asarray(result["value"], dtype=float)
                 positions.append(matrix[:3, 3])
                 rotations.append(matrix[:3, :3])
-                problem = "returns one 4x4 matrix; the course's form is (position, rotation)"
+                problem = fk_returns.FOUR_BY_FOUR
                 continue
             return None, None, (f"returns a {result['type']}; expected (position, rotation) "
                                 "with shapes (3,) and (3, 3)")
@@ -191,6 +191,13 @@ def _fk_arrays(calls: list[dict]):
         positions.append(position.ravel())
         rotations.append(rotation)
     return np.array(positions), np.array(rotations), problem
+
+
+def _where(rows: np.ndarray, index: int) -> str:
+    """Configuration ``index`` of ``rows`` in words: the course's name, or its angles."""
+    names = list(COURSE_CONFIGURATIONS)
+    return names[index] if index < len(names) else ", ".join(
+        f"{joint} {value:.1f}" for joint, value in as_dict(rows[index]).items())
 
 
 def _stats(values: np.ndarray) -> dict:
@@ -219,6 +226,9 @@ def compare_fk(results: dict, tool: dict, tolerance, rows: np.ndarray) -> dict:
     positions, rotations, problem = _fk_arrays(calls)
     if positions is None:
         return {"function": "get_forward_kinematics", "status": "broken", "causes": [problem]}
+    nan = fk_returns.nan_cause(positions, rotations, lambda i: _where(rows, i))
+    if nan:
+        return {"function": "get_forward_kinematics", "status": "broken", "causes": [nan]}
     package_p, package_r = forward_kinematics_batch(rows[:, :5])
     g_5t = joint_transform("5t", 0.0)
     student_tool = np.asarray(tool["matrix"]) if "matrix" in tool else g_5t
@@ -229,8 +239,13 @@ def compare_fk(results: dict, tool: dict, tolerance, rows: np.ndarray) -> dict:
     chain_mm, chain_deg = _batch_errors(positions, rotations, chain_p, chain_r)
     raw_mm, raw_deg = _batch_errors(positions, rotations, package_p, package_r)
     course = len(COURSE_CONFIGURATIONS)
+    changed = fk_returns.changed_cause(calls)
+    if problem == fk_returns.FOUR_BY_FOUR:
+        problem = fk_returns.form_cause(chain_mm, chain_deg)
     causes = [problem] if problem else []
-    causes += _fk_causes(results, positions, rotations, chain_p, chain_r, student_tool)
+    causes += [changed] if changed else []
+    causes += _fk_causes(results, positions, rotations, chain_p, chain_r, student_tool,
+                         check_product=not changed)  # a changed input: not the product's fault
     judged = "chain"
     if tool.get("status") not in ("ok", "convention") and np.median(raw_mm) > tolerance[0]:
         chain_mm, chain_deg = raw_mm, raw_deg  # a wrong object frame: the final pose is judged
@@ -239,9 +254,12 @@ def compare_fk(results: dict, tool: dict, tolerance, rows: np.ndarray) -> dict:
                       "(median): your get_g5t is wrong and is not a known convention, so the "
                       "pose the arm reaches is wrong; judged against this package's object "
                       "frame")
-    ok = (not problem and chain_mm.max() <= tolerance[0] and chain_deg.max() <= tolerance[1])
+    ok = (not problem and not changed and chain_mm.max() <= tolerance[0]
+          and chain_deg.max() <= tolerance[1])
     return {
-        "function": "get_forward_kinematics", "status": "ok" if ok else "wrong",
+        "function": "get_forward_kinematics",
+        "status": ("ok" if ok else "broken" if problem.startswith(fk_returns.FOUR_BY_FOUR)
+                   else "wrong"),
         "causes": causes, "judged_against": judged,
         "course": [{"name": name, "error_mm": float(chain_mm[i]), "error_deg": float(chain_deg[i]),
                     "position_m": positions[i].tolist(),
@@ -255,8 +273,13 @@ def compare_fk(results: dict, tool: dict, tolerance, rows: np.ndarray) -> dict:
             _stats(raw_deg), "gripper_key": _gripper_note(results)}
 
 
-def _fk_causes(results, positions, rotations, chain_p, chain_r, student_tool) -> list[str]:
-    """Mistakes visible only in the whole FK: units, a transposed rotation, the product."""
+def _fk_causes(results, positions, rotations, chain_p, chain_r, student_tool,
+               check_product: bool = True) -> list[str]:
+    """Mistakes visible only in the whole FK: units, a transposed rotation, the product.
+
+    The product is judged with ``check_product`` only (not when the FK changed its input:
+    that explains a product apart).
+    """
     causes = []
     if np.allclose(positions, chain_p * 1000, rtol=1e-3, atol=1e-3):
         return ["the position is in millimetres; the FK returns metres"]
@@ -284,7 +307,7 @@ def _fk_causes(results, positions, rotations, chain_p, chain_r, student_tool) ->
     elif wrong_part:
         causes.append(f"the position is {wrong_part}, not gwt's last column. Fix: position = "
                       "gwt[0:3, 3] (rows 0-2 of column 3)")
-    elif worst > 0.01:
+    elif worst > 0.01 and check_product:
         causes.append("get_forward_kinematics is not the product gw1 @ g12 @ g23 @ g34 @ g45 @ "
                       f"g5t of your own factors (up to {worst:.2f} mm/deg apart): check the "
                       "order of the product and which joint goes to which factor")

@@ -180,6 +180,26 @@ def fk_result(value) -> dict:
     return {"parts": parts, "type": type(value).__name__}
 
 
+def fk_call(fk, configuration: dict) -> dict:
+    """:func:`fk_result` of one call on a copy of ``configuration``, with ``"changed"``.
+
+    ``"changed"``: what the call changed in the dict it was given (key -> [before, after];
+    before None for a key it added, after "deleted" for one it removed).
+    """
+    given = dict(configuration)
+    result = fk_result(call(fk, given))
+    changed = {}
+    for key in list(configuration) + [k for k in given if k not in configuration]:
+        before, after = configuration.get(key), given.get(key, "deleted")
+        try:
+            after = float(after)
+        except Exception:  # deleted, or not a number
+            after = after if isinstance(after, str) else repr(after)[:40]
+        if after != before:
+            changed[str(key)] = [before, after]
+    return {**result, "changed": changed} if changed else result
+
+
 def add_import_paths(request: dict, result_path: str) -> str:
     """Put the student's folder first on ``sys.path``, the fallback modules' last.
 
@@ -262,7 +282,7 @@ def probe_fk(module, request: dict, results: dict, save) -> None:
     if callable(fk):
         save("calling get_forward_kinematics")
         results["functions"]["get_forward_kinematics"] = [
-            fk_result(call(fk, dict(configuration))) for configuration in request["configurations"]]
+            fk_call(fk, configuration) for configuration in request["configurations"]]
         save("calling get_forward_kinematics without a gripper key", keep=False)
         results["without_gripper"] = fk_result(call(fk, dict(request["without_gripper"])))
     if request.get("product_configurations"):
