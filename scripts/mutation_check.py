@@ -351,6 +351,16 @@ MUTANTS: list[Mutant] = [
       "        if False:\n",
       "tests/test_checker_honesty.py::test_an_fk_that_changes_its_input_is_named_not_a_product_"
       "order"),
+    m("feedforward_line_at_zero", "the feed-forward's line shows the all-zero pose's offsets as "
+      "the arm's", "so101_kinematics/hw/feedforward.py", "describe_at_pose",
+      "pose, where = read_pose(bus), \"the arm's pose as read now\"",
+      "pose, where = dict.fromkeys(JOINTS, 0.0), \"the arm's pose as read now\"",
+      "tests/test_true_messages.py::test_the_feedforward_line_gives_the_offsets_at_the_arms_pose_"
+      "and_says_so"),
+    m("timing_options_ignored_with_plan", "--move-duration/--hold silently ignored with --plan",
+      "so101_kinematics/cli.py", "ignored_with_plan",
+      "    if not given or getattr(args, \"plan\", None) is None:\n", "    if True:\n",
+      "tests/test_true_messages.py::test_timing_options_given_with_a_plan_are_refused_not_ignored"),
     m("hand_check_holds_the_bus", "the virtual hand's table check holds the bus for the whole "
       "path (lerobot-calibrate's 1-try reads time out)", "so101_kinematics/virtual/hand.py",
       None, 'between=getattr(self, "serve_serial", None),', "between=None,",

@@ -138,3 +138,33 @@ def test_timing_options_without_a_plan_still_time_the_built_in_plan(capsys):
     assert main(["--dry-run", "--move-duration", "3", "--hold", "0"]) == 0
     carry = next(line for line in capsys.readouterr().out.splitlines() if " carry " in line)
     assert carry.split()[2:4] == ["3.00", "0.00"]  # move [s], hold [s]
+
+
+def test_the_feedforward_line_gives_the_offsets_at_the_arms_pose_and_says_so(caplog):
+    """It printed the all-zero pose's offsets (the arm stretched up) as if they were the arm's."""
+    import logging
+
+    from hw_fakes import FakeBus
+
+    from so101_kinematics.calibration import load_calibration
+    from so101_kinematics.constants import HOME_POSE
+    from so101_kinematics.frames import ARM_JOINTS
+    from so101_kinematics.hw.feedforward import read_feedforward
+
+    pose = dict(HOME_POSE)  # the folded rest, where a script starts
+    bus = FakeBus(load_calibration(REPO / "calibration" / "virtual_so101.json"), pose)
+    with caplog.at_level(logging.INFO, logger="so101_kinematics.hw.feedforward"):
+        feedforward = read_feedforward(bus)
+    (line,) = [r.getMessage() for r in caplog.records if r.levelno == logging.INFO]
+    assert line.endswith("; offsets at the arm's pose as read now")
+    at_pose = feedforward.offsets(pose)
+    at_zero = feedforward.offsets(dict.fromkeys(pose, 0.0))
+    shown = {j: f"{at_pose[j]:+.1f}" for j in ARM_JOINTS if at_pose[j]}
+    assert shown and all(f"{j} {v}" in line for j, v in shown.items())
+    assert any(f"{at_pose[j]:+.1f}" != f"{at_zero[j]:+.1f}" for j in ARM_JOINTS)
+    bus.fail_reads = 100  # a pose that cannot be read: the line says whose offsets it shows
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="so101_kinematics.hw.feedforward"):
+        read_feedforward(bus)
+    assert caplog.records[-1].getMessage().endswith(
+        "offsets at the all-zero pose (the arm's was not read)")
