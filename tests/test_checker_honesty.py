@@ -41,6 +41,21 @@ def test_the_projects_own_fk_and_ik_score_full_marks():
     assert ik["verdict"] == "pass", ik["reason"] or ik["note"]
 
 
+def test_the_courses_fk_test_script_runs_on_the_stand_in_with_the_projects_utils(tmp_path):
+    """tests/course's script (set_initial_pose, send_position_command, mjv_initGeom on the
+    viewer's scene, hold_position) imported beside this project's utils and FK, as a student's
+    week-6 folder holds them, with the cubic taken from the utils: 100/100 (on today's main
+    its import failed in the utils: 'int' object is not subscriptable)."""
+    for name in ("so101_kinematics", "so101_mujoco_utils.py", "so101_forward_kinematics.py"):
+        (tmp_path / name).symlink_to(REPO / name)  # this tree's package, not an installed one
+    script = tmp_path / "week6.py"
+    script.write_text((REPO / "tests" / "course" / "fk_test_from_the_course.py").read_text()
+                      + "\nfrom so101_mujoco_utils import move_to_pose_cubic  # noqa: E402\n")
+    check = traj.check_traj_file(script)
+    assert check["verdict"] == "pass", check["reason"] or check["causes"]
+    assert traj.gradescope_results(check)["score"] == sum(traj.POINTS.values())
+
+
 def test_the_courses_reference_cubic_scores_full_marks():
     check = traj.check_traj_file(REPO / "tests" / "traj_submissions" / "correct.py")
     assert traj.gradescope_results(check)["score"] == sum(traj.POINTS.values())
