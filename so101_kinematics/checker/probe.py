@@ -41,15 +41,16 @@ REFUSED: list[str] = []
 
 _WRITE_FLAGS = os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_TRUNC | os.O_APPEND
 
-_WRITES = {"os.remove": ("remove", (0,), 1), "os.rmdir": ("remove the folder", (0,), 1),
-           "os.mkdir": ("make the folder", (0,), 2), "os.rename": ("rename", (0, 1), 2),
-           "os.link": ("link", (1,), 3), "os.symlink": ("link", (1,), 2),
-           "os.truncate": ("truncate", (0,), None), "os.chmod": ("chmod", (0,), 2),
-           "os.chown": ("chown", (0,), 3), "os.utime": ("touch", (0,), 3),
-           "shutil.rmtree": ("remove the tree", (0,), 1)}
-"""Audit event -> (what it does, the arguments that are paths it changes, the ``dir_fd``
-argument's index): every file-changing event of the standard library (``os.replace`` and
-``os.unlink`` raise ``os.rename`` and ``os.remove``; ``open`` is checked apart, by its mode)."""
+_WRITES = {"os.remove": ("remove", ((0, 1),)), "os.rmdir": ("remove the folder", ((0, 1),)),
+           "os.mkdir": ("make the folder", ((0, 2),)), "os.rename": ("rename", ((0, 2), (1, 3))),
+           "os.link": ("link", ((1, 3),)), "os.symlink": ("link", ((1, 2),)),
+           "os.truncate": ("truncate", ((0, None),)), "os.chmod": ("chmod", ((0, 2),)),
+           "os.chown": ("chown", ((0, 3),)), "os.utime": ("touch", ((0, 3),)),
+           "shutil.rmtree": ("remove the tree", ((0, 1),))}
+"""Audit event -> (what it does, (index of a path it changes, index of that path's ``dir_fd``
+or None) for each such path): every file-changing event of the standard library
+(``os.replace`` and ``os.unlink`` raise ``os.rename`` and ``os.remove``; ``open`` is checked
+apart, by its mode)."""
 
 
 def confine(folder: str, own_files: tuple[str, ...] = ()) -> None:
@@ -81,15 +82,16 @@ def confine(folder: str, own_files: tuple[str, ...] = ()) -> None:
                       else bool((flags or 0) & _WRITE_FLAGS))
             changes = [("open for writing", path, None)] if writes else []
         elif event in _WRITES:
-            what, indices, fd_index = _WRITES[event]
-            dir_fd = args[fd_index] if fd_index is not None and fd_index < len(args) else None
-            changes = [(what, args[i], dir_fd) for i in indices]
+            what, paths = _WRITES[event]
+            changes = [(what, args[i], args[fd] if fd is not None and fd < len(args) else None)
+                       for i, fd in paths]
         else:
             return
         for what, path, dir_fd in changes:
             if path is not None and not inside(path, dir_fd):
                 refused = f"{what} {os.fsdecode(os.fspath(path))}"
-                REFUSED.append(refused)
+                if len(REFUSED) < 20:  # a loop of writes: the first ones name it
+                    REFUSED.append(refused)
                 raise PermissionError(
                     f"so101-check refused to {refused}: a submission runs in a temporary "
                     "folder and may write only there (e.g. a plain file name)")
