@@ -66,7 +66,7 @@ class StandInModel:
 
     def __init__(self, timestep: float):
         n = len(JOINTS)
-        self.opt = types.SimpleNamespace(timestep=timestep, gravity=np.array([0.0, 0.0, -9.81]))
+        self.opt = types.SimpleNamespace(timestep=timestep)
         self.nq = self.nv = self.njnt = self.nu = n
         self.nbody, self.nkey, self.nsite, self.ngeom = n + 1, 0, 0, 0
         self.jnt_qposadr = np.arange(n, dtype=np.int32)
@@ -79,12 +79,13 @@ class StandInModel:
         actuators = len(self.actuator_names)
         self._actuator = {  # all 12; the model's arrays are the first nu rows (views)
             "trnid": np.array([[i % n, -1] for i in range(actuators)], dtype=np.int32),
+            # position: the joint's range; velocity: model/scene_with_velocity.xml's [rad/s]
             "ctrlrange": np.vstack([self.jnt_range, np.tile([-200.0, 200.0], (n, 1))]),
             "ctrllimited": np.ones(actuators, dtype=np.uint8),
             "forcerange": np.zeros((actuators, 2)), "gainprm": np.zeros((actuators, 10)),
             "biasprm": np.zeros((actuators, 10))}
-        self._actuator["gainprm"][:, 0] = 1.0
-        self._actuator["biasprm"][:n, 1] = -1.0
+        self._actuator["gainprm"][:, 0] = 1.0  # a unit position servo (ideal: mj_step
+        self._actuator["biasprm"][:n, 1] = -1.0  # puts each joint where it is commanded)
         for key, array in self._actuator.items():
             setattr(self, f"actuator_{key}", array[:n])
 
