@@ -247,3 +247,18 @@ def test_a_4x4_return_is_named_broken_with_its_pose_right(tmp_path):
     assert fk["status"] == "broken" and fk["max_error_mm"] < 0.01
     assert "(the pose in it is right)" in fk["causes"][0]
     assert "Fix: return gwt[0:3, 3], gwt[0:3, 0:3]" in fk["causes"][0]
+
+
+def test_nan_returned_by_a_factor_names_the_angle(tmp_path):
+    from so101_kinematics.checker.compare import factor_angles
+
+    module = tmp_path / "so101_forward_kinematics.py"
+    module.write_text(CORRECT_FK.replace("def get_g23(theta3_deg):\n",
+                                         "def get_g23(theta3_deg):\n"
+                                         "    if theta3_deg < 0:\n"
+                                         "        theta3_deg = np.nan\n"))
+    check = check_file(module, count=20)
+    g23 = next(t for t in check["tests"] if t["function"] == "get_g23")
+    first_negative = next(a for a in factor_angles("elbow_flex") if a < 0)
+    assert g23["status"] == "broken"
+    assert g23["causes"] == [f"returns NaN or infinite numbers at {first_negative:g} deg"]

@@ -92,10 +92,13 @@ def pose_error(g_a: np.ndarray, g_b: np.ndarray) -> tuple[float, float]:
             diagnose.rotation_angle_deg(g_a[:3, :3].T @ g_b[:3, :3]))
 
 
-def _matrices(calls: list[dict], shape=(4, 4)):
-    """(matrices, problem): the returned arrays if each is ``shape``, else a problem."""
+def _matrices(calls: list[dict], shape=(4, 4), angles=None):
+    """(matrices, problem): the returned arrays if each is ``shape``, else a problem.
+
+    ``angles``: the joint angle [deg] of each call, named with a NaN returned.
+    """
     matrices = []
-    for result in calls:
+    for index, result in enumerate(calls):
         if "error" in result:
             return None, f"raised {result['error']}"
         if tuple(result["shape"]) != shape:
@@ -103,7 +106,8 @@ def _matrices(calls: list[dict], shape=(4, 4)):
                           f"expected a {shape[0]}x{shape[1]} array")
         matrix = np.asarray(result["value"], dtype=float)
         if not np.all(np.isfinite(matrix)):
-            return None, "returns NaN or infinite numbers"
+            return None, "returns NaN or infinite numbers" + (
+                f" at {angles[index]:g} deg" if angles is not None else "")
         matrices.append(matrix)
     return matrices, ""
 
@@ -124,7 +128,7 @@ def compare_factor(function: str, calls: list[dict] | None, angles, tolerance) -
     name = FACTORS[function][0]
     if calls is None:
         return {"function": function, "status": "missing", "causes": ["not defined"]}
-    matrices, problem = _matrices(calls)
+    matrices, problem = _matrices(calls, angles=angles)
     if matrices is None:
         return {"function": function, "status": "broken", "causes": [problem]}
     references = [joint_transform(name, angle) for angle in angles]
