@@ -97,12 +97,12 @@ def test_raw_ticks_refused_after_a_move_do_not_claim_nothing_moved(course_arm, c
     """The arm moved before the refused write: the refusal says that write moved nothing, and
     the run's ending (back at the start, torque off) follows at the script's exit."""
     import so101_kinematics.hw.course as course
-    from so101_kinematics.planning.plans import STARTING_CONFIGURATION
     from so101_utils import load_calibration, move_to_pose, setup_motors
 
     bus = setup_motors(load_calibration(str(REPO / "calibration" / "virtual_so101.json")),
                        course_arm.port)
-    move_to_pose(bus, STARTING_CONFIGURATION, 1.5)
+    pose = bus.sync_read("Present_Position")
+    move_to_pose(bus, dict(pose, wrist_roll=pose["wrist_roll"] + 20.0), 0.5)  # a short move
     with pytest.raises(course.ScriptEnded) as ended:
         bus.sync_write("Goal_Position", {"shoulder_pan": 2047}, normalize=False)
     assert ended.value.code == 2
