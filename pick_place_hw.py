@@ -16,7 +16,7 @@ from so101_kinematics.calibration import (
     load_calibration,
 )
 from so101_kinematics.clearance import check_plan_clearance
-from so101_kinematics.cli import ArgumentParser, requires
+from so101_kinematics.cli import ArgumentParser, StoreGiven, ignored_with_plan, requires
 from so101_kinematics.hw.bus import FIND_PORT_HINT, LerobotMissing, connect, disconnect, read_pose
 from so101_kinematics.hw.control import OUTAGE_TOLERANCE_S, signals_as_interrupt, speed_caps
 from so101_kinematics.hw.home_check import add_calibration_check_arguments, home_check
@@ -92,10 +92,10 @@ def build_parser() -> argparse.ArgumentParser:
     who.add_argument("--calibration", type=Path, help="lerobot calibration JSON file of this arm")
     parser.add_argument("--plan", type=Path, help="waypoint file (JSON or TOML) instead of the "
                         "course's plan")
-    parser.add_argument("--move-duration", type=float, default=2.0,
+    parser.add_argument("--move-duration", type=float, default=2.0, action=StoreGiven,
                         help="duration of each move of the built-in plan [s] "
                              f"(0-{MAX_MOVE_DURATION_S:g}, default 2)")
-    parser.add_argument("--hold", type=float, default=0.5,
+    parser.add_argument("--hold", type=float, default=0.5, action=StoreGiven,
                         help="pause after each move of the built-in plan [s] "
                              f"(0-{MAX_MOVE_DURATION_S:g}, default 0.5)")
     add_loop_arguments(parser)
@@ -227,8 +227,9 @@ def _main(args) -> int:
     check_number(args.move_duration, "--move-duration", 0.0, MAX_MOVE_DURATION_S, "s")
     check_number(args.hold, "--hold", 0.0, MAX_MOVE_DURATION_S, "s")
     check_run_settings(args.rate, args.max_speed, args.tracking_tolerance)
-    if requires(args, "paper", "sheet"):
-        raise PlanError(requires(args, "paper", "sheet"))
+    for refusal in (requires(args, "paper", "sheet"), ignored_with_plan(args)):
+        if refusal:
+            raise PlanError(refusal)
     trims = args.trims and load_trims(args.trims)  # a dry run checks them as a real run does
     stack = stacking.stack_from_arguments(args)
     plan = stack.plan if stack else plan_from_arguments(args) or (

@@ -19,7 +19,9 @@ from so101_forward_kinematics import (
 from so101_kinematics.cli import (
     EXIT_BAD_INPUT,
     ArgumentParser,
+    StoreGiven,
     add_servo_arguments,
+    ignored_with_plan,
     number,
     range_help,
     requires,
@@ -149,10 +151,10 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
                         help="turn the cube's start about z [deg] away from where the plan "
                         f"expects it, {range_help(*CUBE_YAW_RANGE, 'deg')} (a perturbation; for "
                         "--pick/--place see --cube-yaw)")
-    parser.add_argument("--move-duration", type=number(*duration), default=2.0,
+    parser.add_argument("--move-duration", type=number(*duration), default=2.0, action=StoreGiven,
                         help="built-in plan: seconds per main move, "
                         f"{range_help(*duration)} (default %(default)g)")
-    parser.add_argument("--hold", type=number(*duration), default=0.5,
+    parser.add_argument("--hold", type=number(*duration), default=0.5, action=StoreGiven,
                         help="built-in plan: seconds held at each course configuration, "
                         f"{range_help(*duration)} (default %(default)g)")
     add_cartesian_arguments(parser)
@@ -178,9 +180,10 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
 
 def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     """Check the outputs and the plan, run, report (see :func:`main`)."""
-    if requires(args, "report", "compare"):
-        print(f"error: {requires(args, 'report', 'compare')}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+    for refusal in (requires(args, "report", "compare"), ignored_with_plan(args)):
+        if refusal:
+            print(f"error: {refusal}", file=sys.stderr)
+            return EXIT_BAD_INPUT
     if args.compare is not None:
         return _compare(args)
     mode, video = choose_mode(args.headless, args.record, so101_display.has_display())

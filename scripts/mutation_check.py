@@ -328,6 +328,39 @@ MUTANTS: list[Mutant] = [
       "clearance margin applied to the arm's own rest)", "so101_kinematics/clearance.py",
       "check_path", "    if rest is not None:\n", "    if False:\n",
       "tests/test_clearance.py::test_the_return_may_come_down_to_where_the_arm_stood_no_lower"),
+    # --- the checkers are honest (issue 33, Deliver 6) ------------------------------------
+    m("standin_qposadr_an_int", "the checker's stand-in gives m.joint(...).qposadr as an int "
+      "(MuJoCo: an array; the project's own utils scored 0/100)",
+      "so101_kinematics/checker/traj_standin.py", "_View.__init__",
+      "array[index:index + 1] if array.ndim == 1 else", "array[index] if array.ndim == 1 else",
+      "tests/test_checker_honesty.py::test_the_projects_own_cubic_utils_scores_100_through_the_"
+      "console_script"),
+    m("sandbox_not_confined", "the submission's writes not audited (one writing outside its "
+      "folder scored 100)", "so101_kinematics/checker/probe.py", "main",
+      "    confine(os.getcwd(), own_files(result_path))\n", "    pass\n",
+      "tests/test_checker_honesty.py::test_a_submission_cannot_write_outside_its_temporary_"
+      "folder"),
+    m("sandbox_parent_allowed", "the confinement allows the temporary folder's parent (../ "
+      "reaches the probe's own results)", "so101_kinematics/checker/probe.py", "confine",
+      "root = os.path.realpath(folder)", "root = os.path.dirname(os.path.realpath(folder))",
+      "tests/test_checker_honesty.py::test_a_submission_cannot_write_outside_its_temporary_"
+      "folder"),
+    m("fk_input_change_unseen", "the FK probe calls the student's FK on a dict it never looks at "
+      "again (a changed input reads as a wrong product order)",
+      "so101_kinematics/checker/probe.py", "fk_call", "        if after != before:\n",
+      "        if False:\n",
+      "tests/test_checker_honesty.py::test_an_fk_that_changes_its_input_is_named_not_a_product_"
+      "order"),
+    m("feedforward_line_at_zero", "the feed-forward's line shows the all-zero pose's offsets as "
+      "the arm's", "so101_kinematics/hw/feedforward.py", "describe_at_pose",
+      "pose, where = read_pose(bus), \"the arm's pose as read now\"",
+      "pose, where = dict.fromkeys(JOINTS, 0.0), \"the arm's pose as read now\"",
+      "tests/test_true_messages.py::test_the_feedforward_line_gives_the_offsets_at_the_arms_pose_"
+      "and_says_so"),
+    m("timing_options_ignored_with_plan", "--move-duration/--hold silently ignored with --plan",
+      "so101_kinematics/cli.py", "ignored_with_plan",
+      "    if not given or getattr(args, \"plan\", None) is None:\n", "    if True:\n",
+      "tests/test_true_messages.py::test_timing_options_given_with_a_plan_are_refused_not_ignored"),
     m("hand_check_holds_the_bus", "the virtual hand's table check holds the bus for the whole "
       "path (lerobot-calibrate's 1-try reads time out)", "so101_kinematics/virtual/hand.py",
       None, 'between=getattr(self, "serve_serial", None),', "between=None,",

@@ -97,10 +97,18 @@ def describe_value(value) -> str:
 
 
 def format_range(low: float, high: float, unit: str = "", low_open: bool = False) -> str:
-    """An interval for messages: ``in [0, 600] s``, ``in (0, 0.01] s``, ``>= 1 frames/s``."""
+    """An interval for messages: ``in [0, 600] s``, ``in (0, 0.01] s``, ``>= 1 frames/s``.
+
+    A side at infinity is left out (``<= 5 m``); with both, any finite number is allowed:
+    ``finite`` (never ``>= -inf``).
+    """
     text = "in " + ("(" if low_open else "[") + f"{low:g}, {high:g}]"
-    if math.isinf(high):
+    if math.isinf(low) and math.isinf(high):
+        text = "finite"
+    elif math.isinf(high):
         text = (">" if low_open else ">=") + f" {low:g}"
+    elif math.isinf(low):
+        text = f"<= {high:g}"
     return f"{text} {unit}".rstrip()
 
 
@@ -168,14 +176,18 @@ def check_number(value, name: str, low: float = -math.inf, high: float = math.in
 (text). Fix: write the number without quotes.
     """
     allowed = format_range(low, high, unit, low_open)
+    unbounded = allowed.startswith("finite")
+    if unbounded:  # any finite number: "a finite number [unit]", no range
+        allowed = unit
     if not is_finite_number(value):
-        default = f"give a number {allowed}."
+        default = f"give a {'finite ' if unbounded else ''}number {allowed}".rstrip() + "."
         if isinstance(value, str):
             default = "write the number without quotes."
             fix = f"write the number without quotes; {fix}" if fix else ""
         kind = "a finite number" if isinstance(value, numbers.Real) and not isinstance(
             value, (bool, np.bool_)) else "a number"
-        raise error(f"{name} must be {kind} {allowed}, got {describe_value(value)}. "
+        raise error(f"{name} must be {kind} {allowed}".rstrip()
+                    + f", got {describe_value(value)}. "
                     f"Fix: {fix or default}")
     number = float(value)
     if number < low or number > high or (low_open and number == low):
@@ -275,6 +287,11 @@ def move_arguments(args: tuple, keywords: Mapping[str, object], shapes: str,
     if isinstance(duration, Mapping):
         raise CallShapeError(f"move_to_pose got a configuration ({describe_value(duration)}) "
                              f"where the duration [s] belongs. {fix}")
+    if isinstance(start, Mapping) and not isinstance(cfg, Mapping):
+        raise CallShapeError(f"move_to_pose got a configuration, then {describe_value(cfg)} "
+                             f"and {describe_value(duration)}: after the target configuration "
+                             "only the duration [s] comes (a second configuration, the target, "
+                             f"comes only after a starting one). {fix}")
     if start is not None:
         if not isinstance(start, Mapping):
             raise CallShapeError(f"move_to_pose's starting configuration must be a dict joint "

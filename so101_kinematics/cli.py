@@ -61,13 +61,16 @@ def number(low: float = -math.inf, high: float = math.inf, unit: str = "", *,
             value = int(text) if integer else float(text)
         except ValueError:
             kind = "a whole number" if integer else "a number"
+            if allowed.startswith("finite"):  # any number: no range to name
+                raise argparse.ArgumentTypeError(f"{text!r} is not {kind}. Fix: give a finite "
+                                                 f"{kind[2:]}.") from None
             raise argparse.ArgumentTypeError(
                 f"{text!r} is not {kind}; it must be {allowed}. "
                 f"Fix: give {kind} {allowed}.") from None
         if not math.isfinite(value):
             raise argparse.ArgumentTypeError(
-                f"{text!r} is not a finite number; it must be {allowed}. "
-                f"Fix: give a number {allowed}.")
+                f"{text!r} is not a finite number. Fix: give a finite number"
+                + ("." if allowed.startswith("finite") else f" {allowed}."))
         if value < low or value > high or (low_open and value == low):
             raise argparse.ArgumentTypeError(
                 f"{text} is not {allowed}. Fix: give a number {allowed}.")
@@ -99,6 +102,36 @@ def zero_duration_warning(move_duration: float, hold: float) -> str:
     return (f"warning: --move-duration {move_duration:g} s: each move is a jump{held}; the "
             "servos cannot follow, so the arm lags the plan and the cube is likely missed (by "
             "hundreds of mm). Fix: --move-duration 1 or more (the default is 2).")
+
+
+class StoreGiven(argparse.Action):
+    """``store``, remembering the option was given (its dest in ``args.given``).
+
+    An option left at its default and one given its default's value differ: only the one
+    given can be refused as doing nothing (:func:`ignored_with_plan`).
+    """
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        """Store the value; add the dest to ``namespace.given``."""
+        setattr(namespace, self.dest, values)
+        namespace.given = set(getattr(namespace, "given", ())) | {self.dest}
+
+
+def ignored_with_plan(args) -> str:
+    """A one-line refusal of ``--move-duration``/``--hold`` given with ``--plan``, or "".
+
+    They time the built-in plan; a waypoint file carries each step's own ``duration`` and
+    ``hold``, so with ``--plan`` they would be silently ignored.
+    """
+    given = [f"--{dest.replace('_', '-')}" for dest in ("move_duration", "hold")
+             if dest in getattr(args, "given", ())]
+    if not given or getattr(args, "plan", None) is None:
+        return ""
+    names = " and ".join(given)
+    return (f"{names} time{'s' if len(given) == 1 else ''} the built-in plan; --plan "
+            f"{args.plan} gives each waypoint its own 'duration' and 'hold', so {names} would "
+            f"do nothing (nothing was run). Fix: leave out {names}, or change 'duration' and "
+            "'hold' in the plan file.")
 
 
 def requires(args, option: str, needed: str) -> str:

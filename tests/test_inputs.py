@@ -141,7 +141,7 @@ def test_a_joint_of_10_to_the_400_is_refused(tmp_path):
 
 @pytest.mark.parametrize("content, expected", [
     (plan_text().encode("utf-16"), "is UTF-16 text, not UTF-8. Fix: save it as UTF-8."),
-    (b"\x89PNG\r\n\x1a\n\x00\x00", "is not UTF-8 text (byte 0 is 0x89). Fix: save it as UTF-8."),
+    (b"\x89PNG\r\n\x1a\n\x00\x00", "is not text but binary data (a NUL byte at 8)."),
     (plan_text().encode("latin-1").replace(b'"up"', b'"\xe9"'), "Fix: save it as UTF-8."),
 ])
 def test_an_undecodable_plan_names_the_file_and_says_save_as_utf8(tmp_path, capsys, content,

@@ -76,6 +76,14 @@ def run_check(path: str | Path, request: dict, tolerance, timeout: float,
     check["seconds"] = run.seconds
     check["output"] = run.results.get("output", "")
     check["output_size"] = run.results.get("output_size", 0)
+    refused = run.results.get("refused_writes") or []
+    if refused:  # not checked: what it computes may hang on the write it was refused
+        check["reason"] = (
+            f"it writes outside its temporary folder: {'; '.join(refused[:3])}"
+            + (f" (and {len(refused) - 3} more)" if len(refused) > 3 else "")
+            + " (refused: nothing was written there). Fix: a submission may write only into "
+            "its working folder (e.g. a plain file name), or not at all")
+        return check, None
     return check, run
 
 

@@ -17,7 +17,7 @@ import functools
 
 import numpy as np
 
-from so101_kinematics.checker import diagnose
+from so101_kinematics.checker import diagnose, fk_returns
 from so101_kinematics.fast_fk import forward_kinematics_batch
 from so101_kinematics.frames import ARM_JOINTS, JOINT_LIMITS, joint_transform
 
@@ -92,10 +92,13 @@ def pose_error(g_a: np.ndarray, g_b: np.ndarray) -> tuple[float, float]:
             diagnose.rotation_angle_deg(g_a[:3, :3].T @ g_b[:3, :3]))
 
 
-def _matrices(calls: list[dict], shape=(4, 4)):
-    """(matrices, problem): the returned arrays if each is ``shape``, else a problem."""
+def _matrices(calls: list[dict], shape=(4, 4), angles=None):
+    """(matrices, problem): the returned arrays if each is ``shape``, else a problem.
+
+    ``angles``: the joint angle [deg] of each call, named with a NaN returned.
+    """
     matrices = []
-    for result in calls:
+    for index, result in enumerate(calls):
         if "error" in result:
             return None, f"raised {result['error']}"
         if tuple(result["shape"]) != shape:
@@ -103,7 +106,8 @@ def _matrices(calls: list[dict], shape=(4, 4)):
                           f"expected a {shape[0]}x{shape[1]} array")
         matrix = np.asarray(result["value"], dtype=float)
         if not np.all(np.isfinite(matrix)):
-            return None, "returns NaN or infinite numbers"
+            return None, "returns NaN or infinite numbers" + (
+                f" at {angles[index]:g} deg" if angles is not None else "")
         matrices.append(matrix)
     return matrices, ""
 
@@ -124,7 +128,7 @@ def compare_factor(function: str, calls: list[dict] | None, angles, tolerance) -
     name = FACTORS[function][0]
     if calls is None:
         return {"function": function, "status": "missing", "causes": ["not defined"]}
-    matrices, problem = _matrices(calls)
+    matrices, problem = _matrices(calls, angles=angles)
     if matrices is None:
         return {"function": function, "status": "broken", "causes": [problem]}
     references = [joint_transform(name, angle) for angle in angles]
@@ -173,7 +177,7 @@ def _fk_arrays(calls: list[dict]):
                 matrix = np.asarray(result["value"], dtype=float)
                 positions.append(matrix[:3, 3])
                 rotations.append(matrix[:3, :3])
-                problem = "returns one 4x4 matrix; the course's form is (position, rotation)"
+                problem = fk_returns.FOUR_BY_FOUR
                 continue
             return None, None, (f"returns a {result['type']}; expected (position, rotation) "
                                 "with shapes (3,) and (3, 3)")
@@ -191,6 +195,13 @@ def _fk_arrays(calls: list[dict]):
         positions.append(position.ravel())
         rotations.append(rotation)
     return np.array(positions), np.array(rotations), problem
+
+
+def _where(rows: np.ndarray, index: int) -> str:
+    """Configuration ``index`` of ``rows`` in words: the course's name, or its angles."""
+    names = list(COURSE_CONFIGURATIONS)
+    return names[index] if index < len(names) else ", ".join(
+        f"{joint} {value:.1f}" for joint, value in as_dict(rows[index]).items())
 
 
 def _stats(values: np.ndarray) -> dict:
@@ -219,6 +230,9 @@ def compare_fk(results: dict, tool: dict, tolerance, rows: np.ndarray) -> dict:
     positions, rotations, problem = _fk_arrays(calls)
     if positions is None:
         return {"function": "get_forward_kinematics", "status": "broken", "causes": [problem]}
+    nan = fk_returns.nan_cause(positions, rotations, lambda i: _where(rows, i))
+    if nan:
+        return {"function": "get_forward_kinematics", "status": "broken", "causes": [nan]}
     package_p, package_r = forward_kinematics_batch(rows[:, :5])
     g_5t = joint_transform("5t", 0.0)
     student_tool = np.asarray(tool["matrix"]) if "matrix" in tool else g_5t
@@ -229,8 +243,13 @@ def compare_fk(results: dict, tool: dict, tolerance, rows: np.ndarray) -> dict:
     chain_mm, chain_deg = _batch_errors(positions, rotations, chain_p, chain_r)
     raw_mm, raw_deg = _batch_errors(positions, rotations, package_p, package_r)
     course = len(COURSE_CONFIGURATIONS)
+    changed = fk_returns.changed_cause(calls)
+    if problem == fk_returns.FOUR_BY_FOUR:
+        problem = fk_returns.form_cause(chain_mm, chain_deg)
     causes = [problem] if problem else []
-    causes += _fk_causes(results, positions, rotations, chain_p, chain_r, student_tool)
+    causes += [changed] if changed else []
+    causes += _fk_causes(results, positions, rotations, chain_p, chain_r, student_tool,
+                         check_product=not changed)  # a changed input: not the product's fault
     judged = "chain"
     if tool.get("status") not in ("ok", "convention") and np.median(raw_mm) > tolerance[0]:
         chain_mm, chain_deg = raw_mm, raw_deg  # a wrong object frame: the final pose is judged
@@ -239,9 +258,12 @@ def compare_fk(results: dict, tool: dict, tolerance, rows: np.ndarray) -> dict:
                       "(median): your get_g5t is wrong and is not a known convention, so the "
                       "pose the arm reaches is wrong; judged against this package's object "
                       "frame")
-    ok = (not problem and chain_mm.max() <= tolerance[0] and chain_deg.max() <= tolerance[1])
+    ok = (not problem and not changed and chain_mm.max() <= tolerance[0]
+          and chain_deg.max() <= tolerance[1])
     return {
-        "function": "get_forward_kinematics", "status": "ok" if ok else "wrong",
+        "function": "get_forward_kinematics",
+        "status": ("ok" if ok else "broken" if problem.startswith(fk_returns.FOUR_BY_FOUR)
+                   else "wrong"),
         "causes": causes, "judged_against": judged,
         "course": [{"name": name, "error_mm": float(chain_mm[i]), "error_deg": float(chain_deg[i]),
                     "position_m": positions[i].tolist(),
@@ -255,8 +277,13 @@ def compare_fk(results: dict, tool: dict, tolerance, rows: np.ndarray) -> dict:
             _stats(raw_deg), "gripper_key": _gripper_note(results)}
 
 
-def _fk_causes(results, positions, rotations, chain_p, chain_r, student_tool) -> list[str]:
-    """Mistakes visible only in the whole FK: units, a transposed rotation, the product."""
+def _fk_causes(results, positions, rotations, chain_p, chain_r, student_tool,
+               check_product: bool = True) -> list[str]:
+    """Mistakes visible only in the whole FK: units, a transposed rotation, the product.
+
+    The product is judged with ``check_product`` only (not when the FK changed its input:
+    that explains a product apart).
+    """
     causes = []
     if np.allclose(positions, chain_p * 1000, rtol=1e-3, atol=1e-3):
         return ["the position is in millimetres; the FK returns metres"]
@@ -284,7 +311,7 @@ def _fk_causes(results, positions, rotations, chain_p, chain_r, student_tool) ->
     elif wrong_part:
         causes.append(f"the position is {wrong_part}, not gwt's last column. Fix: position = "
                       "gwt[0:3, 3] (rows 0-2 of column 3)")
-    elif worst > 0.01:
+    elif worst > 0.01 and check_product:
         causes.append("get_forward_kinematics is not the product gw1 @ g12 @ g23 @ g34 @ g45 @ "
                       f"g5t of your own factors (up to {worst:.2f} mm/deg apart): check the "
                       "order of the product and which joint goes to which factor")

@@ -36,6 +36,68 @@ FACTORS = ("get_gw1", "get_g12", "get_g23", "get_g34", "get_g45")
 IK_SAVE_EVERY = 25
 """IK targets between two writes of the results (a hang keeps the answers before it)."""
 
+REFUSED: list[str] = []
+"""The writes outside the working folder :func:`confine` refused ("open for writing PATH")."""
+
+_WRITE_FLAGS = os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_TRUNC | os.O_APPEND
+
+_WRITES = {"os.remove": ("remove", ((0, 1),)), "os.rmdir": ("remove the folder", ((0, 1),)),
+           "os.mkdir": ("make the folder", ((0, 2),)), "os.rename": ("rename", ((0, 2), (1, 3))),
+           "os.link": ("link", ((1, 3),)), "os.symlink": ("link", ((1, 2),)),
+           "os.truncate": ("truncate", ((0, None),)), "os.chmod": ("chmod", ((0, 2),)),
+           "os.chown": ("chown", ((0, 3),)), "os.utime": ("touch", ((0, 3),)),
+           "shutil.rmtree": ("remove the tree", ((0, 1),))}
+"""Audit event -> (what it does, (index of a path it changes, index of that path's ``dir_fd``
+or None) for each such path): every file-changing event of the standard library
+(``os.replace`` and ``os.unlink`` raise ``os.rename`` and ``os.remove``; ``open`` is checked
+apart, by its mode)."""
+
+
+def confine(folder: str, own_files: tuple[str, ...] = ()) -> None:
+    """From now on, refuse every write outside ``folder`` in this process (an audit hook).
+
+    A write outside (``open`` for writing, remove, rename, mkdir, link, chmod, ...) raises
+    ``PermissionError`` naming the path, and is recorded in :data:`REFUSED`, so the checker
+    names it even when the student's code catches the error. Paths are resolved (``..``,
+    symlinks, ``dir_fd``) before they are compared. ``own_files`` are the probe's results.
+    The hook cannot be removed, but it is no security boundary against deliberately hostile
+    code: a C extension (``ctypes``) or a program the module starts is not audited.
+    """
+    root = os.path.realpath(folder)
+    own = {os.path.realpath(path) for path in own_files}
+
+    def inside(path, dir_fd=None) -> bool:
+        if isinstance(path, int):
+            return True  # an open descriptor: its opening was checked
+        path = os.fsdecode(os.fspath(path))
+        if isinstance(dir_fd, int) and dir_fd >= 0 and not os.path.isabs(path):
+            path = os.path.join(os.readlink(f"/proc/self/fd/{dir_fd}"), path)
+        real = os.path.realpath(path)
+        return real == root or real.startswith(root + os.sep) or real in own
+
+    def hook(event: str, args: tuple) -> None:
+        if event == "open":
+            path, mode, flags = args
+            writes = (any(c in mode for c in "wax+") if isinstance(mode, str)
+                      else bool((flags or 0) & _WRITE_FLAGS))
+            changes = [("open for writing", path, None)] if writes else []
+        elif event in _WRITES:
+            what, paths = _WRITES[event]
+            changes = [(what, args[i], args[fd] if fd is not None and fd < len(args) else None)
+                       for i, fd in paths]
+        else:
+            return
+        for what, path, dir_fd in changes:
+            if path is not None and not inside(path, dir_fd):
+                refused = f"{what} {os.fsdecode(os.fspath(path))}"
+                if len(REFUSED) < 20:  # a loop of writes: the first ones name it
+                    REFUSED.append(refused)
+                raise PermissionError(
+                    f"so101-check refused to {refused}: a submission runs in a temporary "
+                    "folder and may write only there (e.g. a plain file name)")
+
+    sys.addaudithook(hook)
+
 
 class BoundedOutput(io.TextIOBase):
     """A text stream that keeps the first ``OUTPUT_LIMIT`` characters and counts the rest."""
@@ -120,6 +182,26 @@ def fk_result(value) -> dict:
     return {"parts": parts, "type": type(value).__name__}
 
 
+def fk_call(fk, configuration: dict) -> dict:
+    """:func:`fk_result` of one call on a copy of ``configuration``, with ``"changed"``.
+
+    ``"changed"``: what the call changed in the dict it was given (key -> [before, after];
+    before None for a key it added, after "deleted" for one it removed).
+    """
+    given = dict(configuration)
+    result = fk_result(call(fk, given))
+    changed = {}
+    for key in list(configuration) + [k for k in given if k not in configuration]:
+        before, after = configuration.get(key), given.get(key, "deleted")
+        try:
+            after = float(after)
+        except Exception:  # deleted, or not a number
+            after = after if isinstance(after, str) else repr(after)[:40]
+        if after != before:
+            changed[str(key)] = [before, after]
+    return {**result, "changed": changed} if changed else result
+
+
 def add_import_paths(request: dict, result_path: str) -> str:
     """Put the student's folder first on ``sys.path``, the fallback modules' last.
 
@@ -134,6 +216,11 @@ def add_import_paths(request: dict, result_path: str) -> str:
             handle.write(source)
     sys.path.append(fallback)
     return fallback
+
+
+def own_files(result_path: str) -> tuple[str, ...]:
+    """The files the probe itself writes after the student's import (its results)."""
+    return tuple(result_path + suffix for suffix in ("", ".part", ".stage"))
 
 
 def main() -> None:
@@ -160,6 +247,8 @@ def main() -> None:
 
     save("import")
     fallback = add_import_paths(request, result_path)
+    results["refused_writes"] = REFUSED
+    confine(os.getcwd(), own_files(result_path))
     sys.stdout = sys.stderr = captured
     module_name = request.get("module_name", "so101_forward_kinematics")
     spec = importlib.util.spec_from_file_location(module_name, MODULE_PATH)
@@ -195,7 +284,7 @@ def probe_fk(module, request: dict, results: dict, save) -> None:
     if callable(fk):
         save("calling get_forward_kinematics")
         results["functions"]["get_forward_kinematics"] = [
-            fk_result(call(fk, dict(configuration))) for configuration in request["configurations"]]
+            fk_call(fk, configuration) for configuration in request["configurations"]]
         save("calling get_forward_kinematics without a gripper key", keep=False)
         results["without_gripper"] = fk_result(call(fk, dict(request["without_gripper"])))
     if request.get("product_configurations"):

@@ -8,9 +8,16 @@ and a cap on the size of any file it writes. Its output is kept up to a few
 thousand characters. After ``timeout`` seconds the child and everything it
 started are killed.
 
-This protects the caller's files from a module's relative paths and its runaway
-output; it is not a security boundary against deliberately hostile code (the
-child runs with the caller's permissions).
+The submission is confined to that folder: ``HOME`` and ``TMPDIR`` are the
+folder too, and before the student's import the probe installs an audit hook
+(``probe.confine``: ``sys.addaudithook``) that refuses, with a ``PermissionError``
+naming the path, every write outside it (``open`` for writing, remove, rename,
+mkdir, link, chmod, ...; ``..`` and symlinks resolved). A refused write is
+reported by the checker as the reason the file was not checked, even if the
+student's code caught the error. This protects the caller's files from a
+module's paths and its runaway output; it is not a security boundary against
+deliberately hostile code (a C extension or a program the module starts is not
+audited; the child runs with the caller's permissions).
 """
 
 from __future__ import annotations
@@ -50,11 +57,17 @@ class ProbeRun:
     seconds: float = 0.0
 
 
-def child_environment() -> dict[str, str]:
-    """The child's environment: the caller's basics, no display, single-threaded numerics."""
+def child_environment(work: str | Path | None = None) -> dict[str, str]:
+    """The child's environment: the caller's basics, no display, single-threaded numerics.
+
+    With ``work`` (the child's working folder), ``HOME`` and ``TMPDIR`` are that folder too,
+    so ``~/...``, ``tempfile`` and a library's caches land inside it.
+    """
     environment = {key: os.environ[key] for key in _CHILD_ENVIRONMENT_KEEP if key in os.environ}
     environment.update(OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1",
                        MUJOCO_GL="egl", PYTHONDONTWRITEBYTECODE="1")
+    if work is not None:
+        environment.update(HOME=str(work), TMPDIR=str(work))
     return environment
 
 
@@ -84,7 +97,7 @@ def run_probe(module_path: str | Path, request: dict, timeout: float = DEFAULT_T
         with open(Path(folder) / "stdio.txt", "wb") as stdio:
             child = subprocess.Popen(
                 [python, "-I", "-B", str(probe), str(request_path), str(result_path)],
-                cwd=work, env=child_environment(), stdin=subprocess.DEVNULL, stdout=stdio,
+                cwd=work, env=child_environment(work), stdin=subprocess.DEVNULL, stdout=stdio,
                 stderr=subprocess.STDOUT, start_new_session=True)
             try:
                 code = child.wait(timeout=timeout)

@@ -18,7 +18,7 @@ import re
 import numpy as np
 
 from so101_kinematics.checker.traj_fallback import FALLBACK_UTILS
-from so101_kinematics.frames import ARM_JOINTS, JOINTS
+from so101_kinematics.frames import ARM_JOINTS, JOINT_RANGES_RAD, JOINTS
 from so101_kinematics.planning.profiles import cubic_coefficients
 
 TIMESTEP_S = 0.004
@@ -60,6 +60,12 @@ MOVES = (
 """The moves run, in order [deg], gripper [0, 100], duration [s]: no joint starts near 0, so
 a move from zeros (or from radians) shows; two durations, so a wrong power of T shows."""
 
+STAND_IN_RANGES = {**{joint: JOINT_RANGES_RAD[joint] for joint in ARM_JOINTS},
+                   "gripper": (0.0, math.pi)}
+"""The stand-in's joint ranges [rad]: the arm's the model's (``frames.JOINT_RANGES_RAD``); the
+gripper's [0, pi], on which a utils mapping [0, 100] linearly over the range (this project's)
+is the course's ``value * pi / 100`` (``_TO_STUDENT``), so either utils reads back the same."""
+
 _TO_STUDENT = np.array([180.0 / math.pi] * len(ARM_JOINTS) + [100.0 / math.pi])
 """ctrl [rad] -> the student's units: the course's ``convert_to_dictionary``."""
 
@@ -71,7 +77,8 @@ def build_request(module_name: str = "student_move") -> dict:
     """
     return {"kind": "traj", "module_name": module_name, "moves": [dict(m) for m in MOVES],
             "settings": {"timestep": TIMESTEP_S, "step_budget": STEP_BUDGET, "step_slack": 50,
-                         "wall_s": WALL_S, "import_steps": 20_000},
+                         "wall_s": WALL_S, "import_steps": 20_000,
+                         "ranges": STAND_IN_RANGES},
             "fallback_modules": {"so101_mujoco_utils": FALLBACK_UTILS}}
 
 

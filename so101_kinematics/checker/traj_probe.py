@@ -28,10 +28,19 @@ import sys
 import time
 import types
 
-import numpy as np
 
-JOINTS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper")
-"""The course's joint order in ``qpos`` and ``ctrl`` (its ``convert_to_list``)."""
+def _load_sibling(name: str, as_name: str):
+    """``name``.py beside this file (the child runs ``-I``: this folder is not on sys.path)."""
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), name)
+    spec = importlib.util.spec_from_file_location(as_name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+STANDIN = _load_sibling("traj_standin.py", "so101_check_traj_standin")
+"""The stand-in model and data (``traj_standin.py``)."""
+JOINTS, StandInModel, StandInData = STANDIN.JOINTS, STANDIN.StandInModel, STANDIN.StandInData
 
 CLOCK_READS_PER_STEP = 100_000
 """Clock reads allowed between two steps: more is a loop waiting for a time that never comes."""
@@ -62,73 +71,6 @@ class Clock:
 
 
 CLOCK = Clock()
-
-
-class _Named:
-    def __init__(self, index: int, name: str):
-        self.id = self.qposadr = self.dofadr = index
-        self.name = name
-
-
-class StandInModel:
-    """``m``: the timestep, the six joints and their actuators (``_vel`` ones on 12 controls)."""
-
-    def __init__(self, timestep: float):
-        self.opt = types.SimpleNamespace(timestep=timestep)
-        self.nq = self.nv = self.njnt = self.nu = len(JOINTS)
-        self.jnt_qposadr = np.arange(len(JOINTS))
-        self.jnt_dofadr = np.arange(len(JOINTS))
-        self.actuator_names = list(JOINTS) + [f"{joint}_vel" for joint in JOINTS]
-
-    def joint(self, name):
-        """``m.joint("elbow_flex")``."""
-        return _Named(JOINTS.index(name), name)
-
-    def actuator(self, name):
-        """``m.actuator("elbow_flex")`` (or ``"elbow_flex_vel"``)."""
-        return _Named(self.actuator_names.index(name), name)
-
-    @classmethod
-    def from_xml_path(cls, path: str) -> StandInModel:
-        """Any scene: the stand-in (its timestep from the request)."""
-        return cls(SETTINGS["timestep"])
-
-
-class StandInData:
-    """``d``: ``qpos``, ``qvel``, ``ctrl`` (6, or 12 with velocities), ``time``."""
-
-    def __init__(self, model: StandInModel | None = None):
-        self.model = model or StandInModel(SETTINGS["timestep"])
-        self.qpos = np.zeros(len(JOINTS))
-        self.qvel = np.zeros(len(JOINTS))
-        self._ctrl = np.zeros(len(JOINTS))
-        self.time = 0.0
-
-    @property
-    def ctrl(self):
-        """The controls (writes into the array land, as in MuJoCo)."""
-        return self._ctrl
-
-    @ctrl.setter
-    def ctrl(self, value):
-        array = np.asarray(value, dtype=float).ravel()
-        if array.size == 2 * len(JOINTS) and self._ctrl.size == len(JOINTS):
-            self._ctrl = np.zeros(array.size)  # the velocity scene's 12 controls
-        if array.size != self._ctrl.size:
-            raise ValueError(f"could not broadcast input array from shape ({array.size},) into "
-                             f"shape ({self._ctrl.size},)")
-        self._ctrl[:] = array
-
-    def joint(self, name):
-        """``d.joint("elbow_flex").qpos`` (a view)."""
-        index = JOINTS.index(name)
-        return types.SimpleNamespace(qpos=self.qpos[index:index + 1],
-                                     qvel=self.qvel[index:index + 1])
-
-    def actuator(self, name):
-        """``d.actuator("elbow_flex").ctrl`` (a view)."""
-        index = self.model.actuator_names.index(name)
-        return types.SimpleNamespace(ctrl=self._ctrl[index:index + 1])
 
 
 class Recorder:
@@ -189,22 +131,19 @@ class StandInViewer:
         return None
 
 
-class _Constants(types.SimpleNamespace):
-    def __getattr__(self, name):  # mujoco.mjtObj.mjOBJ_JOINT and the like: any integer will do
-        return 0
-
-
 def install_stand_ins() -> None:
     """``mujoco`` and ``mujoco.viewer`` in ``sys.modules``, and the ``time`` clocks simulated."""
     mujoco = types.ModuleType("mujoco")
     mujoco.__file__ = "<so101-check-traj stand-in>"
     mujoco.MjModel, mujoco.MjData, mujoco.mj_step = StandInModel, StandInData, mj_step
     mujoco.mj_forward = mujoco.mj_kinematics = mujoco.mjv_initGeom = lambda *a, **k: None
-    mujoco.mjtObj, mujoco.mjtGeom, mujoco.mjtVisFlag = _Constants(), _Constants(), _Constants()
-    mujoco.mj_name2id = lambda m, kind, name: (m.actuator_names.index(name)
-                                               if name in m.actuator_names else -1)
+    constants = STANDIN.Constants
+    mujoco.mjtObj = constants(**{f"mjOBJ_{kind.upper()}": n for kind, n in STANDIN.OBJ.items()})
+    mujoco.mjtGeom, mujoco.mjtVisFlag = constants(), constants()
+    mujoco.mjtJoint = constants(mjJNT_FREE=0, mjJNT_BALL=1, mjJNT_SLIDE=2, mjJNT_HINGE=3)
+    mujoco.mj_name2id, mujoco.mj_id2name = STANDIN.mj_name2id, STANDIN.mj_id2name
     viewer = types.ModuleType("mujoco.viewer")
-    viewer.launch_passive = viewer.launch = StandInViewer
+    viewer.launch_passive = viewer.launch = viewer.Handle = StandInViewer
     mujoco.viewer = viewer
     sys.modules["mujoco"], sys.modules["mujoco.viewer"] = mujoco, viewer
     time.time = time.perf_counter = time.monotonic = lambda: EPOCH + CLOCK.read()
@@ -257,11 +196,7 @@ def run_move(function, parameters: int, move: dict, describe_error) -> dict:
 
 def _load_probe():
     """``probe.py`` beside this file (its bounded output and error lines)."""
-    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "probe.py")
-    spec = importlib.util.spec_from_file_location("so101_check_probe", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return _load_sibling("probe.py", "so101_check_probe")
 
 
 def parameter_count(function) -> int:
@@ -282,6 +217,7 @@ def main() -> None:
     with open(request_path, encoding="utf-8") as handle:
         request = json.load(handle)
     SETTINGS.update(request["settings"])
+    STANDIN.SETTINGS.update(timestep=SETTINGS["timestep"], ranges=SETTINGS["ranges"])
     probe.MODULE_PATH = request["module"]
     results = {"stage": "import", "moves": [], "output": "", "output_size": 0}
     captured = probe.BoundedOutput()
@@ -298,6 +234,8 @@ def main() -> None:
     save("import")
     install_stand_ins()
     probe.add_import_paths(request, result_path)
+    results["refused_writes"] = probe.REFUSED
+    probe.confine(os.getcwd(), probe.own_files(result_path))
     sys.stdout = sys.stderr = captured
     spec = importlib.util.spec_from_file_location(request["module_name"], probe.MODULE_PATH)
     module = importlib.util.module_from_spec(spec)
@@ -332,7 +270,7 @@ def main() -> None:
 
 
 SETTINGS = {"timestep": 0.004, "step_budget": 5, "step_slack": 50, "wall_s": 3.0,
-            "import_steps": 20_000}
+            "import_steps": 20_000, "ranges": dict(STANDIN.SETTINGS["ranges"])}
 """Overwritten from the request (see ``traj_compare.build_request``)."""
 
 if __name__ == "__main__":

@@ -307,7 +307,7 @@ def course_hold_position(bus, duration: float) -> None:
 def course_write_goal(bus, values: Mapping[str, Any], what: str, normalize: bool = True) -> None:
     """A student's own ``Goal_Position`` write: checked, ramped there (``hw/guarded.py``)."""
     if not normalize:
-        raise refuse(PlanError(f"{what} {RAW_TICKS}"))
+        raise refuse(PlanError(f"{what} {RAW_TICKS}"), "Refused (this write; it moved nothing)")
     _guarded(bus, what, lambda session: ramp_to_goal(session, values, what))
 
 

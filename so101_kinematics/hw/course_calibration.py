@@ -39,9 +39,13 @@ class CourseCalibration(dict):
     robot_id: str | None = None
 
 
-def refuse(error: BaseException) -> ScriptEnded:
-    """The one-line refusal of ``error``, printed; raise what it returns."""
-    line = "Refused, nothing moved: " + " ".join(str(error).split())
+def refuse(error: BaseException, prefix: str = "Refused, nothing moved") -> ScriptEnded:
+    """The one-line refusal of ``error``, printed; raise what it returns.
+
+    ``prefix`` says what did not happen: "nothing moved" is true only before the first move
+    (a write refused later says that write moved nothing; the run's ending follows).
+    """
+    line = f"{prefix}: " + " ".join(str(error).split())
     print(line, file=sys.stderr, flush=True)
     return ScriptEnded(2, line)
 

@@ -74,8 +74,23 @@ def read_feedforward(bus, enabled: bool = True) -> Feedforward:
         logger.warning("No Present_Voltage read: the gravity feed-forward assumes the kit's "
                        "%g V supply.", supply)
     feedforward = Feedforward(settings, supply, enabled=enabled)
-    logger.info("%s", feedforward.describe(dict.fromkeys(JOINTS, 0.0)))
+    logger.info("%s", describe_at_pose(bus, feedforward))
     return feedforward
+
+
+def describe_at_pose(bus, feedforward: Feedforward) -> str:
+    """The feed-forward's line, its offsets at the arm's pose as read now, and saying so.
+
+    The offsets change with the pose (gravity's arm): at the all-zero pose (the arm
+    stretched up) they are not the arm's, so a pose that cannot be read is named as such.
+    """
+    if not feedforward.enabled:
+        return feedforward.describe(dict.fromkeys(JOINTS, 0.0))
+    try:
+        pose, where = read_pose(bus), "the arm's pose as read now"
+    except Exception:  # noqa: BLE001 - a silent bus: the line still says what it shows
+        pose, where = dict.fromkeys(JOINTS, 0.0), "the all-zero pose (the arm's was not read)"
+    return f"{feedforward.describe(pose)}; offsets at {where}"
 
 
 def torque_on_in_place(bus, feedforward: Feedforward | None, start=None) -> None:

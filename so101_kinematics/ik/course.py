@@ -114,10 +114,13 @@ def get_inverse_kinematics(position, orientation=None, pitch=None, *, approach=_
             "(approach, yaw_deg or pitch_deg). Fix: use one form: (position, orientation) or "
             "(position, yaw, pitch) as the course does, or the keywords.")
     if isinstance(orientation, str):
+        fix = (f"pass the approach by keyword: approach={orientation!r}"
+               if orientation in ("down", "pitch") else "pass a rotation or a yaw [rad], or the "
+               "approach by keyword: approach='down' (with yaw_deg) or approach='pitch' (with "
+               "pitch_deg)")
         raise KinematicsTypeError(
             f"The second argument is the object frame's orientation (a 3x3 rotation) or its yaw "
-            f"[rad], got {orientation!r}. Fix: pass the approach by keyword: "
-            f"approach={orientation!r}.")
+            f"[rad], got {orientation!r}. Fix: {fix}.")
     solve = dict(initial=initial, gripper=gripper, min_height=min_height)
     if _is_matrix(orientation):
         if pitch is not None:

@@ -287,13 +287,27 @@ def read_text_file(path: str | Path, what: str, error: type[Exception] = PlanErr
     except ValueError as problem:  # e.g. an embedded NUL character
         raise error(f"Cannot read {what.lower()} '{path}': {problem}. Fix: check the "
                     "path.") from None
-    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")) and _is_text(data, "utf-16"):
         raise error(f"{what} '{path}' is UTF-16 text, not UTF-8. Fix: save it as UTF-8.")
+    if b"\x00" in data or data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        at = data.find(b"\x00")
+        raise error(f"{what} '{path}' is not text but binary data (" + (
+            f"a NUL byte at {at}" if at >= 0 else "its bytes decode to no text")
+            + f"). Fix: give the {what.lower()} itself (.json or .toml text), not another file.")
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as problem:
         raise error(f"{what} '{path}' is not UTF-8 text (byte {problem.start} is "
                     f"0x{data[problem.start]:02x}). Fix: save it as UTF-8.") from None
+
+
+def _is_text(data: bytes, encoding: str) -> bool:
+    """Whether ``data`` decodes in ``encoding`` to printable text (tabs and newlines too)."""
+    try:
+        text = data.decode(encoding)
+    except UnicodeDecodeError:
+        return False
+    return all(c.isprintable() or c in "\t\r\n\ufeff" for c in text)
 
 
 def load_plan(path: str | Path, limits: Limits | None = None) -> Plan:
@@ -336,8 +350,7 @@ def load_plan(path: str | Path, limits: Limits | None = None) -> Plan:
     for i, raw in enumerate(data["steps"]):
         where = f"'{path}', waypoint {i + 1}"
         if not isinstance(raw, dict) or not isinstance(raw.get("configuration"), dict):
-            raise PlanError(f"{where}: each waypoint needs a 'configuration' table "
-                            "of joint values. Fix: see waypoints/example.json.")
+            raise PlanError(_configuration_problem(raw, where))
         _refuse_unknown_keys(raw, STEP_KEYS, where)
         steps.append(Step(raw.get("name", f"waypoint_{i + 1}"), dict(raw["configuration"]),
                           raw.get("duration", 2.0), raw.get("hold", 0.5)))
@@ -355,6 +368,23 @@ def load_plan(path: str | Path, limits: Limits | None = None) -> Plan:
             check_configuration(step.configuration, {j: (-math.inf, math.inf) for j in JOINTS},
                                 f"'{path}', waypoint {i + 1} '{step.name}'")
     return plan
+
+
+def _configuration_problem(raw, where: str) -> str:
+    """Why waypoint ``raw`` has no configuration table, in one line with the fix."""
+    layout = "Fix: see waypoints/example.json."
+    if not isinstance(raw, dict):
+        return (f"{where}: a waypoint is a table (name, configuration, duration, hold), got "
+                f"{describe_value(raw)}. {layout}")
+    if "configuration" not in raw:
+        return f"{where}: each waypoint needs a 'configuration' table of joint values. {layout}"
+    value = raw["configuration"]
+    if isinstance(value, (list, tuple)):
+        return (f"{where}: 'configuration' is a list of {len(value)} values; a plan names each "
+                f"joint. Fix: write it as a table of joint = value ({', '.join(JOINTS[:2])}, "
+                f"..., gripper), as in waypoints/example.json.")
+    return (f"{where}: 'configuration' must be a table of joint values, got "
+            f"{describe_value(value)}. {layout}")
 
 
 def _refuse_unknown_keys(table: Mapping, known: tuple[str, ...], where: str) -> None:
