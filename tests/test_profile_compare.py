@@ -97,9 +97,9 @@ MOVE_S, LAG = 1.0, 5  # [s] the logged cubic of shoulder_pan; the arm trails it 
 PAN_DEG = 20.0  # [deg] from HOME_POSE's 0
 
 
-def write_log(path, profile="cubic", plan_hold=0.2, sidecar=True, **info):
+def write_log(path, profile="cubic", plan_hold=0.2, sidecar=True, rest=HOME_POSE, **info):
     """A log as pick_place_hw.py --log writes it: shoulder_pan's cubic 0 -> 20 deg in 1 s,
-    the arm's reading 50 ms late; the rest held at HOME_POSE."""
+    the arm's reading 50 ms late; the rest held at ``rest`` (its start and its goals)."""
     t = np.arange(0.0, MOVE_S + 0.5, 1.0 / RATE_HZ)
     pan = cubic_move(t, 0.0, PAN_DEG, MOVE_S)
     meas = np.concatenate([np.zeros(LAG), pan[:-LAG]])
@@ -107,8 +107,8 @@ def write_log(path, profile="cubic", plan_hold=0.2, sidecar=True, **info):
         writer = csv.writer(handle)
         writer.writerow(HEADER)
         for k, now in enumerate(t):
-            cmd = dict(HOME_POSE, shoulder_pan=pan[k])
-            got = dict(HOME_POSE, shoulder_pan=meas[k])
+            cmd = dict(rest, shoulder_pan=pan[k])
+            got = dict(rest, shoulder_pan=meas[k])
             writer.writerow([f"{now:.6f}", f"{now:.6f}", "swing"]
                             + [f"{cmd[j]:.4f}" for j in JOINTS]
                             + [f"{got[j]:.4f}" for j in JOINTS] + ["0"] * len(JOINTS))
@@ -116,7 +116,7 @@ def write_log(path, profile="cubic", plan_hold=0.2, sidecar=True, **info):
         record = {"plan": {"steps": [{"name": "swing", "configuration": dict(
             HOME_POSE, shoulder_pan=PAN_DEG), "duration": MOVE_S, "hold": plan_hold}],
             "return_to_start": False, "return_duration": 2.0},
-            "rate_hz": RATE_HZ, "start_pose": dict(HOME_POSE),
+            "rate_hz": RATE_HZ, "start_pose": dict(rest),
             "servo": {"gravity_ff": True, "supply_v": 5.0, "p": 16}}
         if profile is not None:
             record["profile"] = profile
@@ -235,6 +235,38 @@ def test_a_missing_log_is_one_line_and_exit_2(tmp_path, capsys):
     assert code == 2 and len(err.splitlines()) == 1
     assert "missing.csv" in err and "Fix:" in err
     assert not figure.exists()
+
+
+# --- a start past a limit, an aborted run (issue 33) -----------------------------------------
+SLUMPED = dict(HOME_POSE, shoulder_lift=-100.02, elbow_flex=96.879)
+"""Where the released virtual arm rested on a lab day (issue 33): past the model's
+shoulder_lift (-100) and elbow_flex (96.83) limits; the next run starts there and its
+goals hold (and return to) those angles."""
+
+
+def test_a_log_that_starts_past_a_limit_is_replayed_from_the_limit(tmp_path, capsys):
+    from so101_kinematics.sim.scene import joint_limits, load_model
+
+    limits = joint_limits(load_model())
+    beyond = {"shoulder_lift": limits["shoulder_lift"][0] - SLUMPED["shoulder_lift"],
+              "elbow_flex": SLUMPED["elbow_flex"] - limits["elbow_flex"][1]}
+    assert all(0.0 < b < 0.1 for b in beyond.values())  # just past, as the arm slumps
+    logs = [write_log(tmp_path / "slumped.csv", rest=SLUMPED),
+            write_log(tmp_path / "cubic.csv")]
+    out = tmp_path / "profiles.json"
+    assert pick_place_sim.main(["--compare", *map(str, logs), "--report",
+                                str(tmp_path / "p.png"), "--json", str(out)]) == 0
+    report = json.loads(out.read_text())
+    assert [run["log"].rsplit("/", 1)[-1] for run in report["profiles"]["cubic"]] == \
+        ["slumped.csv", "cubic.csv"]
+    notes = [n for n in report["notes"] if n.startswith("slumped.csv")]
+    for joint, by in beyond.items():  # a line for each joint, saying by how much
+        said = [n for n in notes if joint in n and f"{by:.2g} deg" in n]
+        assert said and all("\n" not in n for n in said)
+    # replayed from the limit: the simulated arm follows the pan's cubic as in the other log
+    slumped, clean = (run["sim"] for run in report["profiles"]["cubic"])
+    assert slumped["peak_velocity_deg_s"] == pytest.approx(clean["peak_velocity_deg_s"],
+                                                           rel=0.2)
 
 
 # --- the virtual arm ----------------------------------------------------------------------

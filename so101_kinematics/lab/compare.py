@@ -19,7 +19,8 @@ reached), a partial log (a last row cut short, cycles whose read failed, a
 log without its sidecar: the replay then starts at the first measured pose),
 and a measured start outside the model's limits (as the arm may rest just
 past one after a release: the replay starts at the nearest pose inside, with
-a warning, as the hardware run itself does).
+a warning, as the hardware run itself does; its goals back to that start are
+sent at the limit, with a note).
 """
 
 from __future__ import annotations
@@ -208,6 +209,29 @@ def start_inside_limits(start: dict[str, float], notes: list[str]) -> dict[str, 
     return inside
 
 
+def commands_inside_limits(commands: dict[str, np.ndarray],
+                           notes: list[str]) -> dict[str, np.ndarray]:
+    """``commands`` clipped to the model's limits; a joint clipped is a note (by how much).
+
+    The hardware run returns to its measured start, which may lie just past a limit (the
+    released arm slumps there): the replay sends that goal at the limit instead.
+    """
+    from so101_kinematics.sim.scene import joint_limits, load_model
+
+    limits = joint_limits(load_model())
+    inside = {}
+    for joint, values in commands.items():
+        low, high = limits[joint]
+        inside[joint] = np.clip(values, low, high)
+        beyond = float(np.max(np.abs(values - inside[joint]), initial=0.0))
+        if beyond > 0.0:
+            unit = "%" if joint == "gripper" else "deg"
+            notes.append(f"goals past the model's limits (the return to a slumped start): "
+                         f"{joint} by up to {beyond:.2g} {unit} beyond [{low:g}, {high:g}] "
+                         f"{unit}: replayed at the limit")
+    return inside
+
+
 def _plan(record: dict) -> Plan:
     return Plan([Step(s["name"], s["configuration"], s["duration"], s["hold"])
                  for s in record["steps"]], record.get("return_to_start", True),
@@ -279,7 +303,7 @@ def compare_run(path: str | Path) -> Comparison:
     # plan plus the velocity lead of a --velocity-ff run) at the cycle's actual start.
     written = {j: commanded[j] + np.array([r[f"lead_{j}"] for r in rows]) for j in JOINTS}
     led = any(np.any(written[j] != commanded[j]) for j in JOINTS)
-    simulated = replay(read_s, written, start, info.get("servo"))
+    simulated = replay(read_s, commands_inside_limits(written, notes), start, info.get("servo"))
     result = Comparison(
         t, commanded, measured, simulated,
         {j: float(np.max(np.abs(commanded[j] - measured[j]))) for j in JOINTS},
