@@ -387,6 +387,8 @@ def draw_report(result: Comparison, path: str | Path, title: str = "") -> Path:
                         f"({_xyz(p['measured'])}) mm, "
                         f"{getattr(result, role + '_position_error_mm'):.1f} mm apart")
     text.append(f"trims (added to every goal): {result.describe_trims()}")
+    if result.aborted:
+        text.insert(0, f"ABORTED: {result.aborted}")
     fig.suptitle((title + "\n" if title else "") + "\n".join(text), fontsize=10)
     fig.tight_layout()
     with atomic_output(path) as temporary:

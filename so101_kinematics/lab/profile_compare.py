@@ -205,7 +205,7 @@ def draw_profiles(result: ProfileComparison, path: str | Path, title: str = "") 
     for k, run in enumerate(result.runs):
         c = run.comparison
         commanded = np.column_stack([c.commanded[j] for j in ARM_JOINTS])
-        label = f"{run.log.name} ({run.profile})"
+        label = f"{run.log.name} ({run.profile}{', ABORTED' if c.aborted else ''})"
         read = c.t if c.read_s is None else c.read_s
         for source, values, times, style in (
                 ("arm", np.column_stack([c.measured[j] for j in ARM_JOINTS]), read, "-"),
