@@ -358,7 +358,7 @@ def test_the_sag_printed_is_the_simulators_with_the_table(tmp_path, capsys):
     sag = report["predicted_sag_deg"]["pick"]
     assert 0.0 < sag["shoulder_lift"] < free_air["shoulder_lift"] - 1.0
     assert report["sag_table_force_n"]["pick"] > 0.0
-    assert "the table carrying the jaw with" in capsys.readouterr().out
+    assert "the table carrying the arm with" in capsys.readouterr().out
     m = load_model()
     d = mujoco.MjData(m)
     pad, table = m.geom("fixed_jaw_pad").id, m.geom("table").id

@@ -116,7 +116,7 @@ class Comparison:
             joints = ", ".join(f"{j} {v:.1f}" for j, v in sag.items() if abs(v) >= 0.05)
             table = self.sag_table_n.get(role, 0.0)
             lines.append(f"  without the feed-forward it sags at the {role}: {joints or 'none'} "
-                         "deg (the simulator" + (f", the table carrying the jaw with "
+                         "deg (the simulator" + (f", the table carrying the arm with "
                                                  f"{table:.1f} N)" if table else ")"))
         return "\n".join(lines)
 
@@ -235,7 +235,7 @@ def commands_inside_limits(commands: dict[str, np.ndarray],
         beyond = float(np.max(np.abs(values - inside[joint]), initial=0.0))
         if beyond > 0.0:
             unit = "%" if joint == "gripper" else "deg"
-            notes.append(f"goals past the model's limits (the return to a slumped start): "
+            notes.append(f"goals past the model's limits (from and back to a slumped start): "
                          f"{joint} by up to {beyond:.2g} {unit} beyond [{low:g}, {high:g}] "
                          f"{unit}: replayed at the limit")
     return inside
