@@ -187,6 +187,7 @@ def _run(args, plan, calibration, source, release: str, stack=None) -> int:
     if log is not None and lines is not None:
         log.run_info["straight_path_deviation_mm"] = lines
     if log is not None:
+        log.run_info["aborted"] = result.aborted  # --compare keeps an aborted run apart
         print(f"Log: {log.close()} ({log.rows} cycles)")
     if args.plot and result.cycles:
         print(f"Plot: {plot_log(result.cycles, args.plot)}")

@@ -373,6 +373,33 @@ MUTANTS: list[Mutant] = [
       "when the late cycle sent it", "so101_kinematics/lab/compare.py", "compare_run",
       "simulated = replay(read_s, written,", "simulated = replay(t, written,",
       "tests/test_sim_vs_arm.py::test_the_replay_sends_each_goal_when_the_arm_got_it"),
+    m("replay_refuses_past_limit", "--compare sends the return to a slumped start (just past a "
+      "model limit) as logged: the replay refuses it and stops every log's comparison",
+      "so101_kinematics/lab/compare.py", "compare_run",
+      "replay(read_s, commands_inside_limits(written, notes), start,",
+      "replay(read_s, written, start,",
+      f"{T_PROFILES}::test_a_log_that_starts_past_a_limit_is_replayed_from_the_limit"),
+    m("aborted_run_pooled", "--compare counts an aborted run in a profile's run-to-run "
+      "variation", "so101_kinematics/lab/profile_compare.py", "compare_profiles",
+      "if run.profile == profile and not run.comparison.aborted]", "if run.profile == profile]",
+      f"{T_PROFILES}::test_an_aborted_run_is_marked_and_not_pooled"),
+    m("aborted_figures_with_return", "an aborted run's figures take in the stop and the slow "
+      "return", "so101_kinematics/lab/profile_compare.py", "run_figures",
+      "n = comparison.stopped_at or len(comparison.t)", "n = len(comparison.t)",
+      f"{T_PROFILES}::test_an_aborted_run_is_marked_and_not_pooled"),
+    m("sag_free_air", "--compare's sag is the free-air figure (the jaw 16 mm through the "
+      "table), not the simulator's with the table", "so101_kinematics/lab/sag.py",
+      "simulated_sag", "return ({j: round(reached[j] - pose[j], 2) for j in ARM_JOINTS},",
+      "from so101_kinematics.gravity import feedforward\n"
+      "    from so101_kinematics.servo import LEROBOT\n"
+      "    free = feedforward(pose, LEROBOT.with_(p=p), volts)\n"
+      "    return ({j: round(-free[j], 2) for j in ARM_JOINTS},",
+      f"{T_PROFILES}::test_the_sag_printed_is_the_simulators_with_the_table"),
+    m("table_contact_unseen", "the week-9 log does not record the jaw on the table: the "
+      "profiles are ranked on the impact's figures", "so101_kinematics/sim/tracking.py",
+      "StepLog.sync", "if touching:", "if False:",
+      "tests/test_trajectories.py::"
+      "test_a_jaw_on_the_table_is_reported_and_the_profiles_not_ranked"),
     m("output_written_in_place", "an output file written in place (lost if the run fails)",
       "so101_kinematics/outputs.py", "atomic_output", "temporary = temporary_beside(target)",
       "temporary = target",

@@ -197,3 +197,36 @@ def test_a_servo_reporting_an_error_bit_is_not_called_silent(arm):
         assert silent_servos(bus) == ["wrist_flex"]
     finally:
         disconnect(bus)
+
+
+def test_compare_marks_a_stopped_run_aborted_and_keeps_it_apart(arm, tmp_path, capsys):
+    """Issue 33: a run stopped mid-motion (SIGINT: Ctrl-C) and a complete one, same profile:
+    --compare marks the stopped one aborted (the sidecar says why) and does not pool it with
+    the complete one as run-to-run variation."""
+    import pick_place_sim
+
+    stopped_dir, done_dir = tmp_path / "stopped", tmp_path / "done"
+    stopped_dir.mkdir()
+    done_dir.mkdir()
+    run = start_run(arm, stopped_dir)
+    wait_for(swinging(arm))
+    run.send_signal(signal.SIGINT)
+    _, err = run.communicate(timeout=60)
+    assert run.returncode == 1, err
+    sidecar = json.loads((stopped_dir / "run.run.json").read_text())
+    assert sidecar["aborted"].startswith("stopped by Ctrl-C (during 'swing_left')")
+    run = start_run(arm, done_dir)
+    _, err = run.communicate(timeout=120)
+    assert run.returncode == 0, err
+    assert json.loads((done_dir / "run.run.json").read_text())["aborted"] is None
+    out = tmp_path / "compare.json"
+    logs = [str(done_dir / "run.csv"), str(stopped_dir / "run.csv")]
+    assert pick_place_sim.main(["--compare", *logs, "--report", str(tmp_path / "c.png"),
+                                "--json", str(out)]) == 0
+    table = capsys.readouterr().out
+    (runs,) = json.loads(out.read_text())["profiles"].values()
+    assert [run["aborted"] for run in runs][0] is None
+    assert runs[1]["aborted"].startswith("stopped by Ctrl-C")
+    assert [line.split()[0] for line in table.splitlines() if line.endswith("ABORTED")] == \
+        ["run.csv"] and "run-to-run variation" not in table.replace(
+            "never counted in the run-to-run variation", "")

@@ -97,9 +97,9 @@ MOVE_S, LAG = 1.0, 5  # [s] the logged cubic of shoulder_pan; the arm trails it 
 PAN_DEG = 20.0  # [deg] from HOME_POSE's 0
 
 
-def write_log(path, profile="cubic", plan_hold=0.2, sidecar=True, **info):
+def write_log(path, profile="cubic", plan_hold=0.2, sidecar=True, rest=HOME_POSE, **info):
     """A log as pick_place_hw.py --log writes it: shoulder_pan's cubic 0 -> 20 deg in 1 s,
-    the arm's reading 50 ms late; the rest held at HOME_POSE."""
+    the arm's reading 50 ms late; the rest held at ``rest`` (its start and its goals)."""
     t = np.arange(0.0, MOVE_S + 0.5, 1.0 / RATE_HZ)
     pan = cubic_move(t, 0.0, PAN_DEG, MOVE_S)
     meas = np.concatenate([np.zeros(LAG), pan[:-LAG]])
@@ -107,8 +107,8 @@ def write_log(path, profile="cubic", plan_hold=0.2, sidecar=True, **info):
         writer = csv.writer(handle)
         writer.writerow(HEADER)
         for k, now in enumerate(t):
-            cmd = dict(HOME_POSE, shoulder_pan=pan[k])
-            got = dict(HOME_POSE, shoulder_pan=meas[k])
+            cmd = dict(rest, shoulder_pan=pan[k])
+            got = dict(rest, shoulder_pan=meas[k])
             writer.writerow([f"{now:.6f}", f"{now:.6f}", "swing"]
                             + [f"{cmd[j]:.4f}" for j in JOINTS]
                             + [f"{got[j]:.4f}" for j in JOINTS] + ["0"] * len(JOINTS))
@@ -116,7 +116,7 @@ def write_log(path, profile="cubic", plan_hold=0.2, sidecar=True, **info):
         record = {"plan": {"steps": [{"name": "swing", "configuration": dict(
             HOME_POSE, shoulder_pan=PAN_DEG), "duration": MOVE_S, "hold": plan_hold}],
             "return_to_start": False, "return_duration": 2.0},
-            "rate_hz": RATE_HZ, "start_pose": dict(HOME_POSE),
+            "rate_hz": RATE_HZ, "start_pose": dict(rest),
             "servo": {"gravity_ff": True, "supply_v": 5.0, "p": 16}}
         if profile is not None:
             record["profile"] = profile
@@ -235,6 +235,141 @@ def test_a_missing_log_is_one_line_and_exit_2(tmp_path, capsys):
     assert code == 2 and len(err.splitlines()) == 1
     assert "missing.csv" in err and "Fix:" in err
     assert not figure.exists()
+
+
+# --- a start past a limit, an aborted run (issue 33) -----------------------------------------
+SLUMPED = dict(HOME_POSE, shoulder_lift=-100.02, elbow_flex=96.879)
+"""Where the released virtual arm rested on a lab day (issue 33): past the model's
+shoulder_lift (-100) and elbow_flex (96.83) limits; the next run starts there and its
+goals hold (and return to) those angles."""
+
+
+def test_a_log_that_starts_past_a_limit_is_replayed_from_the_limit(tmp_path, capsys):
+    from so101_kinematics.sim.scene import joint_limits, load_model
+
+    limits = joint_limits(load_model())
+    beyond = {"shoulder_lift": limits["shoulder_lift"][0] - SLUMPED["shoulder_lift"],
+              "elbow_flex": SLUMPED["elbow_flex"] - limits["elbow_flex"][1]}
+    assert all(0.0 < b < 0.1 for b in beyond.values())  # just past, as the arm slumps
+    logs = [write_log(tmp_path / "slumped.csv", rest=SLUMPED),
+            write_log(tmp_path / "cubic.csv")]
+    out = tmp_path / "profiles.json"
+    assert pick_place_sim.main(["--compare", *map(str, logs), "--report",
+                                str(tmp_path / "p.png"), "--json", str(out)]) == 0
+    report = json.loads(out.read_text())
+    assert [run["log"].rsplit("/", 1)[-1] for run in report["profiles"]["cubic"]] == \
+        ["slumped.csv", "cubic.csv"]
+    notes = [n for n in report["notes"] if n.startswith("slumped.csv")]
+    for joint, by in beyond.items():  # a line for each joint, saying by how much
+        said = [n for n in notes if joint in n and f"{by:.2g} deg" in n]
+        assert said and all("\n" not in n for n in said)
+    # replayed from the limit: the simulated arm follows the pan's cubic as in the other log
+    slumped, clean = (run["sim"] for run in report["profiles"]["cubic"])
+    assert slumped["peak_velocity_deg_s"] == pytest.approx(clean["peak_velocity_deg_s"],
+                                                           rel=0.2)
+
+
+STOP_S = 0.6  # [s] the aborted run's stop: mid-move (the pan's cubic runs 1 s)
+
+
+def write_aborted_log(path, record_reason=True):
+    """write_log's run stopped at STOP_S as pick_place_hw.py logs it: the cycles up to then,
+    a ``stop`` cycle (ArmSession.stop_here: the goal is where the arm is), then the slow
+    return's ``abort_return`` cycles back to the start (the pan at 20 deg/s, read 50 ms
+    late); the sidecar says why (``aborted``) when ``record_reason``."""
+    write_log(path)
+    lines = path.read_text().splitlines()
+    kept = [line for line in lines[1:] if float(line.split(",")[0]) < STOP_S - 1e-9]
+    pan = HEADER.index("cmd_shoulder_pan"), HEADER.index("meas_shoulder_pan")
+    here = float(kept[-1].split(",")[pan[1]])
+    rows = []
+    stop = kept[-1].split(",")
+    stop[0] = stop[1] = f"{STOP_S:.6f}"
+    stop[2], stop[pan[0]] = "stop", f"{here:.4f}"
+    rows.append(stop)
+    back = np.maximum(here - 20.0 * np.arange(1, 200) / RATE_HZ, 0.0)
+    for k, goal in enumerate(back):
+        row = list(stop)
+        row[0] = row[1] = f"{STOP_S + (k + 1) / RATE_HZ:.6f}"
+        row[2], row[pan[0]] = "abort_return", f"{goal:.4f}"
+        row[pan[1]] = f"{back[k - LAG] if k >= LAG else here:.4f}"
+        rows.append(row)
+    path.write_text("\n".join([lines[0], *kept, *(",".join(r) for r in rows)]) + "\n")
+    info = json.loads(sidecar_path(path).read_text())
+    if record_reason:
+        info["aborted"] = "stopped by Ctrl-C (during 'swing')"
+    sidecar_path(path).write_text(json.dumps(info))
+    return path
+
+
+def hand_rms_before(path, until_s):
+    """RMS of meas - cmd over the arm's five joints, the log's cycles before ``until_s``."""
+    rows = list(csv.DictReader(path.open(newline="")))
+    errors = [float(r[f"meas_{j}"]) - float(r[f"cmd_{j}"]) for r in rows
+              if float(r["t_s"]) < until_s - 1e-9 for j in JOINTS[:5]]
+    return math.sqrt(sum(e * e for e in errors) / len(errors))
+
+
+@pytest.mark.parametrize("record_reason", [True, False], ids=["sidecar", "csv-only"])
+def test_an_aborted_run_is_marked_and_not_pooled(tmp_path, capsys, record_reason):
+    logs = [write_log(tmp_path / "a.csv"),
+            write_aborted_log(tmp_path / "b.csv", record_reason), write_log(tmp_path / "c.csv")]
+    out = tmp_path / "profiles.json"
+    assert pick_place_sim.main(["--compare", *map(str, logs), "--report",
+                                str(tmp_path / "p.png"), "--json", str(out)]) == 0
+    table = capsys.readouterr().out
+    report = json.loads(out.read_text())
+    runs = {run["log"].rsplit("/", 1)[-1]: run for run in report["profiles"]["cubic"]}
+    assert runs["a.csv"]["aborted"] is None and runs["c.csv"]["aborted"] is None
+    said = runs["b.csv"]["aborted"]
+    assert said and ("Ctrl-C" in said if record_reason else "t = 0.60 s" in said)
+    assert [line.split()[0] for line in table.splitlines() if "ABORTED" in line
+            and line.split()[4:5] == ["arm"]] == ["b.csv"]
+    pooled = [n for n in report["notes"] if "run-to-run variation" in n and "not averaged" in n]
+    assert len(pooled) == 1 and "a.csv, c.csv" in pooled[0] and "b.csv" not in pooled[0]
+    # its figures are the run up to the stop, not the slow return after it
+    assert runs["b.csv"]["arm"]["tracking_rms_deg"] == pytest.approx(
+        hand_rms_before(logs[1], STOP_S), rel=1e-6)
+    assert runs["b.csv"]["arm"]["tracking_rms_deg"] != pytest.approx(
+        hand_rms_before(logs[1], 99.0), rel=0.05)
+
+
+def test_the_sag_printed_is_the_simulators_with_the_table(tmp_path, capsys):
+    """The course's pick: commanded, the fixed jaw's pad is 16 mm above the table; the
+    free-air sag (gravity.feedforward, P = 16) would put it 16 mm through it. The sag
+    --compare prints leaves the pad on the table, which carries the arm."""
+    import mujoco
+
+    from so101_kinematics.gravity import feedforward
+    from so101_kinematics.hw.log import plan_record
+    from so101_kinematics.planning.plans import default_plan, pick_and_place_steps
+    from so101_kinematics.servo import LEROBOT
+    from so101_kinematics.sim.scene import load_model, set_initial_pose
+
+    plan = default_plan(2.0, 0.5)
+    log = write_log(tmp_path / "run.csv", plan=plan_record(plan),
+                    servo={"gravity_ff": True, "supply_v": 5.0, "p": 16})
+    out = tmp_path / "report.json"
+    assert pick_place_sim.main(["--compare", str(log), "--report", str(tmp_path / "r.png"),
+                                "--json", str(out)]) == 0
+    report = json.loads(out.read_text())
+    pick = pick_and_place_steps(plan)[0].configuration
+    free_air = {j: -v for j, v in feedforward(pick, LEROBOT.with_(p=16), 5.0).items()}
+    sag = report["predicted_sag_deg"]["pick"]
+    assert 0.0 < sag["shoulder_lift"] < free_air["shoulder_lift"] - 1.0
+    assert report["sag_table_force_n"]["pick"] > 0.0
+    assert "the table carrying the arm with" in capsys.readouterr().out
+    m = load_model()
+    d = mujoco.MjData(m)
+    pad, table = m.geom("fixed_jaw_pad").id, m.geom("table").id
+
+    def pad_above_table_mm(offsets):
+        set_initial_pose(d, {j: pick[j] + offsets.get(j, 0.0) for j in pick})
+        return 1000.0 * mujoco.mj_geomDistance(m, d, pad, table, 0.1, np.zeros(6))
+
+    assert pad_above_table_mm({}) > 10.0
+    assert pad_above_table_mm({j: free_air[j] for j in sag}) < -10.0
+    assert pad_above_table_mm(sag) == pytest.approx(0.0, abs=1.0)
 
 
 # --- the virtual arm ----------------------------------------------------------------------

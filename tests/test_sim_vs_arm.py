@@ -193,3 +193,41 @@ def test_a_start_just_past_the_elbow_limit_is_a_warning(hw_log, tmp_path, capsys
     compare(past, tmp_path)
     out = capsys.readouterr().out
     assert "warning: the measured start has elbow_flex" in out and "0.05 deg outside" in out
+
+
+# --- a lab day: one virtual arm, runs one after the other (issue 33) -----------------------
+def test_a_lab_days_logs_compare_though_the_arm_slumps_past_a_limit(tmp_path, capsys):
+    """Each run ends released at the folded rest; the elbow slumps further each time (the
+    virtual arm, 2026-12-03: 90.02, 95.21, then 96.879 deg at the third start, past the
+    model's 96.83): that log's start and its return are replayed at the limit, with a note
+    naming the joint and by how much, and the three logs compare together."""
+    from so101_kinematics.sim.scene import joint_limits, load_model
+    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+
+    logs = [tmp_path / f"run{k}.csv" for k in range(3)]
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as arm:
+        for log in logs:
+            assert pick_place_hw.main(["--port", arm.port, "--calibration",
+                                       str(DEFAULT_CALIBRATION_PATH), "--yes", "--move-duration",
+                                       "0.8", "--hold", "0.2", "--log", str(log)]) == 0
+    limits = joint_limits(load_model())
+    past = {}
+    for log in logs:
+        start = json.loads(sidecar_path(log).read_text())["start_pose"]
+        for joint, (low, high) in limits.items():
+            if not low <= start[joint] <= high:
+                past[(log.name, joint)] = max(low - start[joint], start[joint] - high)
+    assert past, "no start past a limit: the virtual arm no longer slumps there (see above)"
+    capsys.readouterr()
+    out = tmp_path / "day.json"
+    assert pick_place_sim.main(["--compare", *map(str, logs), "--report",
+                                str(tmp_path / "day.png"), "--json", str(out)]) == 0
+    report = json.loads(out.read_text())
+    assert sum(len(runs) for runs in report["profiles"].values()) == 3
+    for (name, joint), by in past.items():
+        assert any(n.startswith(name) and joint in n and f"{by:.2g}" in n
+                   for n in report["notes"]), (name, joint, report["notes"])
+    assert all(run["aborted"] is None for runs in report["profiles"].values() for run in runs)
+    for run in (run for runs in report["profiles"].values() for run in runs):
+        assert run["sim"]["tracking_rms_deg"] == pytest.approx(run["arm"]["tracking_rms_deg"],
+                                                               abs=0.5)

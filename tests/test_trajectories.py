@@ -318,6 +318,28 @@ def test_the_script_compares_every_profile_into_json_and_a_plot(tmp_path):
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_a_jaw_on_the_table_is_reported_and_the_profiles_not_ranked(tmp_path):
+    """Without the feed-forward the arm sags (README, 'What the real arm does') and its jaw
+    comes down on the table at the block targets, 14 mm above it (issue 33): the peaks are
+    then the impact's (4686-5819 deg/s^2 against 162-292 with it), so no ranking."""
+    sagging, holding = tmp_path / "sag.json", tmp_path / "ff.json"
+    done = _run_script("--headless", "--compare", "--no-gravity-ff", "--json", str(sagging))
+    assert done.returncode == 0, done.stderr
+    written = json.loads(sagging.read_text())
+    assert set(written["table_contact"]) == set(PROFILES)
+    for contact in written["table_contact"].values():
+        assert contact["force_n"] > 1.0 and contact["body"] == "gripper"
+        assert contact["geom"] in done.stdout and contact["where"] in done.stdout
+    refusal = [line for line in done.stdout.splitlines() if line.startswith("Not ranked")]
+    assert len(refusal) == 1 and "Fix:" in refusal[0] and "--no-gravity-ff" in refusal[0]
+    assert written["not_ranked"].endswith(refusal[0])
+    done = _run_script("--headless", "--compare", "--json", str(holding))
+    assert done.returncode == 0, done.stderr
+    written = json.loads(holding.read_text())
+    assert written["table_contact"] == {} and written["not_ranked"] is None
+    assert "Not ranked" not in done.stdout
+
+
 def test_the_script_refuses_a_bad_profile_in_one_line():
     done = _run_script("--headless", "--profile", "cubical")
     assert done.returncode == 2 and "Traceback" not in done.stderr

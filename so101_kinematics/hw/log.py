@@ -72,8 +72,9 @@ class CycleLog:
     The CSV stays plain (one header row, one row per cycle). What a replay
     needs (``run_info``: the plan, the measured starting pose, the rate, the
     calibration, the servos, the velocity feed-forward: on or off, its lags, cap
-    and largest leads) goes to a JSON sidecar beside it (:func:`sidecar_path`),
-    written atomically when the log is closed.
+    and largest leads; ``aborted``: why the run stopped, null when complete) goes
+    to a JSON sidecar beside it (:func:`sidecar_path`), written atomically when the
+    log is closed.
 
     Args:
         path: the CSV to produce (checked beforehand: ``outputs.check_output_path``).

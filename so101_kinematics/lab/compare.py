@@ -19,7 +19,8 @@ reached), a partial log (a last row cut short, cycles whose read failed, a
 log without its sidecar: the replay then starts at the first measured pose),
 and a measured start outside the model's limits (as the arm may rest just
 past one after a release: the replay starts at the nearest pose inside, with
-a warning, as the hardware run itself does).
+a warning, as the hardware run itself does; its goals back to that start are
+sent at the limit, with a note).
 """
 
 from __future__ import annotations
@@ -35,12 +36,12 @@ import numpy as np
 from so101_kinematics.errors import InputError
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
-from so101_kinematics.gravity import feedforward
 from so101_kinematics.hw.log import sidecar_path
+from so101_kinematics.lab.log_ending import run_ending, stop_index
+from so101_kinematics.lab.sag import describe_servo
 from so101_kinematics.outputs import atomic_output
 from so101_kinematics.planning.motion import Plan, Step
 from so101_kinematics.planning.plans import pick_and_place_steps
-from so101_kinematics.servo import LEROBOT
 
 SETTLE_WINDOW_S = 0.2  # the pick/place pose: mean measured pose over the step's last [s]
 MAX_SPEED_DEG_S = 3400 * 360.0 / 4096.0  # [deg/s] the STS3215's fastest (../shared/SERVO_NOTES.md)
@@ -70,6 +71,9 @@ class Comparison:
     notes: list[str] = field(default_factory=list)  # what the log lacked, and what was done
     servo: str = ""  # the arm's servos as the log records them (hw/log.py), replayed so
     sag_deg: dict[str, dict[str, float]] = field(default_factory=dict)  # role -> joint -> [deg]
+    sag_table_n: dict[str, float] = field(default_factory=dict)  # role -> the table's load [N]
+    aborted: str | None = None  # how an aborted run ended (lab/log_ending.py); None: complete
+    stopped_at: int | None = None  # the row of its stop: the figures end before it
     read_s: np.ndarray | None = None  # [s] when each cycle read the arm (the log's wall_s)
 
     def as_json(self) -> dict:
@@ -83,6 +87,7 @@ class Comparison:
         return {"max_tracking_error_deg": self.max_tracking_error_deg,
                 "sim_vs_arm_rms_deg": self.sim_vs_arm_rms_deg,
                 "servo": self.servo, "predicted_sag_deg": self.sag_deg,
+                "sag_table_force_n": self.sag_table_n, "aborted": self.aborted,
                 "pick_position_error_mm": number(self.pick_position_error_mm),
                 "place_position_error_mm": number(self.place_position_error_mm),
                 "positions_mm": self.positions_mm, "trims_deg": self.trims_deg,
@@ -91,6 +96,8 @@ class Comparison:
     def summary(self) -> str:
         """A few lines for the terminal."""
         lines = [f"warning: {note}" for note in self.notes]
+        if self.aborted:
+            lines.append(f"aborted: {self.aborted}")
         lines += [f"trims (added to every goal sent to the arm): {self.describe_trims()}",
                   "joint           max |cmd - arm|   rms |sim - arm|"]
         lines += [f"  {j:<14}{self.max_tracking_error_deg[j]:>10.2f}"
@@ -107,7 +114,10 @@ class Comparison:
             lines.append(f"servo: {self.servo}")
         for role, sag in self.sag_deg.items():
             joints = ", ".join(f"{j} {v:.1f}" for j, v in sag.items() if abs(v) >= 0.05)
-            lines.append(f"  without the feed-forward it sags at the {role}: {joints} deg")
+            table = self.sag_table_n.get(role, 0.0)
+            lines.append(f"  without the feed-forward it sags at the {role}: {joints or 'none'} "
+                         "deg (the simulator" + (f", the table carrying the arm with "
+                                                 f"{table:.1f} N)" if table else ")"))
         return "\n".join(lines)
 
     def describe_trims(self) -> str:
@@ -208,6 +218,29 @@ def start_inside_limits(start: dict[str, float], notes: list[str]) -> dict[str, 
     return inside
 
 
+def commands_inside_limits(commands: dict[str, np.ndarray],
+                           notes: list[str]) -> dict[str, np.ndarray]:
+    """``commands`` clipped to the model's limits; a joint clipped is a note (by how much).
+
+    The hardware run returns to its measured start, which may lie just past a limit (the
+    released arm slumps there): the replay sends that goal at the limit instead.
+    """
+    from so101_kinematics.sim.scene import joint_limits, load_model
+
+    limits = joint_limits(load_model())
+    inside = {}
+    for joint, values in commands.items():
+        low, high = limits[joint]
+        inside[joint] = np.clip(values, low, high)
+        beyond = float(np.max(np.abs(values - inside[joint]), initial=0.0))
+        if beyond > 0.0:
+            unit = "%" if joint == "gripper" else "deg"
+            notes.append(f"goals past the model's limits (from and back to a slumped start): "
+                         f"{joint} by up to {beyond:.2g} {unit} beyond [{low:g}, {high:g}] "
+                         f"{unit}: replayed at the limit")
+    return inside
+
+
 def _plan(record: dict) -> Plan:
     return Plan([Step(s["name"], s["configuration"], s["duration"], s["hold"])
                  for s in record["steps"]], record.get("return_to_start", True),
@@ -279,7 +312,7 @@ def compare_run(path: str | Path) -> Comparison:
     # plan plus the velocity lead of a --velocity-ff run) at the cycle's actual start.
     written = {j: commanded[j] + np.array([r[f"lead_{j}"] for r in rows]) for j in JOINTS}
     led = any(np.any(written[j] != commanded[j]) for j in JOINTS)
-    simulated = replay(read_s, written, start, info.get("servo"))
+    simulated = replay(read_s, commands_inside_limits(written, notes), start, info.get("servo"))
     result = Comparison(
         t, commanded, measured, simulated,
         {j: float(np.max(np.abs(commanded[j] - measured[j]))) for j in JOINTS},
@@ -307,25 +340,13 @@ def compare_run(path: str | Path) -> Comparison:
         seen = _position_mm(pose)
         result.positions_mm[role] = {"planned": planned.tolist(), "measured": seen.tolist()}
         setattr(result, f"{role}_position_error_mm", float(np.linalg.norm(seen - planned)))
-    _describe_servo(result, info.get("servo"), roles)
+    describe_servo(result, info.get("servo"), roles)
+    names = [str(r.get("step", "")) for r in rows]
+    result.aborted = run_ending(names, [r["t_s"] for r in rows], info)
+    result.stopped_at = stop_index(names) if result.aborted else None
     if led:
         result.servo += "; goals led by the velocity feed-forward (replayed as written)"
     return result
-
-
-def _describe_servo(result: Comparison, servo: dict | None, roles) -> None:
-    """The servo the log records, and the sag the model predicts at the pick and the place."""
-    if not isinstance(servo, dict):
-        result.servo = "not recorded (a log from before the servo model): replayed as STS3215 " \
-                       "at lerobot's P = 16 on 5 V, without the feed-forward"
-        servo = {}
-    volts, p = float(servo.get("supply_v", 5.0)), int(servo.get("p", 16))
-    if not result.servo:
-        with_ff = "with" if servo.get("gravity_ff") else "without"
-        result.servo = f"STS3215 at P = {p} on {volts:.1f} V, {with_ff} the gravity feed-forward"
-    for role, step in zip(("pick", "place"), roles, strict=False):
-        offsets = feedforward(step.configuration, LEROBOT.with_(p=p), volts)
-        result.sag_deg[role] = {j: round(-offsets[j], 2) for j in ARM_JOINTS}
 
 
 def _position_mm(cfg) -> np.ndarray:
@@ -366,6 +387,8 @@ def draw_report(result: Comparison, path: str | Path, title: str = "") -> Path:
                         f"({_xyz(p['measured'])}) mm, "
                         f"{getattr(result, role + '_position_error_mm'):.1f} mm apart")
     text.append(f"trims (added to every goal): {result.describe_trims()}")
+    if result.aborted:
+        text.insert(0, f"ABORTED: {result.aborted}")
     fig.suptitle((title + "\n" if title else "") + "\n".join(text), fontsize=10)
     fig.tight_layout()
     with atomic_output(path) as temporary:

@@ -18,6 +18,9 @@ What students hand in: a log whose sidecar has no profile (or no sidecar) is tak
 two logs of one profile are listed each on its own row, not averaged (their spread is
 the run-to-run variation, which the write-up can quote); logs of different plans are
 compared with the table saying so (plan A, B, ...); the same file given twice counts once.
+An aborted run (``lab/log_ending.py``) is marked aborted in the table and the JSON, its
+figures end at its stop (the slow return left out), and it is never counted in a
+profile's run-to-run variation.
 """
 
 from __future__ import annotations
@@ -55,7 +58,7 @@ class ProfileRun:
         """The run's row (the replay's full arrays are left out)."""
         return {"log": str(self.log), "profile_recorded": self.profile_recorded,
                 "plan": self.plan, "duration_s": round(self.duration_s, 3),
-                "arm": self.arm, "sim": self.sim}
+                "aborted": self.comparison.aborted, "arm": self.arm, "sim": self.sim}
 
 
 @dataclass
@@ -91,10 +94,11 @@ class ProfileComparison:
                 f = getattr(run, source)
                 head = (f"{run.log.name:<{width}}  {run.profile:<13}{run.plan:<5}"
                         f"{run.duration_s:>8.1f}" if source == "arm" else " " * (width + 28))
+                mark = "  ABORTED" if run.comparison.aborted and source == "arm" else ""
                 lines.append(f"{head}  {source:<4}{f['tracking_rms_deg']:>9.2f} / "
                              f"{f['tracking_max_deg']:<5.2f}{f['peak_velocity_deg_s']:>9.0f}"
                              f"{f['peak_acceleration_deg_s2']:>9.0f}"
-                             f"{f['peak_jerk_deg_s3']:>9.0f}")
+                             f"{f['peak_jerk_deg_s3']:>9.0f}{mark}")
         lines.append("(peaks: speed [deg/s], accel [deg/s^2], jerk [deg/s^3]; "
                      f"{describe_derivatives()})")
         if self.plans_differ:
@@ -113,13 +117,15 @@ def run_figures(comparison: Comparison) -> tuple[dict[str, float], dict[str, flo
     """The arm's and the replay's figures over a compared log (the arm's joints).
 
     Both are differentiated on the times the arm was read (the log's ``wall_s``: a late
-    cycle read it late), which is when the replay sampled the simulator too.
+    cycle read it late), which is when the replay sampled the simulator too. An aborted
+    run's figures end before its stop (the stop and the slow return are not the profile).
     """
-    commanded = np.column_stack([comparison.commanded[j] for j in ARM_JOINTS])
-    measured = np.column_stack([comparison.measured[j] for j in ARM_JOINTS])
+    n = comparison.stopped_at or len(comparison.t)
+    commanded = np.column_stack([comparison.commanded[j][:n] for j in ARM_JOINTS])
+    measured = np.column_stack([comparison.measured[j][:n] for j in ARM_JOINTS])
     simulated = motion_metrics.to_encoder_counts(
-        np.column_stack([comparison.simulated[j] for j in ARM_JOINTS]))
-    read = comparison.t if comparison.read_s is None else comparison.read_s
+        np.column_stack([comparison.simulated[j][:n] for j in ARM_JOINTS]))
+    read = (comparison.t if comparison.read_s is None else comparison.read_s)[:n]
     return (motion_metrics.metrics(read, commanded, measured),
             motion_metrics.metrics(read, commanded, simulated))
 
@@ -168,8 +174,16 @@ def compare_profiles(paths: list[str | Path]) -> ProfileComparison:
         arm, sim = run_figures(comparison)
         runs.append(ProfileRun(path, profile, recorded, plan,
                                float(comparison.t[-1] - comparison.t[0]), arm, sim, comparison))
+    for run in runs:
+        if run.comparison.aborted:
+            until = ("" if run.comparison.stopped_at is None else
+                     f"; its figures end at the stop, t = "
+                     f"{run.comparison.t[run.comparison.stopped_at]:.2f} s")
+            notes.append(f"{run.log.name}: ABORTED ({run.comparison.aborted}): not a complete "
+                         f"run, never counted in the run-to-run variation{until}")
     for profile in dict.fromkeys(run.profile for run in runs):
-        same = [run.log.name for run in runs if run.profile == profile]
+        same = [run.log.name for run in runs
+                if run.profile == profile and not run.comparison.aborted]
         if len(same) > 1:
             notes.append(f"{profile}: {len(same)} logs ({', '.join(same)}), each on its own "
                          "row, not averaged (their spread is the run-to-run variation)")
@@ -191,7 +205,7 @@ def draw_profiles(result: ProfileComparison, path: str | Path, title: str = "") 
     for k, run in enumerate(result.runs):
         c = run.comparison
         commanded = np.column_stack([c.commanded[j] for j in ARM_JOINTS])
-        label = f"{run.log.name} ({run.profile})"
+        label = f"{run.log.name} ({run.profile}{', ABORTED' if c.aborted else ''})"
         read = c.t if c.read_s is None else c.read_s
         for source, values, times, style in (
                 ("arm", np.column_stack([c.measured[j] for j in ARM_JOINTS]), read, "-"),

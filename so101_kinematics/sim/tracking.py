@@ -7,6 +7,9 @@ velocity and acceleration), passing the frames on to a real viewer if it wraps o
 targets, back; 2 s moves, 1 s holds) with one profile; :func:`metrics` turns a log
 into the figures of ``test_trajectory_mujoco.py --json``; :func:`log_frame` into the
 course's logging DataFrame (week 8: ``time``, ``target_<joint>``, ``actual_<joint>``).
+The log also records where the arm pressed on the table (``sim/table_contact.py``):
+:func:`table_contact` says how hard, where and when, as a jaw dragged over the table
+makes the figures the impact's, not the profile's.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ from so101_kinematics.planning import motion_metrics, trajectory_log
 from so101_kinematics.planning.motion_metrics import METRIC_KEYS
 from so101_kinematics.sim import stepping
 from so101_kinematics.sim.scene import gripper_from_radians, joint_table, set_initial_pose
+from so101_kinematics.sim.table_contact import arm_table_contacts
 
 BLOCK_SIZE = 0.0285  # [m], the course's week-9 block (1.125 in)
 TARGETS = ((0.25, 0.1, BLOCK_SIZE / 2), (0.25, -0.1, BLOCK_SIZE / 2))  # [m], the page's
@@ -55,6 +59,7 @@ class StepLog:
         self._qadr = [adr for _, adr, *_ in table]
         self._dofs = [int(m.joint(name).dofadr[0]) for name, *_ in table]
         self.rows: list[tuple] = []
+        self.table: list[tuple] = []  # (time [s], TableContact) of each step the arm touched
         self.t0 = float(d.time)  # [s] the log's times count from here
         self._next_frame = -math.inf
 
@@ -67,6 +72,9 @@ class StepLog:
         d = self.d
         self.rows.append((d.time, d.ctrl[self._acts].copy(), d.qpos[self._qadr].copy(),
                           d.qvel[self._dofs].copy(), d.qacc[self._dofs].copy()))
+        touching = arm_table_contacts(self.m, d) if d.ncon else []
+        if touching:
+            self.table.append((d.time - self.t0, touching[0]))
         if self.viewer is not None and (self._every_step or d.time >= self._next_frame - 1e-9):
             self.viewer.sync()
             self._next_frame = d.time + stepping.VIEWER_SYNC_PERIOD
@@ -140,6 +148,26 @@ def metrics(log: StepLog) -> dict[str, float]:
     exact = motion_metrics.step_derivatives(a["time"], a["velocity"][:, arm],
                                             a["acceleration"][:, arm])
     return motion_metrics.metrics(a["time"], a["command"][:, arm], a["measured"][:, arm], exact)
+
+
+def table_contact(log: StepLog, move_s: float = MOVE_S,
+                  hold_s: float = HOLD_S) -> dict | None:
+    """Where the arm pressed on the table in a :func:`run_week9` log (None: it never did).
+
+    Returns:
+        ``force_n`` (the largest normal force [N]), ``body``, ``geom`` and ``t_s`` (when
+        it was largest, since the log began), ``where`` (that moment in the page's
+        sequence), ``steps`` (how many physics steps touched).
+    """
+    if not log.table:
+        return None
+    t, contact = max(log.table, key=lambda entry: entry[1].force_n)
+    k = min(int(t // (move_s + hold_s)), 2)
+    target = ("the first block", "the second block", "the all-zero pose")[k]
+    doing = "moving to" if t - k * (move_s + hold_s) < move_s else "holding at"
+    return {"force_n": round(contact.force_n, 2), "body": contact.body,
+            "geom": contact.geom, "t_s": round(t, 3), "where": f"{doing} {target}",
+            "steps": len(log.table)}
 
 
 def log_frame(log: StepLog):
