@@ -30,12 +30,12 @@ from so101_kinematics.cli import (
 from so101_kinematics.lab.compare import LogError, draw_report, sidecar_path
 from so101_kinematics.lab.profile_compare import compare_profiles, draw_profiles
 from so101_kinematics.outputs import (
-    JSON_REPORT,
     MP4,
     PNG,
     OutputPathError,
     add_overwrite_argument,
     check_output_path,
+    report_of,
     stamp,
     write_text_atomic,
 )
@@ -82,6 +82,8 @@ from so101_kinematics.sim.render import (
 )
 from so101_kinematics.sim.stack import run_stack
 from so101_kinematics.sim.straight import control_period
+
+REPORT = report_of("pick_place_sim.py")  # --json replaces only a report of this program
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -192,7 +194,7 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
                                       kind=MP4, overwrite=args.overwrite)
         if args.json is not None:
             json_path = check_output_path(args.json, "--json", inputs=[args.plan],
-                                          kind=JSON_REPORT, overwrite=args.overwrite)
+                                          kind=REPORT, overwrite=args.overwrite)
             if video is not None and json_path == video:
                 raise OutputPathError(f"--json {args.json}: is the --record file too. Fix: "
                                       "give the report its own name, e.g. report.json.")
@@ -246,7 +248,7 @@ def _compare(args: argparse.Namespace) -> int:
         report = check_output_path(args.report, "--report", inputs=inputs, suffixes=(".png",),
                                    kind=PNG, overwrite=args.overwrite)
         json_path = args.json and check_output_path(args.json, "--json", inputs=inputs,
-                                                    kind=JSON_REPORT, overwrite=args.overwrite)
+                                                    kind=REPORT, overwrite=args.overwrite)
         profiles = compare_profiles(args.compare)
     except (LogError, OutputPathError) as error:
         print(f"error: {error}", file=sys.stderr)

@@ -27,11 +27,11 @@ from so101_kinematics.cli import (
 )
 from so101_kinematics.errors import KinematicsInputError, RenderError
 from so101_kinematics.outputs import (
-    JSON_REPORT,
     MP4,
     OutputPathError,
     add_overwrite_argument,
     check_output_path,
+    report_of,
     stamp,
     write_text_atomic,
 )
@@ -60,6 +60,8 @@ from so101_mujoco_utils import (
     send_position_command,
     set_initial_pose,
 )
+
+REPORT = report_of("test_ik_mujoco.py")  # --json replaces only a report of this program
 
 log = logging.getLogger("test_ik_mujoco")
 
@@ -157,7 +159,7 @@ def _run(args: argparse.Namespace) -> int:
         video = check_output_path(args.record, "--record", suffixes=(".mp4",), kind=MP4,
                                   overwrite=args.overwrite)
     if args.json is not None:
-        json_path = check_output_path(args.json, "--json", kind=JSON_REPORT,
+        json_path = check_output_path(args.json, "--json", kind=REPORT,
                                       overwrite=args.overwrite)
         if json_path == video:
             raise OutputPathError(f"--json {args.json}: is the --record file too. Fix: give "

@@ -37,7 +37,7 @@ from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.gravity import feedforward
 from so101_kinematics.hw.log import sidecar_path
-from so101_kinematics.outputs import atomic_output
+from so101_kinematics.outputs import atomic_output, png_metadata
 from so101_kinematics.planning.motion import Plan, Step
 from so101_kinematics.planning.plans import pick_and_place_steps
 from so101_kinematics.servo import LEROBOT
@@ -369,6 +369,7 @@ def draw_report(result: Comparison, path: str | Path, title: str = "") -> Path:
     fig.suptitle((title + "\n" if title else "") + "\n".join(text), fontsize=10)
     fig.tight_layout()
     with atomic_output(path) as temporary:
-        fig.savefig(temporary, dpi=90, format="png")
+        fig.savefig(temporary, dpi=90, format="png",
+                    metadata=png_metadata("pick_place_sim.py --compare --report"))
     plt.close(fig)
     return Path(path)
