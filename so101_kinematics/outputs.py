@@ -271,7 +271,7 @@ def temporary_beside(path: str | Path) -> Path:
     _clean_up_on_stop_signals()
     handle, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{target.suffix}",
                                     dir=target.parent)
-    _LIVE.add(Path(name))
+    _LIVE[Path(name)] = os.getpid()
     umask = os.umask(0)
     os.umask(umask)
     os.fchmod(handle, 0o666 & ~umask)  # mkstemp makes it 0600; the output is an ordinary file
@@ -279,19 +279,21 @@ def temporary_beside(path: str | Path) -> Path:
     return Path(name)
 
 
-_LIVE: set[Path] = set()
-"""The temporary files made by :func:`temporary_beside` not yet renamed or removed."""
+_LIVE: dict[Path, int] = {}
+"""The temporary files made by :func:`temporary_beside` not yet renamed or removed, and the
+process that made each (a forked child, e.g. a virtual arm, never removes its parent's)."""
 
 
 def forget_temporary(temporary: str | Path) -> None:
     """``temporary`` was renamed over its target or removed: a stop need not remove it."""
-    _LIVE.discard(Path(temporary))
+    _LIVE.pop(Path(temporary), None)
 
 
 def _remove_and_die(signum, _frame) -> None:
     """End on a SIGTERM/SIGHUP as its default would, our temporary files removed first."""
-    for temporary in list(_LIVE):
-        temporary.unlink(missing_ok=True)
+    for temporary, owner in list(_LIVE.items()):
+        if owner == os.getpid():
+            temporary.unlink(missing_ok=True)
     signal.signal(signum, signal.SIG_DFL)
     os.kill(os.getpid(), signum)
 
