@@ -124,7 +124,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "returning to the start")
     parser.add_argument("--log", type=Path,
                         help="CSV of time, commanded and measured joints per cycle (written as "
-                             "the run goes)")
+                             "the run goes; an earlier run's log is never replaced)")
     parser.add_argument("--plot", type=Path, help="PNG of commanded vs measured per joint")
     parser.add_argument("--sheet", type=Path, metavar="PATH.pdf",
                         help="write the placement sheet (print at 100 %%) and stop; no arm needed")

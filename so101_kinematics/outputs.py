@@ -251,8 +251,9 @@ def free_name(path: str | Path) -> Path:
 def add_overwrite_argument(parser) -> None:
     """The ``--overwrite`` option every script with an output shares."""
     parser.add_argument("--overwrite", action="store_true",
-                        help="replace an existing output file even when it is not this kind of "
-                        "output written by this project (never one of the run's inputs)")
+                        help="replace an existing output file even when it does not carry this "
+                        "project's marker for its kind, is an earlier run's --log, or is a "
+                        "symbolic link (the link is replaced); never one of the run's inputs")
 
 
 def _suffix_hint(option: str) -> str:
