@@ -116,9 +116,10 @@ def main(argv: Sequence[str] | None = None) -> int:
   --record PATH.mp4            offscreen video (any machine; MUJOCO_GL=egl)
 
 Output files (--record, --json, --report) are checked before the run (an
-existing file is replaced only when it is an MP4 / a JSON report / a PNG of
-ours, or with --overwrite) and written beside the target, then renamed over it
-when complete: an interrupted run (Ctrl-C) leaves an existing file as it was.
+existing file is replaced only when it carries our marker: an MP4 / a PNG of
+ours, a JSON report of this script; or with --overwrite) and written beside the
+target, then renamed over it when complete: an interrupted run (Ctrl-C) leaves
+an existing file as it was.
 
 Exit code: 0 done (even if the grasp failed, unless --strict), 1 the cube was
 not placed (with --strict) or an unexpected error (rerun with -v for the

@@ -120,7 +120,7 @@ measured STS3215 rests anywhere in its friction band (README, "What the real arm
 Modes: with a display, the interactive viewer (real time); --headless or no
 display: no viewer, as fast as possible; --record PATH.mp4: an offscreen video.
 Output files (--record, --json) are checked before the run (an existing file is
-replaced only when it is an MP4 / a JSON report of ours, or with --overwrite)
+replaced only when it carries our marker: an MP4 of ours, a report of this script)
 and written beside the target, then renamed over it when complete.
 
 Exit code: 0 every target reached, 1 a target missed (the lines say which and
