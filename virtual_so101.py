@@ -59,9 +59,10 @@ def make_link(link: str, port: str) -> Path:
     if path.is_symlink():
         target = os.readlink(path)
         if not (target.startswith("/dev/pts/") and not os.path.exists(target)):
-            raise VirtualSO101Error(f"--link {link}: is a symlink to {target} that this program "
-                                    "did not leave; it is kept. Fix: choose another path, e.g. "
-                                    "/tmp/ttySO101, or remove it yourself.")
+            raise VirtualSO101Error(f"--link {link}: is a symlink to {target}, not one an earlier "
+                                    "virtual arm left to a pty that is gone; it is kept. Fix: "
+                                    "choose another path, e.g. /tmp/ttySO101, or remove it "
+                                    "yourself.")
         path.unlink()
     elif path.exists():
         raise VirtualSO101Error(f"--link {link}: exists and is not a symlink. Fix: choose "
