@@ -20,7 +20,14 @@ from so101_kinematics.cli import ArgumentParser, StoreGiven, ignored_with_plan, 
 from so101_kinematics.hw.bus import FIND_PORT_HINT, LerobotMissing, connect, disconnect, read_pose
 from so101_kinematics.hw.control import OUTAGE_TOLERANCE_S, signals_as_interrupt, speed_caps
 from so101_kinematics.hw.home_check import add_calibration_check_arguments, home_check
-from so101_kinematics.hw.log import LOG_KIND, CycleLog, plan_record, plot_log, sidecar_path
+from so101_kinematics.hw.log import (
+    LOG_KIND,
+    SIDECAR_KIND,
+    CycleLog,
+    plan_record,
+    plot_log,
+    sidecar_path,
+)
 from so101_kinematics.hw.options import add_loop_arguments
 from so101_kinematics.hw.run import (
     RELEASE_HINT,
@@ -117,7 +124,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "returning to the start")
     parser.add_argument("--log", type=Path,
                         help="CSV of time, commanded and measured joints per cycle (written as "
-                             "the run goes)")
+                             "the run goes; an earlier run's log is never replaced)")
     parser.add_argument("--plot", type=Path, help="PNG of commanded vs measured per joint")
     parser.add_argument("--sheet", type=Path, metavar="PATH.pdf",
                         help="write the placement sheet (print at 100 %%) and stop; no arm needed")
@@ -258,7 +265,7 @@ def _main(args) -> int:
         print(stack.describe())
     for option, path, kind in (("--log", args.log, LOG_KIND), ("--plot", args.plot, outputs.PNG),
                                ("--log's sidecar", args.log and sidecar_path(args.log),
-                                outputs.JSON_REPORT)):
+                                SIDECAR_KIND)):
         if path is not None:
             outputs.check_output_path(path, option, inputs=(source, args.plan, args.trims),
                                       kind=kind, overwrite=args.overwrite)

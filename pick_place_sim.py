@@ -32,12 +32,12 @@ from so101_kinematics.cli import (
 from so101_kinematics.lab.compare import LogError, draw_report, sidecar_path
 from so101_kinematics.lab.profile_compare import compare_profiles, draw_profiles
 from so101_kinematics.outputs import (
-    JSON_REPORT,
     MP4,
     PNG,
     OutputPathError,
     add_overwrite_argument,
     check_output_path,
+    report_of,
     stamp,
     write_text_atomic,
 )
@@ -85,6 +85,8 @@ from so101_kinematics.sim.render import (
 from so101_kinematics.sim.stack import run_stack
 from so101_kinematics.sim.straight import control_period
 
+REPORT = report_of("pick_place_sim.py")  # --json replaces only a report of this program
+
 
 def _size(text: str) -> tuple[int, int]:
     low, high = FRAME_EDGE_RANGE
@@ -116,9 +118,10 @@ def main(argv: Sequence[str] | None = None) -> int:
   --record PATH.mp4            offscreen video (any machine; MUJOCO_GL=egl)
 
 Output files (--record, --json, --report) are checked before the run (an
-existing file is replaced only when it is an MP4 / a JSON report / a PNG of
-ours, or with --overwrite) and written beside the target, then renamed over it
-when complete: an interrupted run (Ctrl-C) leaves an existing file as it was.
+existing file is replaced only when it carries our marker: an MP4 / a PNG of
+ours, a JSON report of this script; or with --overwrite) and written beside the
+target, then renamed over it when complete: an interrupted run (Ctrl-C) leaves
+an existing file as it was.
 
 Exit code: 0 done (even if the grasp failed, unless --strict), 1 the cube was
 not placed (with --strict) or an unexpected error (rerun with -v for the
@@ -195,7 +198,7 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
                                       kind=MP4, overwrite=args.overwrite)
         if args.json is not None:
             json_path = check_output_path(args.json, "--json", inputs=[args.plan],
-                                          kind=JSON_REPORT, overwrite=args.overwrite)
+                                          kind=REPORT, overwrite=args.overwrite)
             if video is not None and json_path == video:
                 raise OutputPathError(f"--json {args.json}: is the --record file too. Fix: "
                                       "give the report its own name, e.g. report.json.")
@@ -249,7 +252,7 @@ def _compare(args: argparse.Namespace) -> int:
         report = check_output_path(args.report, "--report", inputs=inputs, suffixes=(".png",),
                                    kind=PNG, overwrite=args.overwrite)
         json_path = args.json and check_output_path(args.json, "--json", inputs=inputs,
-                                                    kind=JSON_REPORT, overwrite=args.overwrite)
+                                                    kind=REPORT, overwrite=args.overwrite)
         profiles = compare_profiles(args.compare)
     except (LogError, OutputPathError) as error:
         print(f"error: {error}", file=sys.stderr)

@@ -27,11 +27,11 @@ from so101_kinematics.cli import (
 )
 from so101_kinematics.errors import KinematicsInputError, RenderError
 from so101_kinematics.outputs import (
-    JSON_REPORT,
     MP4,
     OutputPathError,
     add_overwrite_argument,
     check_output_path,
+    report_of,
     stamp,
     write_text_atomic,
 )
@@ -60,6 +60,8 @@ from so101_mujoco_utils import (
     send_position_command,
     set_initial_pose,
 )
+
+REPORT = report_of("test_ik_mujoco.py")  # --json replaces only a report of this program
 
 log = logging.getLogger("test_ik_mujoco")
 
@@ -118,7 +120,7 @@ measured STS3215 rests anywhere in its friction band (README, "What the real arm
 Modes: with a display, the interactive viewer (real time); --headless or no
 display: no viewer, as fast as possible; --record PATH.mp4: an offscreen video.
 Output files (--record, --json) are checked before the run (an existing file is
-replaced only when it is an MP4 / a JSON report of ours, or with --overwrite)
+replaced only when it carries our marker: an MP4 of ours, a report of this script)
 and written beside the target, then renamed over it when complete.
 
 Exit code: 0 every target reached, 1 a target missed (the lines say which and
@@ -157,7 +159,7 @@ def _run(args: argparse.Namespace) -> int:
         video = check_output_path(args.record, "--record", suffixes=(".mp4",), kind=MP4,
                                   overwrite=args.overwrite)
     if args.json is not None:
-        json_path = check_output_path(args.json, "--json", kind=JSON_REPORT,
+        json_path = check_output_path(args.json, "--json", kind=REPORT,
                                       overwrite=args.overwrite)
         if json_path == video:
             raise OutputPathError(f"--json {args.json}: is the --record file too. Fix: give "

@@ -22,12 +22,12 @@ from so101_kinematics.cli import (
 )
 from so101_kinematics.errors import KinematicsInputError, RenderError
 from so101_kinematics.outputs import (
-    JSON_REPORT,
     MP4,
     PNG,
     OutputPathError,
     add_overwrite_argument,
     check_output_path,
+    report_of,
     stamp,
     write_text_atomic,
 )
@@ -36,6 +36,8 @@ from so101_kinematics.planning.motion import PROFILES, PlanError
 from so101_kinematics.sim import actuation, straight, tracking
 from so101_kinematics.sim.ik_demo import open_scene
 from so101_mujoco_utils import MODEL_DIR, ViewerClosed, load_model
+
+REPORT = report_of("test_trajectory_mujoco.py")  # --json replaces only a report of this program
 
 log = logging.getLogger("test_trajectory_mujoco")
 
@@ -113,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
     """Check the outputs, run each profile on the page's sequence, report (see :func:`main`)."""
     json_path = plot_path = None
     if args.json is not None:
-        json_path = check_output_path(args.json, "--json", kind=JSON_REPORT,
+        json_path = check_output_path(args.json, "--json", kind=REPORT,
                                       overwrite=args.overwrite)
     if args.plot is not None:
         plot_path = check_output_path(args.plot, "--plot", suffixes=(".png",), kind=PNG,

@@ -49,15 +49,35 @@ logger = logging.getLogger("virtual_so101")
 
 
 def make_link(link: str, port: str) -> Path:
-    """Point the symlink ``link`` at ``port`` (a stale link is replaced, anything else refused)."""
+    """Create the symlink ``link`` to ``port``; never replace what this program did not create.
+
+    Only a link that an earlier virtual SO-101 left behind (it points into ``/dev/pts/``, at
+    a pty that is gone) is replaced; anything else there (a file, a folder, a user's own
+    link, a live pty's link) is refused in one line.
+    """
     path = Path(link)
     if path.is_symlink():
+        target = os.readlink(path)
+        if not (target.startswith("/dev/pts/") and not os.path.exists(target)):
+            raise VirtualSO101Error(f"--link {link}: is a symlink to {target}, not one an earlier "
+                                    "virtual arm left to a pty that is gone; it is kept. Fix: "
+                                    "choose another path, e.g. /tmp/ttySO101, or remove it "
+                                    "yourself.")
         path.unlink()
     elif path.exists():
         raise VirtualSO101Error(f"--link {link}: exists and is not a symlink. Fix: choose "
                                 "another path, e.g. /tmp/ttySO101.")
     os.symlink(port, path)
     return path
+
+
+def remove_link(link: Path, port: str) -> None:
+    """Remove ``link`` at exit only while it is still the link this program made to ``port``."""
+    try:
+        if link.is_symlink() and os.readlink(link) == port:
+            link.unlink()
+    except OSError:
+        pass
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -154,8 +174,8 @@ def main(argv: list[str] | None = None) -> int:
         except KeyboardInterrupt:
             logger.warning("stopping")
         finally:
-            if link is not None and link.is_symlink():
-                link.unlink()
+            if link is not None:
+                remove_link(link, arm.port)
     return 0
 
 

@@ -34,12 +34,14 @@ from benchmarks.bench_hw import bench_hw  # noqa: E402
 from benchmarks.bench_ik import bench_ik  # noqa: E402
 from benchmarks.bench_pick_place import bench_pick_place  # noqa: E402
 from so101_kinematics.outputs import (  # noqa: E402
-    JSON_REPORT,
     add_overwrite_argument,
     check_output_path,
+    report_of,
     stamp,
     write_text_atomic,
 )
+
+REPORT = report_of("benchmarks/run.py")  # --json replaces only a report of this program
 
 BENCHMARKS: dict[str, Callable[[bool], dict]] = {
     "fk": bench_fk,
@@ -102,7 +104,7 @@ def main() -> int:
     add_overwrite_argument(parser)
     args = parser.parse_args()
     if args.json:  # checked before the minutes of measuring, not after
-        args.json = check_output_path(args.json, "--json", kind=JSON_REPORT,
+        args.json = check_output_path(args.json, "--json", kind=REPORT,
                                       overwrite=args.overwrite)
 
     results: dict = {}

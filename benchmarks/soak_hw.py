@@ -83,7 +83,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.json:  # checked before the minutes of runs, not after
         try:
-            args.json = outputs.check_output_path(args.json, "--json", kind=outputs.JSON_REPORT,
+            report = outputs.report_of("benchmarks/soak_hw.py")
+            args.json = outputs.check_output_path(args.json, "--json", kind=report,
                                                   overwrite=args.overwrite)
         except outputs.OutputPathError as error:
             print(f"error: {error}", file=sys.stderr)

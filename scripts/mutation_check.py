@@ -69,6 +69,8 @@ CHECKS, RUN, LOG = ("so101_kinematics/hw/checks.py", "so101_kinematics/hw/run.py
 FRAMES, SCENE = "so101_kinematics/frames.py", "so101_kinematics/sim/scene.py"
 CAL, PICK = "so101_kinematics/calibration.py", "so101_kinematics/sim/pick_place.py"
 PROTOCOL = "so101_kinematics/virtual/protocol.py"
+MARKERS, OUTPUTS = "so101_kinematics/markers.py", "so101_kinematics/outputs.py"
+T_OUT = "tests/test_output_ownership.py"
 REGISTERS, T_SDK = "so101_kinematics/virtual/registers.py", "tests/test_virtual_feetech_sdk.py"
 T_CONTROL, T_RUN = "tests/test_control.py", "tests/test_hw_run.py"
 T_HW, T_IK = "tests/test_pick_place_hw.py", "tests/test_inverse_kinematics.py"
@@ -404,6 +406,44 @@ MUTANTS: list[Mutant] = [
       "so101_kinematics/outputs.py", "atomic_output", "temporary = temporary_beside(target)",
       "temporary = target",
       "tests/test_inputs.py::test_atomic_output_keeps_the_old_file_on_an_error"),
+    # issue 33: outputs recognised by their content (markers.py), never by their type
+    m("png_recognised_by_type", "any PNG taken for one of ours (no Software marker needed)",
+      MARKERS, "png_ours", 'head[4:] == b"IEND":\n                    return False',
+      'head[4:] == b"IEND":\n                    return True',
+      f"{T_OUT}::test_hw_plot_keeps_another_programs_png"),
+    m("mp4_recognised_by_type", "any MP4 taken for one of ours (no comment marker needed)",
+      MARKERS, "mp4_ours", "return _MARKER in handle.read(size - header)", "return True",
+      f"{T_OUT}::test_sim_record_keeps_another_programs_video"),
+    m("pdf_recognised_by_type", "any PDF taken for one of ours (no Creator marker needed)",
+      MARKERS, "pdf_ours", 'return b"/Creator (" + _MARKER in handle.read()', "return True",
+      f"{T_OUT}::test_hw_sheet_keeps_the_courses_handout"),
+    m("json_of_another_program", "a JSON report of another of our programs is replaced",
+      OUTPUTS, "_stamped", "return program is None or", "return True or",
+      f"{T_OUT}::test_sim_json_keeps_another_scripts_report"),
+    m("symlink_followed", "an output reached through a symbolic link is written through it",
+      OUTPUTS, "check_output_path", "if target.is_symlink() and not overwrite:", "if False:",
+      f"{T_OUT}::test_an_output_through_a_symlink_is_refused_and_overwrite_replaces_the_link"),
+    m("earlier_log_replaced", "--log replaces the log (and sidecar) of an earlier run",
+      OUTPUTS, "check_output_path",
+      "if kind is not None and not kind.replaceable and kind.recognise(target):", "if False:",
+      f"{T_OUT}::test_hw_log_and_sidecar_of_an_earlier_run_are_never_replaced"),
+    m("writable_by_permission_bits", "an output's folder trusted by its permission bits (root "
+      "passes /proc; the run dies after it began)", OUTPUTS, "check_output_path",
+      "probe = temporary_beside(target)\n        probe.unlink()",
+      "probe = target\n        probe.exists()",
+      f"{T_OUT}::test_a_simulator_refuses_an_unwritable_output_before_it_runs",
+      f"{T_OUT}::test_hw_unwritable_output_is_refused_before_the_port_opens"),
+    m("part_left_on_sigterm", "a SIGTERM leaves the hidden .part file of an output",
+      OUTPUTS, "_clean_up_on_stop_signals", "if signal.getsignal(signum) == signal.SIG_DFL:",
+      "if False:", f"{T_OUT}::test_a_stop_leaves_no_hidden_part_file"),
+    m("link_replaces_a_users_symlink", "virtual_so101.py --link replaces (and at exit deletes) "
+      "a symlink it did not make", "virtual_so101.py", "make_link",
+      'if not (target.startswith("/dev/pts/") and not os.path.exists(target)):', "if False:",
+      f"{T_OUT}::test_link_never_replaces_or_deletes_a_users_symlink"),
+    m("plot_data_closes_its_figure", "plot_data closes its figure (plt.savefig after it: blank)",
+      "so101_kinematics/planning/trajectory_log.py", "plot_data", "    return fig\n",
+      "    plt.close(fig)\n    return fig\n",
+      "tests/test_trajectories.py::test_plot_data_leaves_the_figure_to_the_caller"),
 ]
 
 

@@ -19,6 +19,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 from so101_kinematics.frames import JOINTS, TOOL_SITE  # noqa: E402
+from so101_kinematics.markers import png_metadata  # noqa: E402
 from so101_kinematics.planning.plans import STARTING_CONFIGURATION  # noqa: E402
 from so101_kinematics.sim import actuation  # noqa: E402
 from so101_kinematics.sim.scene import load_model, set_initial_pose  # noqa: E402
@@ -72,7 +73,7 @@ def main() -> None:
         ax.grid(alpha=0.3)
     axes[0].legend(loc="lower left", fontsize=8)
     fig.tight_layout()
-    fig.savefig(OUT, dpi=110)
+    fig.savefig(OUT, dpi=110, metadata=png_metadata("scripts/plot_sag.py"))
     print(f"wrote {OUT}")
 
 

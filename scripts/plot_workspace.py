@@ -27,6 +27,7 @@ from so101_kinematics.outputs import (  # noqa: E402
     OutputPathError,
     add_overwrite_argument,
     check_output_path,
+    png_metadata,
 )
 from so101_kinematics.planning.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION  # noqa: E402
 from so101_kinematics.planning.stacking import (  # noqa: E402
@@ -156,7 +157,7 @@ def plot(output: Path, step: float, draws: int) -> None:
     ], loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=2, fontsize=7, framealpha=0.9)
     fig.tight_layout()
     output.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(output)
+    fig.savefig(output, metadata=png_metadata("scripts/plot_workspace.py"))
     plt.close(fig)
     print(f"wrote {output}")
 

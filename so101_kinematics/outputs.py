@@ -2,31 +2,46 @@
 
 Every script of the project that writes a file (a log, a plot, a video, a
 JSON report, a calibration) goes through here:
-  - :func:`check_output_path` before anything runs: not a folder, its folder
-    creatable and writable, never one of the run's input files, and an
-    existing file is replaced only when it is recognisably this kind of output
-    written by this project (an :class:`OutputKind`: a CSV log with its header,
-    a JSON report with its ``generator`` key, an MP4, a PNG, a PDF), or with
-    an explicit ``--overwrite``;
+  - every file it writes carries this project's marker (:data:`GENERATOR`):
+    a PNG its ``Software`` text chunk (:func:`png_metadata`), an MP4 its
+    ``comment`` tag (:func:`mp4_params`), a PDF its ``Creator``
+    (:func:`pdf_metadata`), a JSON report its ``generator`` key (:func:`stamp`),
+    a CSV its header line;
+  - :func:`check_output_path` before anything runs: not a folder, not a
+    symbolic link, its folder creatable and proven writable (a file is created
+    there and removed), never one of the run's input files, and an existing file
+    is replaced only when its content carries the marker of this kind of output
+    (an :class:`OutputKind`), or with an explicit ``--overwrite``; a kind that
+    is never replaced silently (a log of an earlier run) is refused even then
+    without ``--overwrite``;
   - :func:`atomic_output`: the file is written under a temporary name in the
     same folder and renamed over the target only when complete, so an
-    existing file is never replaced by a partial one.
+    existing file is never replaced by a partial one; a SIGTERM or SIGHUP that
+    would end the program removes the temporary files first.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import signal
 import tempfile
+import threading
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 from so101_kinematics.errors import OutputPathError as OutputPathError
-
-GENERATOR = "so101-kinematics"
-"""The ``generator`` key's value begins so in every JSON report this project writes."""
+from so101_kinematics.markers import (
+    GENERATOR,
+    mp4_ours,
+    pdf_ours,
+    png_ours,
+)
+from so101_kinematics.markers import mp4_params as mp4_params
+from so101_kinematics.markers import pdf_metadata as pdf_metadata
+from so101_kinematics.markers import png_metadata as png_metadata
 
 MAX_RECOGNISED_JSON_BYTES = 64 * 1024 * 1024  # a larger .json is not one of our reports
 
@@ -42,6 +57,8 @@ class OutputKind:
 
     description: str
     recognise: Callable[[Path], bool]
+    replaceable: bool = True
+    """False: an existing file of this kind (a log of an earlier run) is refused too."""
 
 
 def _head(path: Path, size: int) -> bytes:
@@ -68,25 +85,43 @@ def stamp(report, program: str):
     return {"generator": f"{GENERATOR} {program}", **report}
 
 
-def _stamped(item) -> bool:
-    """A dict with our ``generator`` key (in Gradescope's results.json: under ``extra_data``)."""
+def _stamped(item, program: str | None = None) -> bool:
+    """A dict with our ``generator`` key (in Gradescope's results.json: under ``extra_data``).
+
+    With ``program``: written by that program (the generator's word after ours).
+    """
     if not isinstance(item, dict):
         return False
     extra = item.get("extra_data")
     generator = item.get("generator") or (extra.get("generator") if isinstance(extra, dict)
                                           else None)
-    return isinstance(generator, str) and generator.startswith(GENERATOR)
+    if not (isinstance(generator, str) and generator.startswith(GENERATOR)):
+        return False
+    return program is None or generator.split()[1:2] == [program]
 
 
-def _our_json(path: Path) -> bool:
+def _our_json(path: Path, program: str | None = None) -> bool:
     try:
         if path.stat().st_size > MAX_RECOGNISED_JSON_BYTES:
             return False
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return False
-    return _stamped(data) or (isinstance(data, list) and bool(data)
-                              and all(_stamped(item) for item in data))
+    return _stamped(data, program) or (isinstance(data, list) and bool(data)
+                                       and all(_stamped(item, program) for item in data))
+
+
+def report_of(program: str) -> OutputKind:
+    """A JSON report that ``program`` wrote (its ``generator`` key).
+
+    Another program's report, ours or not, is not replaced without ``--overwrite``.
+
+    Example:
+        >>> report_of("test_ik_mujoco.py").description
+        'a JSON report of test_ik_mujoco.py (its "generator" key)'
+    """
+    return OutputKind(f"a JSON report of {program} (its \"generator\" key)",
+                      lambda path: _our_json(path, program))
 
 
 def csv_kind(header: Sequence[str], description: str) -> OutputKind:
@@ -101,9 +136,9 @@ def text_kind(first_words: str, description: str) -> OutputKind:
     return OutputKind(description, _magic(first_words.encode()))
 
 
-PNG = OutputKind("a PNG image", _magic(b"\x89PNG\r\n\x1a\n"))
-PDF = OutputKind("a PDF", _magic(b"%PDF-"))
-MP4 = OutputKind("an MP4 video", _magic(b"ftyp", offset=4))
+PNG = OutputKind("a PNG image written by this project (its Software text chunk)", png_ours)
+PDF = OutputKind("a PDF written by this project (its Creator)", pdf_ours)
+MP4 = OutputKind("an MP4 video written by this project (its comment tag)", mp4_ours)
 JSON_REPORT = OutputKind("a JSON report written by this project (its \"generator\" key)",
                          _our_json)
 
@@ -121,9 +156,12 @@ def check_output_path(path: str | Path, option: str, inputs: Iterable[str | Path
                       overwrite_option: str = "--overwrite") -> Path:
     """Check that ``path`` can be written, before anything runs; creates its folder.
 
-    An existing file is replaced only when ``kind`` recognises it as this kind
-    of output written by this project, or with ``overwrite``; never when it
-    is one of ``inputs``.
+    An existing file is replaced only when ``kind`` recognises it (by its
+    content: our marker) as this kind of output written by this project and
+    ``kind.replaceable``, or with ``overwrite``; never when it is one of
+    ``inputs``. A symbolic link is refused without ``overwrite`` (with it, the
+    link itself is replaced, never the file it points to). The folder is
+    proven writable by creating a file there (removed at once).
 
     Args:
         path: the output file.
@@ -159,7 +197,17 @@ def check_output_path(path: str | Path, option: str, inputs: Iterable[str | Path
                                    or target.resolve() == Path(source).expanduser().resolve()):
             raise OutputPathError(f"{option} {path}: is one of this run's input files; "
                                   "writing it would destroy it. Fix: choose another file name.")
+    if target.is_symlink() and not overwrite:
+        raise OutputPathError(f"{option} {path}: is a symbolic link (to {os.readlink(target)}); "
+                              "writing through it would replace a file this run did not choose "
+                              "(nothing was run). Fix: give the real file's path, or pass "
+                              f"{overwrite_option} to replace the link itself.")
     if target.exists() and not overwrite:
+        if kind is not None and not kind.replaceable and kind.recognise(target):
+            raise OutputPathError(f"{option} {path}: holds {kind.description} of an earlier run; "
+                                  "this run would replace it (nothing was run). Fix: choose a new "
+                                  f"name, e.g. {option} {free_name(target)}, or pass "
+                                  f"{overwrite_option} to replace it.")
         if kind is None:
             raise OutputPathError(f"{option} {path}: exists already. Fix: choose another file "
                                   f"name, or pass {overwrite_option} to replace it.")
@@ -176,17 +224,36 @@ def check_output_path(path: str | Path, option: str, inputs: Iterable[str | Path
     if not os.access(folder, os.W_OK | os.X_OK):
         raise OutputPathError(f"{option} {path}: the folder {folder} is not writable. "
                               "Fix: choose a writable place.")
-    if target.exists() and not os.access(target, os.W_OK):
+    if target.exists() and not target.is_symlink() and not os.access(target, os.W_OK):
         raise OutputPathError(f"{option} {path}: the file is read-only. Fix: choose another "
                               "file name.")
-    return target.resolve()
+    try:  # proof, not permission bits (which say yes to root on /proc or a read-only share)
+        probe = temporary_beside(target)
+        probe.unlink()
+        forget_temporary(probe)
+    except OSError as error:
+        raise OutputPathError(f"{option} {path}: cannot write in its folder {folder} "
+                              f"({error.strerror or error}). Fix: choose a writable place."
+                              ) from None
+    return folder.resolve() / target.name
+
+
+def free_name(path: str | Path) -> Path:
+    """The first ``NAME-2.EXT``, ``NAME-3.EXT``, ... beside ``path`` that does not exist."""
+    path = Path(path)
+    number = 2
+    while (candidate := path.with_name(f"{path.stem}-{number}{path.suffix}")).exists() \
+            or candidate.is_symlink():
+        number += 1
+    return candidate
 
 
 def add_overwrite_argument(parser) -> None:
     """The ``--overwrite`` option every script with an output shares."""
     parser.add_argument("--overwrite", action="store_true",
-                        help="replace an existing output file even when it is not this kind of "
-                        "output written by this project (never one of the run's inputs)")
+                        help="replace an existing output file even when it does not carry this "
+                        "project's marker for its kind, is an earlier run's --log, or is a "
+                        "symbolic link (the link is replaced); never one of the run's inputs")
 
 
 def _suffix_hint(option: str) -> str:
@@ -202,13 +269,47 @@ def temporary_beside(path: str | Path) -> Path:
     the target's format.
     """
     target = Path(path)
+    _clean_up_on_stop_signals()
     handle, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{target.suffix}",
                                     dir=target.parent)
+    _LIVE[Path(name)] = os.getpid()
     umask = os.umask(0)
     os.umask(umask)
     os.fchmod(handle, 0o666 & ~umask)  # mkstemp makes it 0600; the output is an ordinary file
     os.close(handle)
     return Path(name)
+
+
+_LIVE: dict[Path, int] = {}
+"""The temporary files made by :func:`temporary_beside` not yet renamed or removed, and the
+process that made each (a forked child, e.g. a virtual arm, never removes its parent's)."""
+
+
+def forget_temporary(temporary: str | Path) -> None:
+    """``temporary`` was renamed over its target or removed: a stop need not remove it."""
+    _LIVE.pop(Path(temporary), None)
+
+
+def _remove_and_die(signum, _frame) -> None:
+    """End on a SIGTERM/SIGHUP as its default would, our temporary files removed first."""
+    for temporary, owner in list(_LIVE.items()):
+        if owner == os.getpid():
+            temporary.unlink(missing_ok=True)
+    signal.signal(signum, signal.SIG_DFL)
+    os.kill(os.getpid(), signum)
+
+
+def _clean_up_on_stop_signals() -> None:
+    """Install :func:`_remove_and_die` for SIGTERM and SIGHUP where nothing else handles them.
+
+    A program that handles them itself (the hardware script: a controlled stop that
+    raises KeyboardInterrupt) keeps its handler; its ``finally`` blocks remove the files.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(signum) == signal.SIG_DFL:
+            signal.signal(signum, _remove_and_die)
 
 
 @contextmanager
@@ -233,6 +334,7 @@ def atomic_output(path: str | Path) -> Iterator[Path]:
         os.replace(temporary, target)
     finally:
         temporary.unlink(missing_ok=True)
+        forget_temporary(temporary)
 
 
 def write_text_atomic(path: str | Path, text: str) -> Path:

@@ -263,7 +263,9 @@ def test_show_cube_replaces_the_viewers_cube(model):
 def test_an_interrupted_recording_leaves_an_existing_video_as_it_was(tmp_path, capsys,
                                                                      monkeypatch):
     video = tmp_path / "ik.mp4"
-    video.write_bytes(b"\x00\x00\x00\x20ftypisom an earlier video")  # an MP4
+    earlier = (b"\x00\x00\x00\x10ftypisom\x00\x00\x02\x00"  # an MP4 of ours: its comment tag
+               b"\x00\x00\x00\x29moovso101-kinematics an earlier video")
+    video.write_bytes(earlier)
 
     def interrupted(m, d, viewer, targets, *args):
         move_to_pose(m, d, viewer, test_ik_mujoco.INITIAL_CONFIG, 0.2)  # some frames written
@@ -272,5 +274,5 @@ def test_an_interrupted_recording_leaves_an_existing_video_as_it_was(tmp_path, c
     monkeypatch.setattr(test_ik_mujoco, "reach_targets", interrupted)
     code, _, err = run_script(capsys, "--record", str(video), "--target", "0.2", "0.2", "0")
     assert code == 130 and "Interrupted" in err
-    assert video.read_bytes() == b"\x00\x00\x00\x20ftypisom an earlier video"
+    assert video.read_bytes() == earlier
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ik.mp4"]  # no temporary left

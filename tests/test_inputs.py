@@ -21,6 +21,7 @@ import so101_mujoco_utils as utils
 import test_fk_mujoco
 from so101_kinematics import cli
 from so101_kinematics.outputs import (
+    MP4,
     OutputPathError,
     atomic_output,
     check_output_path,
@@ -177,7 +178,9 @@ def test_return_to_start_booleans_are_read_as_written(tmp_path, value):
 
 
 # --- --record, --json ---------------------------------------------------------------------
-OLD_VIDEO = b"\x00\x00\x00\x20ftypisom" + b"the old video"  # an MP4's head: ours to replace
+# An old video of ours (an MP4's boxes: ftyp, then moov holding our comment tag): ours to replace.
+OLD_VIDEO = (b"\x00\x00\x00\x10ftypisom\x00\x00\x02\x00"
+             b"\x00\x00\x00\x28moov" + b"so101-kinematics the old video".ljust(32))
 SHORT_PLAN = json.dumps({"steps": [{"name": "up", "configuration": UP, "duration": 0.1,
                                     "hold": 0.0}], "return_to_start": False})
 
@@ -206,7 +209,7 @@ def test_a_complete_recording_replaces_the_old_video(tmp_path, capsys):
     code, _ = run_sim(capsys, ["--record", str(video), "--plan", str(plan), "--size", "32x32",
                                "--no-cube", "--no-progress"])
     assert code == 0
-    assert video.read_bytes()[4:8] == b"ftyp"  # an MP4 now
+    assert video.read_bytes() != OLD_VIDEO and MP4.recognise(video)  # a new MP4 of ours
     assert sorted(p.name for p in tmp_path.iterdir()) == ["clip.mp4", "plan.json"]
 
 

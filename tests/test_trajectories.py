@@ -250,6 +250,30 @@ def test_sim_logging_helper_returns_the_course_s_frame_in_both_shapes(model, dat
     assert (tmp_path / "log.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_plot_data_leaves_the_figure_to_the_caller(model, data, tmp_path):
+    """``plot_data(df)`` then ``plt.savefig(...)``, as the course's page and matplotlib users
+    do, saves the plot (issue 33: it showed and closed its own figure: a blank image)."""
+    pytest.importorskip("pandas")
+    import matplotlib
+
+    matplotlib.use("Agg")  # no display, as on a lab server or in CI
+    import matplotlib.pyplot as plt
+    import numpy as np
+    from PIL import Image
+
+    from so101_mujoco_utils import move_to_pose_with_logging, plot_data, set_initial_pose
+
+    set_initial_pose(data, ZERO)
+    df = move_to_pose_with_logging(model, data, None, dict(ZERO, elbow_flex=40.0), 0.2)
+    plt.close("all")
+    fig = plot_data(df)
+    assert fig is plt.gcf() and len(fig.axes) == len(JOINTS)
+    plt.savefig(tmp_path / "week8.png")
+    plt.close(fig)
+    pixels = np.asarray(Image.open(tmp_path / "week8.png").convert("L"))
+    assert (pixels < 128).mean() > 0.01  # text, axes and curves: not a blank page
+
+
 @pytest.fixture
 def virtual_arm_calibration(tmp_path, monkeypatch):
     import shutil

@@ -18,9 +18,12 @@ from pathlib import Path
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.control import ArmSession, Cycle
 from so101_kinematics.outputs import (
+    JSON_REPORT,
     OutputKind,
     atomic_output,
     csv_kind,
+    forget_temporary,
+    png_metadata,
     stamp,
     temporary_beside,
     write_text_atomic,
@@ -38,9 +41,14 @@ cmd and meas are the model's angles), and each joint's velocity lead (``hw/lead.
 led the plan by it; empty without --velocity-ff)."""
 _KINDS = (csv_kind(HEADER, ""), csv_kind(BEFORE_LEAD, ""))
 LOG_KIND = OutputKind("a CSV log of pick_place_hw.py (its header row)",
-                      lambda path: any(kind.recognise(path) for kind in _KINDS))
+                      lambda path: any(kind.recognise(path) for kind in _KINDS),
+                      replaceable=False)
 """How an existing log of ours is recognised (``outputs.check_output_path``); a log written
-before the lead's columns too."""
+before the lead's columns too. It is never replaced without ``--overwrite``: it holds a
+run that cannot be run again (the next run is refused, the message names a free name)."""
+SIDECAR_KIND = OutputKind("the sidecar of a pick_place_hw.py log (its generator key)",
+                          JSON_REPORT.recognise, replaceable=False)
+"""A log's sidecar (:func:`sidecar_path`), kept as its log is."""
 
 
 def sidecar_path(path: str | Path) -> Path:
@@ -114,6 +122,7 @@ class CycleLog:
         if not self._handle.closed:
             self._handle.close()
         self.temporary.unlink(missing_ok=True)
+        forget_temporary(self.temporary)
 
     def close(self) -> Path:
         """Flush, close and rename over the target (idempotent); returns the target."""
@@ -122,6 +131,7 @@ class CycleLog:
             os.fsync(self._handle.fileno())
             self._handle.close()
             os.replace(self.temporary, self.path)
+            forget_temporary(self.temporary)
             if self.run_info is not None:
                 if self._lead is not None:
                     self.run_info["velocity_ff"] = self._lead.record()
@@ -166,6 +176,7 @@ def plot_log(cycles: list[Cycle], path: str | Path,
     fig.suptitle(title)
     fig.tight_layout()
     with atomic_output(path) as temporary:
-        fig.savefig(temporary, dpi=100, format="png")
+        fig.savefig(temporary, dpi=100, format="png",
+                    metadata=png_metadata("pick_place_hw.py --plot"))
     plt.close(fig)
     return Path(path)

@@ -39,7 +39,7 @@ from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.log import sidecar_path
 from so101_kinematics.lab.log_ending import run_ending, stop_index
 from so101_kinematics.lab.sag import describe_servo
-from so101_kinematics.outputs import atomic_output
+from so101_kinematics.outputs import atomic_output, png_metadata
 from so101_kinematics.planning.motion import Plan, Step
 from so101_kinematics.planning.plans import pick_and_place_steps
 
@@ -392,6 +392,7 @@ def draw_report(result: Comparison, path: str | Path, title: str = "") -> Path:
     fig.suptitle((title + "\n" if title else "") + "\n".join(text), fontsize=10)
     fig.tight_layout()
     with atomic_output(path) as temporary:
-        fig.savefig(temporary, dpi=90, format="png")
+        fig.savefig(temporary, dpi=90, format="png",
+                    metadata=png_metadata("pick_place_sim.py --compare --report"))
     plt.close(fig)
     return Path(path)

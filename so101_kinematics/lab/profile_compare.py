@@ -33,7 +33,7 @@ import numpy as np
 
 from so101_kinematics.frames import ARM_JOINTS
 from so101_kinematics.lab.compare import Comparison, compare_run, read_log
-from so101_kinematics.outputs import atomic_output
+from so101_kinematics.outputs import atomic_output, png_metadata
 from so101_kinematics.planning import motion_metrics
 from so101_kinematics.planning.profiles import PROFILES
 
@@ -227,6 +227,7 @@ def draw_profiles(result: ProfileComparison, path: str | Path, title: str = "") 
     fig.suptitle((title + "\n" if title else "") + describe_derivatives(), fontsize=9)
     fig.tight_layout()
     with atomic_output(path) as temporary:
-        fig.savefig(temporary, dpi=90, format="png")
+        fig.savefig(temporary, dpi=90, format="png",
+                    metadata=png_metadata("profile comparison --report"))
     plt.close(fig)
     return Path(path)

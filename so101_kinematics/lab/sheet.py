@@ -33,7 +33,7 @@ import numpy as np
 
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, FIXED_TRANSFORMS
-from so101_kinematics.outputs import atomic_output
+from so101_kinematics.outputs import atomic_output, pdf_metadata
 from so101_kinematics.planning.motion import Plan
 from so101_kinematics.planning.plans import pick_and_place_steps
 
@@ -273,7 +273,8 @@ def write_sheet(plan: Plan, path: str | Path, paper: str = "a4",
     orientation, page, (rows, cols), us, vs = layout(cubes, paper)
     window = tuple(v / 10.0 for v in _window_mm(page))
     marks = alignment_marks(us, vs, window)
-    with atomic_output(path) as temporary, PdfPages(temporary) as pdf:
+    with atomic_output(path) as temporary, PdfPages(
+            temporary, metadata=pdf_metadata("pick_place_hw.py --sheet")) as pdf:
         for r, v0 in enumerate(vs):
             for c, u0 in enumerate(us):
                 fig = _page(page, (u0, v0), window, cubes, marks, source,

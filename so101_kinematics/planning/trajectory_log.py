@@ -56,13 +56,22 @@ def plot_limits() -> dict[str, tuple[float, float]]:
             for j in JOINTS}
 
 
-def plot_data(df, path=None) -> None:
+def plot_data(df, path=None):
     """The course's plot: target vs actual per joint, within the joint's limits.
+
+    The figure is left to the caller, as matplotlib's own functions leave it:
+    ``plot_data(df)`` then ``plt.savefig("run.png")`` saves this plot (it is the
+    current figure). With a display (an interactive backend) it is shown first,
+    as the course's ``plot_data(df)`` does; without one nothing is shown.
 
     Args:
         df: from ``move_to_pose_with_logging`` (or several, ``pd.concat``-ed).
-        path: save the figure there (any format matplotlib writes) instead of showing it.
+        path: also save the figure there (any format matplotlib writes); not shown then.
+
+    Returns:
+        The matplotlib figure (``plt.close(fig)`` when done with it).
     """
+    import matplotlib
     import matplotlib.pyplot as plt
 
     limits = plot_limits()
@@ -76,8 +85,16 @@ def plot_data(df, path=None) -> None:
     axes[-1].set_xlabel("Time (s)")
     fig.suptitle("Target vs Actual Joint Positions")
     fig.tight_layout(rect=[0, 0.03, 1, 0.95])
-    if path is None:
-        plt.show()
-    else:
+    if path is not None:
         fig.savefig(path, dpi=100)
-    plt.close(fig)
+    elif matplotlib.get_backend().lower() not in NON_INTERACTIVE_BACKENDS:
+        plt.show()  # a window closed by the user: pyplot forgets the figure, as always
+    return fig
+
+
+NON_INTERACTIVE_BACKENDS = {"agg", "cairo", "pdf", "pgf", "ps", "svg", "template", "inline",
+                            "module://matplotlib_inline.backend_inline"}
+"""Backends where ``plot_data`` does not call ``plt.show()``: matplotlib's own without a window
+(``matplotlib.backends.BackendFilter.NON_INTERACTIVE``: showing there only warns) and
+Jupyter's inline backend (it shows the figure at the cell's end; showing earlier would close
+it before the caller's ``plt.savefig``)."""

@@ -26,9 +26,7 @@ from so101_kinematics.frames import (
     Rz,
     get_frame_chain,
 )
-from so101_kinematics.outputs import (
-    atomic_output,
-)
+from so101_kinematics.outputs import atomic_output, png_metadata
 from so101_kinematics.paths import DOCS_DIR, REPO
 from so101_kinematics.sim.scene import (
     load_model,
@@ -113,7 +111,7 @@ def render_screenshot(m: mujoco.MjModel, d: mujoco.MjData, position, rotation, p
     Returns:
         The (height, width, 3) image.
     """
-    import imageio.v3 as iio
+    from PIL import Image, PngImagePlugin
 
     width, height = size
     with mujoco.Renderer(m, height, width) as renderer:
@@ -121,7 +119,10 @@ def render_screenshot(m: mujoco.MjModel, d: mujoco.MjData, position, rotation, p
         show_cylinder(renderer.scene, position, rotation)
         pixels = renderer.render()
     with atomic_output(path) as temporary:
-        iio.imwrite(temporary, pixels, extension=".png")
+        marker = PngImagePlugin.PngInfo()
+        for key, text in png_metadata("test_fk_mujoco.py --screenshot").items():
+            marker.add_text(key, text)
+        Image.fromarray(pixels).save(temporary, format="PNG", pnginfo=marker)
     return pixels
 
 
@@ -220,7 +221,8 @@ def render_frames(path: Path, configuration=FRAMES_CONFIGURATION, size=FRAMES_SI
             bbox={"boxstyle": "round", "fc": "white", "alpha": 0.85})
     try:
         with atomic_output(path) as temporary:
-            fig.savefig(temporary, dpi=dpi, format="png")
+            fig.savefig(temporary, dpi=dpi, format="png",
+                        metadata=png_metadata("test_fk_mujoco.py --frames"))
     finally:
         plt.close(fig)
     return path

@@ -20,6 +20,7 @@ import numpy as np
 
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.ik.course import get_inverse_kinematics
+from so101_kinematics.markers import png_metadata
 from so101_kinematics.planning import motion_metrics, trajectory_log
 from so101_kinematics.planning.motion_metrics import METRIC_KEYS
 from so101_kinematics.sim import stepping
@@ -214,5 +215,5 @@ def plot_tracking(logs: dict[str, StepLog], path, title: str = "") -> None:
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    fig.savefig(path, dpi=100, metadata=png_metadata("test_trajectory_mujoco.py --plot"))
     plt.close(fig)

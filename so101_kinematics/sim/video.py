@@ -75,7 +75,12 @@ class VideoRecorder:
         import imageio.v2 as imageio
         from tqdm import tqdm
 
-        from so101_kinematics.outputs import OutputPathError, check_output_path, temporary_beside
+        from so101_kinematics.outputs import (
+            OutputPathError,
+            check_output_path,
+            mp4_params,
+            temporary_beside,
+        )
 
         path = Path(path)
         if path.suffix.lower() != ".mp4":
@@ -98,7 +103,8 @@ class VideoRecorder:
             self._writer = imageio.get_writer(
                 str(self._temporary), format="FFMPEG", fps=self.fps, codec=VIDEO_CODEC,
                 pixelformat="yuv420p", quality=None, macro_block_size=1,
-                ffmpeg_params=list(VIDEO_PARAMS), ffmpeg_log_level="error")
+                ffmpeg_params=[*VIDEO_PARAMS, *mp4_params(f"video of {path.name}")],
+                ffmpeg_log_level="error")
         except BaseException:
             self._temporary.unlink(missing_ok=True)
             self._frames.close()
@@ -177,7 +183,10 @@ class VideoRecorder:
                 log.info("Wrote %d frames (%.2f s at %g fps) to %s", self.frames_written,
                          self.frames_written / self.fps, self.fps, self.path)
         finally:
+            from so101_kinematics.outputs import forget_temporary
+
             self._temporary.unlink(missing_ok=True)
+            forget_temporary(self._temporary)
 
     def __enter__(self) -> VideoRecorder:
         return self
