@@ -129,9 +129,7 @@ def _describe(error: BaseException, step: str) -> str:
 
 def after_abort(session: ArmSession, error: BaseException, start_pose: Configuration,
                 return_on_abort: bool, result: RunResult, plan: Plan | None = None) -> None:
-    """Controlled stop; then (a held cube put down, ``hw/putdown.py``) the slow return when the
-    whole arm answers; else hold.
-    """
+    """Controlled stop; a held cube put down (``hw/putdown.py``); the slow return; else hold."""
     held = held_grip(session)  # before the stop sets the gripper's goal to where it is
     result.aborted = _describe(error, session.step)
     logger.error("Aborting: %s", result.aborted)
