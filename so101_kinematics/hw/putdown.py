@@ -34,7 +34,12 @@ from collections.abc import Mapping
 
 from so101_kinematics.clearance import check_path
 from so101_kinematics.errors import PlanError, StopRequested
-from so101_kinematics.hw.timing import MAX_GRIPPER_SPEED_PCT_S, speed_caps
+from so101_kinematics.hw.control import (
+    MAX_GRIPPER_SPEED_PCT_S,
+    RETURN_MIN_DURATION_S,
+    RETURN_SPEED_DEG_S,
+    speed_caps,
+)
 from so101_kinematics.planning.motion import Configuration, Plan, check_configuration
 
 logger = logging.getLogger("pick_place_hw")
@@ -44,8 +49,6 @@ HELD_MARGIN_PCT = 3.0  # the jaws stopped this much wider than commanded hold so
 nothing ends within 1 % of its command; on the course's 26 mm cube it stops near 23 % against 5."""
 SETTLED_WINDOW_S = 0.1  # the jaws must have stood still this long ... [s]
 SETTLED_PCT = 1.0  # ... within this much [%] (closing in free air they move 100 %/s)
-RETURN_SPEED = 20.0  # the put-down goes at the slow return's speed (hw/control.py) [deg/s, %/s]
-MOVE_S = 1.0  # shortest put-down move (stretched by the speed cap) [s]
 
 
 def held_grip(session) -> tuple[float, float] | None:
@@ -68,15 +71,15 @@ def held_grip(session) -> tuple[float, float] | None:
 
 
 def put_down(session, plan: Plan | None, held: tuple[float, float] | None,
-             error: BaseException, start: Mapping[str, float]) -> Configuration:
+             error: BaseException | None, start: Mapping[str, float]) -> Configuration:
     """Put a held cube down and open the jaws; returns the pose the return must go to.
 
     Args:
         session: the stopped session (``ArmSession``; its command is the stop pose).
-        plan: the plan that was running, or None (a course script: no put-down).
+        plan: the plan that was running, or None (a course script: straight down only).
         held: :func:`held_grip` before the stop, or None (nothing held: nothing done).
-        error: why the run stopped: a stop signal puts the cube at the plan's place,
-            anything else straight down where it is.
+        error: why the run stopped (None: the script's end): a stop signal puts the cube
+            at the plan's place, anything else straight down where it is.
         start: the starting pose.
 
     Returns:
@@ -92,11 +95,10 @@ def put_down(session, plan: Plan | None, held: tuple[float, float] | None,
     command, width = held
     steps = plan.steps if plan is not None else []
     index = next((k for k, s in enumerate(steps) if s.name == session.step), None)
-    routes = []
-    if index is not None:
-        stopped = isinstance(error, (KeyboardInterrupt, StopRequested))
-        routes = [_at_the_place(steps, index, command, session.command)] if stopped else []
-        routes.append(_straight_down(steps, index, command, session.command))
+    stopped = isinstance(error, (KeyboardInterrupt, StopRequested))
+    routes = [_at_the_place(session, steps, index, command)] if stopped and index is not None \
+        else []
+    routes.append(_straight_down(session, command))
     for route in filter(None, routes):
         lower, opened, above, where = route
         try:
@@ -107,13 +109,13 @@ def put_down(session, plan: Plan | None, held: tuple[float, float] | None,
         logger.warning("The jaws hold something (gripper at %.1f %%, commanded %.1f %%): "
                        "putting it down %s and opening the jaws before the return.",
                        width, command, where)
-        slow = speed_caps(RETURN_SPEED, RETURN_SPEED)
+        slow = speed_caps(RETURN_SPEED_DEG_S, RETURN_SPEED_DEG_S)  # the return's "slowly"
         session.move(dict(session.command, gripper=command), 0.1, step="put_down_grip",
                      max_speed=dict(slow, gripper=MAX_GRIPPER_SPEED_PCT_S))
         for pose in lower:
-            session.move(pose, MOVE_S, step="put_down", max_speed=slow)
-        session.move(opened, MOVE_S, step="put_down_open", max_speed=slow)
-        session.move(above, MOVE_S, step="put_down_rise", max_speed=slow)
+            session.move(pose, RETURN_MIN_DURATION_S, step="put_down", max_speed=slow)
+        session.move(opened, RETURN_MIN_DURATION_S, step="put_down_open", max_speed=slow)
+        session.move(above, RETURN_MIN_DURATION_S, step="put_down_rise", max_speed=slow)
         return target
     logger.warning("The jaws hold something and it cannot be put down: the return keeps them "
                    "at %.1f %% (the start's %.1f %% would squeeze it).", width, start["gripper"])
@@ -133,36 +135,39 @@ def _closes(steps, k: int, command: float) -> bool:
     return steps[k].configuration["gripper"] <= command + HELD_MARGIN_PCT
 
 
-def _at_the_place(steps, index: int, command: float, pose: Configuration):
+def _at_the_place(session, steps, index: int, command: float):
     """The plan's holding waypoints from here to where it opens the jaws, or None."""
     opening = next((k for k in range(index, len(steps)) if not _closes(steps, k, command)), None)
     if opening is None or opening == 0:
         return None
+    pose = session.command
     lower = [dict(steps[k].configuration, gripper=command) for k in range(index, opening)]
     release = lower[-1] if lower else dict(pose)
     opened = dict(release, gripper=steps[opening].configuration["gripper"])
-    grasp = _grasp_index(steps, index, command)
+    grasp = next((k for k in range(min(index, len(steps) - 1), 0, -1)
+                  if _closes(steps, k, command) and not _closes(steps, k - 1, command)), None)
     came_down_from = opening - 2  # the waypoint the plan lowered the cube from
-    if grasp is not None and came_down_from > grasp:
-        above = steps[came_down_from].configuration
-    else:
-        above = pose
+    above = steps[came_down_from].configuration if grasp is not None and \
+        came_down_from > grasp else pose
     return lower, opened, dict(above, gripper=opened["gripper"]), \
         f"at the plan's place ('{steps[opening].name}')"
 
 
-def _grasp_index(steps, index: int, command: float) -> int | None:
-    """The waypoint that closed the jaws on the cube: the first closed one after an open one."""
-    return next((k for k in range(min(index, len(steps) - 1), 0, -1)
-                 if _closes(steps, k, command) and not _closes(steps, k - 1, command)), None)
+def _straight_down(session, command: float):
+    """The grasp's pose turned to the present pan and roll: the cube back on the table.
 
+    The grasp is the last move that closed the jaws (from open to at most ``command`` + the
+    margin): its goal is where the cube stood on the table; it opened from its start's gripper.
+    """
+    def closed(value: float) -> bool:
+        return value <= command + HELD_MARGIN_PCT
 
-def _straight_down(steps, index: int, command: float, pose: Configuration):
-    """The grasp's pose turned to the present pan and roll: the cube back on the table."""
-    grasp = _grasp_index(steps, index, command)
+    grasp = next((s for s in reversed(session.segments) if s.kind == "move"
+                  and closed(s.goal["gripper"]) and not closed(s.start["gripper"])), None)
     if grasp is None:
         return None
-    release = dict(steps[grasp].configuration, shoulder_pan=pose["shoulder_pan"],
-                   wrist_roll=pose["wrist_roll"], gripper=command)
-    opened = dict(release, gripper=steps[grasp - 1].configuration["gripper"])
+    pose = session.command
+    release = dict(grasp.goal, shoulder_pan=pose["shoulder_pan"], wrist_roll=pose["wrist_roll"],
+                   gripper=command)
+    opened = dict(release, gripper=grasp.start["gripper"])
     return [release], opened, dict(pose, gripper=opened["gripper"]), "straight down where it is"
