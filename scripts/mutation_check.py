@@ -344,6 +344,16 @@ MUTANTS: list[Mutant] = [
       "so101_kinematics/outputs.py", "atomic_output", "temporary = temporary_beside(target)",
       "temporary = target",
       "tests/test_inputs.py::test_atomic_output_keeps_the_old_file_on_an_error"),
+    m("put_down_skipped", "a stop with a cube in the jaws returns with it (the gripper squeezes "
+      "it at the rest; issue 33)", RUN, "after_abort",
+      "session.return_slowly(put_down(session, plan, held, error, start_pose))",
+      "session.return_slowly(start_pose)",
+      "tests/test_stop_with_cube.py::"
+      "test_ctrl_c_after_the_grasp_puts_the_cube_down_at_the_place_then_returns"),
+    m("held_cube_squeezed", "a cube that cannot be put down is squeezed by the return to the "
+      "start's narrower gripper", "so101_kinematics/hw/putdown.py", "put_down",
+      'target["gripper"] = max(start["gripper"], width)', 'target["gripper"] = start["gripper"]',
+      "tests/test_putdown.py::test_a_cube_that_cannot_be_put_down_is_not_squeezed_by_the_return"),
 ]
 
 
