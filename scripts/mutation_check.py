@@ -288,8 +288,9 @@ MUTANTS: list[Mutant] = [
       RUN, "finish", "        if result.returned_to_start:\n            result.unreleased",
       "        if True:\n            result.unreleased", T_RUN),
     m("no_return_after_abort", "no slow return after an abort: the arm holds where it stopped",
-      RUN, "after_abort", "                session.return_slowly(start_pose)\n"
-      "                result.returned_to_start = True", "                pass", T_RUN),
+      RUN, "after_abort", "                session.return_slowly(put_down(session, plan, held, "
+      "error, start_pose))\n                result.returned_to_start = True",
+      "                pass", T_RUN),
     # --- the velocity feed-forward on the arm (issue 27) ---------------------------------------
     m("velocity_lead_sign", "the lead's sign flipped (the goal trails the plan: twice the lag)",
       LEAD, "lead_for", "lead = {j: lag_s.get(j, 0.0) * v", "lead = {j: -lag_s.get(j, 0.0) * v",
