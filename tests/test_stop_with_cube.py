@@ -109,3 +109,32 @@ def test_a_fault_while_holding_puts_the_cube_straight_down_where_it_is():
     assert math.hypot(x - x0, y - y0) < 0.026, (cube, lifted)
     assert math.hypot(x - PLACE[0], y - PLACE[1]) > 0.1
     assert math.hypot(x - PICK[0], y - PICK[1]) > 0.05
+
+
+def test_a_course_script_that_releases_while_holding_puts_the_cube_down_first(capsys, caplog):
+    """Assignment 8's helpers: grasp, lift, then ``bus.disable_torque()`` away from the start
+    with the cube in the jaws: it is put straight down, the jaws open, then the return."""
+    from so101_utils import load_calibration as course_calibration
+    from so101_utils import move_to_pose, setup_motors
+
+    plan = default_plan()
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, cube=PICK[:2]) as arm:
+        bus = setup_motors(course_calibration(str(DEFAULT_CALIBRATION_PATH)), arm.port)
+        try:
+            for step in plan.steps[:5]:  # approach, pre_grasp, start_open, start_closed, lift
+                move_to_pose(bus, step.configuration, 1.0)
+            lifted = arm.cube()
+            bus.disable_torque()
+        finally:
+            bus.disconnect(disable_torque=False)
+        cube, torque = arm.cube(), arm.torque_enabled()
+    assert lifted.held and lifted.position_m[2] > 0.1, lifted
+    assert_on_the_table_upright_and_free(cube)
+    x, y, _ = cube.position_m
+    (x0, y0, _), _, _ = lifted
+    assert math.hypot(x - x0, y - y0) < 0.026, (cube, lifted)  # straight down (see above)
+    assert "putting it down straight down where it is" in caplog.text
+    assert "Overload" not in caplog.text
+    assert capsys.readouterr().out.strip().splitlines()[-1] == (
+        "Done: back at the starting pose, torque off.")
+    assert not any(torque.values())
