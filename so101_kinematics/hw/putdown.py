@@ -17,12 +17,15 @@ slow return (Ctrl-C, SIGTERM, SIGHUP, a fault the arm recovers from):
    at the plan's own place (the plan's holding waypoints up to the one where
    it opens the jaws), when every move there is inside the limits and clear
    of the table; otherwise (after a fault, or the place refused) straight
-   down where it is: the grasp's pose (where the cube stood on the table, so
-   the clearance rules hold there) turned to the arm's present pan and roll.
+   down where it is: the grasp's pose (the goal of the last move that closed
+   the jaws, the plan's or a course script's ``move_to_pose``: where the cube
+   stood on the table, so the clearance rules hold there) turned to the arm's
+   present pan and roll.
    The jaws never close further than the grasp's command while holding.
-3. The jaws open to the plan's opening there, the arm rises back along the
+3. The jaws open as wide as they were before they closed on the cube (at the
+   place: the plan's opening there), the arm rises back along the
    way it came down, and only then does the slow return to the start begin.
-4. If no put-down is possible (no plan, every route refused), the return
+4. If no put-down is possible (no move closed the jaws, every route refused), the return
    keeps the jaws at least as wide as the cube they hold: never the start's
    narrower opening.
 """
@@ -45,8 +48,8 @@ from so101_kinematics.planning.motion import Configuration, Plan, check_configur
 logger = logging.getLogger("pick_place_hw")
 
 HELD_MARGIN_PCT = 3.0  # the jaws stopped this much wider than commanded hold something [%]
-"""The same margin as ``hw/teach.py``'s EMPTY_GRIP_PCT: the virtual arm's gripper closed on
-nothing ends within 1 % of its command; on the course's 26 mm cube it stops near 23 % against 5."""
+"""The same margin as ``hw/teach.py``'s EMPTY_GRIP_PCT (a gripper closed on nothing); on the
+course's 26 mm cube the virtual arm's gripper stops at 23.3 % against a command of 5 %."""
 SETTLED_WINDOW_S = 0.1  # the jaws must have stood still this long ... [s]
 SETTLED_PCT = 1.0  # ... within this much [%] (closing in free air they move 100 %/s)
 
