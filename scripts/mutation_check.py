@@ -351,6 +351,10 @@ MUTANTS: list[Mutant] = [
       "session.return_slowly(start_pose)",
       "tests/test_stop_with_cube.py::"
       "test_ctrl_c_after_the_grasp_puts_the_cube_down_at_the_place_then_returns"),
+    m("held_while_closing", "jaws still closing in free air taken for a held cube (every stop "
+      "at a grasp would then put down nothing)", "so101_kinematics/hw/putdown.py", "held_grip",
+      "if max(recent) - min(recent) > SETTLED_PCT:", "if False:",
+      "tests/test_putdown.py::test_jaws_closed_on_nothing_or_still_closing_hold_nothing"),
     m("held_cube_squeezed", "a cube that cannot be put down is squeezed by the return to the "
       "start's narrower gripper", "so101_kinematics/hw/putdown.py", "put_down",
       'target["gripper"] = max(start["gripper"], width)', 'target["gripper"] = start["gripper"]',
