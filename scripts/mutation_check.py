@@ -290,8 +290,9 @@ MUTANTS: list[Mutant] = [
       RUN, "finish", "        if result.returned_to_start:\n            result.unreleased",
       "        if True:\n            result.unreleased", T_RUN),
     m("no_return_after_abort", "no slow return after an abort: the arm holds where it stopped",
-      RUN, "after_abort", "                session.return_slowly(start_pose)\n"
-      "                result.returned_to_start = True", "                pass", T_RUN),
+      RUN, "after_abort", "                session.return_slowly(put_down(session, plan, held, "
+      "error, start_pose))\n                result.returned_to_start = True",
+      "                pass", T_RUN),
     # --- the velocity feed-forward on the arm (issue 27) ---------------------------------------
     m("velocity_lead_sign", "the lead's sign flipped (the goal trails the plan: twice the lag)",
       LEAD, "lead_for", "lead = {j: lag_s.get(j, 0.0) * v", "lead = {j: -lag_s.get(j, 0.0) * v",
@@ -444,6 +445,20 @@ MUTANTS: list[Mutant] = [
       "so101_kinematics/planning/trajectory_log.py", "plot_data", "    return fig\n",
       "    plt.close(fig)\n    return fig\n",
       "tests/test_trajectories.py::test_plot_data_leaves_the_figure_to_the_caller"),
+    m("put_down_skipped", "a stop with a cube in the jaws returns with it (the gripper squeezes "
+      "it at the rest; issue 33)", RUN, "after_abort",
+      "session.return_slowly(put_down(session, plan, held, error, start_pose))",
+      "session.return_slowly(start_pose)",
+      "tests/test_stop_with_cube.py::"
+      "test_ctrl_c_after_the_grasp_puts_the_cube_down_at_the_place_then_returns"),
+    m("held_while_closing", "jaws still closing in free air taken for a held cube (every stop "
+      "at a grasp would then put down nothing)", "so101_kinematics/hw/putdown.py", "held_grip",
+      "if max(recent) - min(recent) > SETTLED_PCT:", "if False:",
+      "tests/test_putdown.py::test_jaws_closed_on_nothing_or_still_closing_hold_nothing"),
+    m("held_cube_squeezed", "a cube that cannot be put down is squeezed by the return to the "
+      "start's narrower gripper", "so101_kinematics/hw/putdown.py", "put_down",
+      'target["gripper"] = max(start["gripper"], width)', 'target["gripper"] = start["gripper"]',
+      "tests/test_putdown.py::test_a_cube_that_cannot_be_put_down_is_not_squeezed_by_the_return"),
 ]
 
 

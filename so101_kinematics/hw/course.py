@@ -70,6 +70,7 @@ from so101_kinematics.hw.course_calibration import (  # noqa: F401 - the course'
 from so101_kinematics.hw.feedforward import read_feedforward, sag_allowance, torque_on_in_place
 from so101_kinematics.hw.guarded import RAW_TICKS, GuardedBus, ramp_to_goal, resync
 from so101_kinematics.hw.lead import VelocityLead
+from so101_kinematics.hw.putdown import held_grip, put_down
 from so101_kinematics.hw.run import (
     LIMIT_SLACK_DEG,
     RELEASE_HINT,
@@ -323,7 +324,7 @@ def end_at_start(run: CourseRun, why: str) -> str:
             if away:
                 logger.warning("%s away from the starting pose (%s): returning there slowly "
                                "before releasing the torque.", why, ", ".join(away))
-                session.return_slowly(run.start)
+                session.return_slowly(put_down(session, None, held_grip(session), None, run.start))
         result.returned_to_start = True
     except (Exception, KeyboardInterrupt) as error:
         after_abort(session, error, run.start, True, result)

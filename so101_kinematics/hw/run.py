@@ -67,6 +67,7 @@ from so101_kinematics.hw.preflight import (  # noqa: F401 - the run's checks, re
     check_run_settings,
     validate_plan_for_arm,
 )
+from so101_kinematics.hw.putdown import held_grip, put_down
 from so101_kinematics.planning.motion import (
     Configuration,
     Plan,
@@ -127,8 +128,9 @@ def _describe(error: BaseException, step: str) -> str:
 
 
 def after_abort(session: ArmSession, error: BaseException, start_pose: Configuration,
-                return_on_abort: bool, result: RunResult) -> None:
-    """Controlled stop; then the slow return when the whole arm answers; else hold."""
+                return_on_abort: bool, result: RunResult, plan: Plan | None = None) -> None:
+    """Controlled stop; a held cube put down (``hw/putdown.py``); the slow return; else hold."""
+    held = held_grip(session)  # before the stop sets the gripper's goal to where it is
     result.aborted = _describe(error, session.step)
     logger.error("Aborting: %s", result.aborted)
     bus = session.bus
@@ -152,7 +154,7 @@ def after_abort(session: ArmSession, error: BaseException, start_pose: Configura
                     with_retries(lambda b: torque_on_in_place(b, session.feedforward), bus)
             if return_on_abort:
                 session.stop_reason = None
-                session.return_slowly(start_pose)
+                session.return_slowly(put_down(session, plan, held, error, start_pose))
                 result.returned_to_start = True
     except FreezeRequested:
         recover_port(bus)
@@ -197,7 +199,7 @@ def execute(session: ArmSession, plan: Plan, start_pose: Configuration,
             run_plan(plan, session.move, session.hold, initial=start_pose, on_step=on_step)
         result.returned_to_start = plan.return_to_start
     except (Exception, KeyboardInterrupt) as error:
-        after_abort(session, error, start_pose, return_on_abort, result)
+        after_abort(session, error, start_pose, return_on_abort, result, plan)
     finally:
         finish(session, result)
     if result.aborted is not None:

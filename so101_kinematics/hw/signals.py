@@ -61,8 +61,9 @@ def stop_on_signals(session: ArmSession, freeze_at_once: bool = False):
         name = STOP_SIGNALS.get(signum, f"signal {signum}")
         if session.stop_reason is None and not freeze_at_once:
             session.stop_reason = name
-            print(f"\nStopping ({name}): the arm returns slowly to its start. {name} again "
-                  "freezes it where it is, torque on.", file=sys.stderr, flush=True)
+            print(f"\nStopping ({name}): the arm returns slowly to its start (a cube in the "
+                  f"jaws is put down first). {name} again freezes it where it is, torque on.",
+                  file=sys.stderr, flush=True)
         else:
             raise FreezeRequested(name)
 
