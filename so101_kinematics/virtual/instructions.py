@@ -18,14 +18,17 @@ table of what is covered.
   is 1 (the factory value), judged when the instruction arrives. A reply is built
   before the instruction acts, so it comes from the addressed ID.
 - Servos sharing an ID all obey, and all answer at once: the host receives the
-  collision of their replies on the half-duplex line (:func:`protocol.collide`),
-  which fails the checksum or loses the header.
+  collision of their replies on the half-duplex line (:func:`protocol.collide`).
+  About 4 in 10 times (``GARBLED_FRACTION``, seeded) they start 2 us apart and even
+  identical replies fail the checksum or lose the header; otherwise they start in
+  step and only replies that differ collide.
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import random
 import time
 
 from so101_kinematics import cube_sensor
@@ -53,8 +56,15 @@ from so101_kinematics.virtual.protocol import (
 logger = logging.getLogger("virtual_so101")
 
 LATE_REPLY = 0.045  # [s] after this, lerobot (50 ms timeout) may have given up
-COLLISION_SKEW_S = 2e-6  # [s] between two same-ID servos' replies: one Return_Delay_Time unit
-# (2 us, the memory table's); a choice - the firmware's reply jitter is not published.
+COLLISION_SKEW_S = 2e-6  # [s] between two same-ID servos' replies when they drift apart: one
+# Return_Delay_Time unit (2 us, the memory table's); a choice: the firmware's jitter is
+# not published.
+GARBLED_FRACTION = 0.4
+"""How often two same-ID servos' replies start far enough apart to garble even identical
+replies: about 4 in 10 (the servolab client's measurement on a real bus, as issue 34 reports it).
+The rest start within a fraction of a bit, so identical replies (PING, a WRITE's status) come
+through intact; replies that differ (two READs of different positions) collide anyway."""
+IN_STEP_BITS = 0.25  # [bits] most two in-step transmitters differ by (< half a bit: read alike)
 
 
 class BusInstructions:
@@ -198,7 +208,7 @@ class BusInstructions:
             if not packets:
                 continue
             packet = packets[0] if len(packets) == 1 else \
-                collide(packets, self.host_baud, COLLISION_SKEW_S)
+                collide(packets, self.host_baud, self.collision_skew())
             t_ready += group[0][0].return_delay + len(packet) * tpb
             out.append((t_ready, packet))
         if not out:
@@ -218,6 +228,13 @@ class BusInstructions:
             now = time.perf_counter()
             self._emit(b"".join(p for _, p in out), t_end, t_end, now)
             self.replies += len(out) - 1
+
+    def collision_skew(self) -> float:
+        """[s] between two same-ID servos' replies: seeded, ``GARBLED_FRACTION`` drift apart."""
+        rng = self.__dict__.setdefault("collisions", random.Random(254))
+        if rng.random() < GARBLED_FRACTION:
+            return COLLISION_SKEW_S
+        return rng.uniform(0.0, IN_STEP_BITS) / max(1, self.host_baud)
 
     def _status(self, servo, reply_id: int, params: bytes) -> bytes | None:
         """One servo's status packet, or None when a fault drops it."""
