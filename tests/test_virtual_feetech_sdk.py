@@ -472,3 +472,75 @@ def test_present_position_is_the_bare_encoder_outside_position_mode(client, arm,
     write1(client, 5, OPERATING_MODE, 0)
     wait_sim(arm, 0.2)
     assert abs(read2(client, 5, PRESENT) - before) <= 3
+
+
+# --- where the sources disagree: the default, and the other choice as a rule (rules.py) -------
+@pytest.fixture
+def ruled():
+    """``ruled(**rules)``: (port, handler, arm) of a virtual arm with those rules."""
+    opened = []
+
+    def start(**rules):
+        arm = VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, rules=rules)
+        arm.set_pose(HOME)
+        port = sdk.PortHandler(arm.port)
+        assert port.openPort()
+        opened.append((port, arm))
+        return port, sdk.PacketHandler(0), arm
+
+    yield start
+    for port, arm in opened:
+        port.closePort()
+        arm.close()
+
+
+@pytest.mark.parametrize(("rule", "seconds"), [("ignored", (0.0, 1.0)), ("move_time", (1.8, 2.5))])
+def test_goal_time_rule(ruled, rule, seconds):
+    """An SCS-style write (position, time 2000 ms, speed 0): the STS ignores the time (default);
+    under ``goal_time = "move_time"`` the 400 counts take the 2 s (speed 200 counts/s)."""
+    port, handler, arm = ruled(goal_time=rule)
+    start = read2((port, handler), 1, PRESENT)
+    goal = start - 400
+    data = [goal & 0xFF, goal >> 8, 2000 & 0xFF, 2000 >> 8, 0, 0]
+    assert handler.writeTxRx(port, 1, GOAL, 6, data) == (sdk.COMM_SUCCESS, 0)
+    duration = time_to_reach((port, handler), arm, 1, goal)
+    assert seconds[0] <= duration <= seconds[1]
+
+
+@pytest.mark.parametrize(("rule", "moved"), [("follows", 0), ("kept", 300)])
+def test_limp_goal_rule(ruled, rule, moved):
+    """A goal written with torque off: it follows Present_Position (default), so torque on holds
+    where the joint is; under ``limp_goal = "kept"`` torque on moves to it (shoulder_pan: no
+    gravity about its axis, so the limp joint stays put)."""
+    port, handler, arm = ruled(limp_goal=rule)
+    client = (port, handler)
+    write1(client, 1, TORQUE_ENABLE, 0)
+    start = read2(client, 1, PRESENT)
+    write2(client, 1, GOAL, start + 300)
+    wait_sim(arm, 0.3)
+    read2(client, 1, PRESENT)  # a read while limp (the default copies the position to the goal)
+    write1(client, 1, TORQUE_ENABLE, 1)
+    wait_sim(arm, 1.0)
+    assert abs(read2(client, 1, PRESENT) - (start + moved)) <= 10
+
+
+@pytest.mark.parametrize(("rule", "stored"), [("acts", 300), ("refused", None)])
+def test_locked_eeprom_rule(ruled, rule, stored):
+    """With Lock = 1 (the factory value) an EEPROM write acts until the next power cycle
+    (default), or under ``locked_eeprom = "refused"`` is ignored."""
+    port, handler, arm = ruled(locked_eeprom=rule)
+    client = (port, handler)
+    write1(client, 3, 55, 1)
+    before = read2(client, 3, 9)  # Min_Position_Limit
+    write2(client, 3, 9, 300)
+    assert read2(client, 3, 9) == (before if stored is None else stored)
+
+
+@pytest.mark.parametrize(("rule", "answered"), [("none", False), ("status", True)])
+def test_restart_reply_rule(ruled, rule, answered):
+    """RESTART (0x08): no reply (default), or under ``restart_reply = "status"`` a status."""
+    port, handler, arm = ruled(restart_reply=rule)
+    result = handler.txRxPacket(port, [0xFF, 0xFF, 3, 2, 0x08, 0])[1]
+    assert (result == sdk.COMM_SUCCESS) == answered
+    time.sleep(0.1)
+    assert read1((port, handler), 3, 5) == 3  # it came back, as ID 3

@@ -9,10 +9,11 @@ table of what is covered.
   the Registered flag (address 64), ACTION (0x05, broadcast or to one ID) applies it
   and clears the flag; RESET (0x06) restores every parameter but the ID from the
   backup image (the factory EEPROM until BACKUP, 0x09, replaces it); RESTART (0x08)
-  is a power cycle of that servo, never answered; 0x0A (clear the turn count) is
-  answered and changes nothing (no multi-turn mode here); 0x0B sets the present
-  position to the middle (2048) or to its parameter. Any other instruction, a
-  malformed one, or one to an ID nobody has is ignored: no reply.
+  is a power cycle of that servo, not answered (rule ``restart_reply``: answered);
+  0x0A (clear the turn count) is answered and changes nothing (no multi-turn mode
+  here); 0x0B sets the present position to the middle (2048) or to its parameter.
+  Any other instruction, a malformed one, or one to an ID nobody has is ignored: no
+  reply.
 - Who answers: never a broadcast, except PING; PING and READ (and SYNC_READ) always;
   every other instruction only when the servo's Response_Status_Level (address 8)
   is 1 (the factory value), judged when the instruction arrives. A reply is built
@@ -125,8 +126,8 @@ class BusInstructions:
                 addressed = [s for _, group in sorted(listening.items()) for s in group]
             else:
                 addressed = list(listening.get(target, ()))
-            answering = [] if broadcast or inst == INST_RESTART else \
-                [(s, target, b"") for s in addressed if s.regs[8] != 0]
+            silent = broadcast or (inst == INST_RESTART and self.rules["restart_reply"] == "none")
+            answering = [] if silent else [(s, target, b"") for s in addressed if s.regs[8] != 0]
             for servo in addressed:
                 obey(servo)
             replies = [answering] if answering else []

@@ -86,7 +86,7 @@ class SensorReadings:
         noise = self.noise.random()
         jitter = -1 if noise < ENCODER_NOISE / 2 else 1 if noise > 1 - ENCODER_NOISE / 2 else 0
         present = (round(servo.base + servo.scale * angle + servo.delta) + jitter) % RESOLUTION
-        if not servo.torque:  # the STS keeps Goal_Position on Present_Position while limp
+        if not servo.torque and self.rules["limp_goal"] == "follows":  # the STS's (rules.py)
             servo.set("Goal_Position", present)
         if ENCODER_OUTSIDE_POSITION_MODE and not servo.position_mode:  # the bare encoder
             present = (present + servo.get("Homing_Offset")) % RESOLUTION

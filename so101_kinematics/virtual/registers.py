@@ -233,6 +233,7 @@ class ServoRegisters(SensorReadings):
             goal = -(goal & 0x7FFF)
         if servo.torque and servo.position_mode:
             self.d.ctrl[servo.act] = servo.goal_to_angle(goal)
+            self.timed_move(servo)
         elif servo.torque and regs[33] == STEP_MODE:  # a relative move of ``goal`` counts
             self.d.ctrl[servo.act] += goal / servo.scale
         self.goal_log.append((time.time(), servo.id, goal))
@@ -245,8 +246,9 @@ class ServoRegisters(SensorReadings):
         regs = servo.regs
         old_id, was_on, old_mode = servo.id, servo.torque, regs[33]
         old_goal = bytes(regs[42:44])
+        locked = EEPROM_END if regs[55] and self.rules["locked_eeprom"] == "refused" else 0
         for i, byte in enumerate(data):
-            if addr + i not in READ_ONLY and addr + i < 256:
+            if addr + i not in READ_ONLY and locked <= addr + i < 256:  # rules.py: Lock
                 regs[addr + i] = byte
         touched = set(range(addr, addr + len(data)))
         if regs[5] > MAX_SERVO_ID:  # 254 is the broadcast ID, 255 none: the ID is refused
@@ -270,7 +272,11 @@ class ServoRegisters(SensorReadings):
         if touched & ({40} | SETTING_ADDRESSES):
             self._apply_torque(servo)
             if servo.torque and (not was_on or (regs[33] == STEP_MODE and old_mode != STEP_MODE)):
+                kept = servo.get("Goal_Position")
                 self._hold(servo)  # step mode steps from where the joint is (a choice)
+                if not was_on and servo.position_mode and self.rules["limp_goal"] == "kept":
+                    servo.set("Goal_Position", kept)  # the goal written while limp (rules.py)
+                    touched.add(42)
         if touched & {42, 43, 31, 32, 9, 10, 11, 12, 33}:
             if servo.torque and servo.position_mode:
                 self.d.ctrl[servo.act] = servo.goal_to_angle(servo.get("Goal_Position"))
@@ -278,6 +284,22 @@ class ServoRegisters(SensorReadings):
                 self.d.ctrl[servo.act] += servo.get("Goal_Position") / servo.scale
             if touched & {42, 43}:
                 self.goal_log.append((time.time(), servo.id, servo.get("Goal_Position")))
+                self.timed_move(servo)
+
+    def timed_move(self, servo: VirtualServo) -> None:
+        """Rule ``goal_time = "move_time"`` (SCS series): the goal reached in Goal_Time ms.
+
+        The profile's speed is the distance over the time [counts/s] (at least 1), until
+        the next write of a loop register.
+        """
+        time_ms = servo.get("Goal_Time")
+        if self.rules["goal_time"] != "move_time" or not time_ms or not servo.torque \
+                or not servo.position_mode:
+            return
+        goal = round(float(self.d.ctrl[servo.act]) * servo_facts.COUNTS_PER_RAD)
+        distance = abs(goal - round(float(self.d.qpos[servo.qadr]) * servo_facts.COUNTS_PER_RAD))
+        speed = max(1, round(distance / (time_ms / 1000.0)))
+        self.bank.set(servo.index, servo_settings(servo).with_(goal_velocity=speed))
 
     def set_present(self, servo: VirtualServo, value: int) -> None:
         """Set Homing_Offset so that Present_Position reads ``value`` where the joint is now.
