@@ -8,7 +8,9 @@ A simple model, documented so that a student can predict what the registers show
   as on the STS3215. A limp servo draws nothing: its driver is off, so a joint
   moved by gravity or a hand back-drives the motor into an open circuit; only an
   EMF above the supply plus the driver's two body diodes would push current back
-  (:func:`limp_current`; a falling SO-101 joint's EMF stays under 2 V, well below).
+  (:func:`limp_current`). By hand, the fastest fall: the shoulder's 0.86 N m of
+  gravity against 0.61 N m s/rad of damping (BAM) falls at 1.4 rad/s, an EMF of
+  1.2116 N m/A x 1.4 rad/s = 1.7 V, well below a 5 V supply plus 1.4 V.
 - **Reading noise** (seeded): while the driver drives, Present_Current reads
   its mean plus up to ``CURRENT_FLICKER`` unit either way (roboninecom's
   telemetry, STS3215 at rest holding a few % of duty, 10 Hz reads: 0, 1, 2, 1, 0
@@ -30,8 +32,11 @@ A simple model, documented so that a student can predict what the registers show
   overheat (0x04) while Present_Temperature > Max_Temperature_Limit;
   voltage (0x01) while Present_Voltage is outside [Min_Voltage_Limit,
   Max_Voltage_Limit]; overload (0x20) once |Present_Load| has stayed at or above
-  Overload_Torque (percent) for Protection_Time (10 ms a unit), cleared when the
-  load drops below it. Injected faults (``arm.parse_faults``) add their bits on top.
+  Overload_Torque (percent) for Protection_Time (10 ms a unit). With the overload
+  protection on (Unloading_Condition bit 5, the factory value) the servo then drives at
+  most Protective_Torque, and the bit stays, until a new goal or a Torque_Enable write
+  (``registers.ServoRegisters.protect``); with it off the bit clears when the load drops.
+  Injected faults (``arm.parse_faults``) add their bits on top.
 
 Example::
 

@@ -20,7 +20,11 @@ with every position (``WritePosEx``: acceleration, position, time 0, speed); onl
 SCS series' driver passes a time (``SCSCL::WritePos``). Present_Velocity [counts/s],
 Present_Load [0.1 % duty, sign bit 10], Present_Current, Present_Temperature,
 Present_Voltage and the overheat/voltage/overload status bits follow the servo model
-and ``virtual/electrical.py``; a limp servo's Present_Load is 0.
+and ``virtual/electrical.py`` (read by ``virtual/readings.py``); a limp servo's
+Present_Load is 0. Overload protection (Unloading_Condition bit 5): after
+Protection_Time above Overload_Torque the duty is capped at Protective_Torque until a
+new goal or a Torque_Enable write (:meth:`ServoRegisters.protect`). An ID above 253 is
+refused. Where Feetech's sources disagree, ``virtual/rules.py`` switches.
 """
 
 from __future__ import annotations
