@@ -55,10 +55,10 @@ from so101_kinematics.virtual.servo import VirtualServo
 STALL_LOAD_RATE = 2000.0  # [0.1 % per s] Present_Load rise of a stalled servo
 HAND_GAINS = IDEAL_GAINS  # a hand guiding a limp joint: the upstream model's stiff spring
 STEP_MODE = 3
-OVERLOAD_ENABLE = 0x20
-"""Unloading_Condition (19) bit 5: the overload protection is on (factory value 44) [MEM]."""
 """Operating_Mode 3 (step): each Goal_Position written moves the goal by that many counts
 (signed), from where it was, with the position loop [MEM]."""
+OVERLOAD_ENABLE = 0x20
+"""Unloading_Condition (19) bit 5: the overload protection is on (factory value 44) [MEM]."""
 SETTING_ADDRESSES = {16, 21, 22, 23, 24, 26, 27, 33, 41, 44, 45, 46, 47, 48}
 """Registers that change the servo's loop (gains, dead zone, mode, profile, torque limit)."""
 
