@@ -373,7 +373,8 @@ def test_load_current_and_voltage_at_rest_live_within_a_sensors_band(client, arm
     Present_Current: its mean plus up to a unit either way (roboninecom's telemetry: 0-2 units
     at a steady duty), the mean following the duty's band: 32 x 0.29 units (5 V / 2.676 ohm /
     6.5 mA per 0.1 % of duty) = 9 units, plus a unit either way. Present_Voltage: a unit
-    (0.1 V) of flicker about the supply's.
+    (0.1 V) of flicker about the supply's less the bus's sag (most readings: the sag follows
+    every servo's current, and one run on a machine at load 13 saw a 0.8 V dip mid-read).
     """
     arm.set_pose(dict(HOME, shoulder_lift=-30.0, elbow_flex=0.0, wrist_flex=0.0))
     wait_sim(arm, 0.5)
@@ -384,8 +385,9 @@ def test_load_current_and_voltage_at_rest_live_within_a_sensors_band(client, arm
     assert all(50 <= abs(load) <= 970 for load in loads) and len({x > 0 for x in loads}) == 1
     assert len(set(currents)) > 1 and max(currents) - min(currents) <= 11
     assert min(currents) > 0
-    assert len(set(voltages)) > 1 and max(voltages) - min(voltages) <= 3
-    assert abs(statistics.median(voltages) - 10 * SUPPLY_V) <= 3  # 0.1 V units: the default
+    middle = statistics.median(voltages)
+    assert len(set(voltages)) > 1 and sum(abs(v - middle) <= 1 for v in voltages) >= 40
+    assert abs(middle - 10 * SUPPLY_V) <= 3  # 0.1 V units: the default supply's
 
 
 def test_overload_drops_the_output_to_protective_torque_and_says_so(client, arm):
