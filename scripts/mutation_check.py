@@ -72,6 +72,7 @@ PROTOCOL = "so101_kinematics/virtual/protocol.py"
 MARKERS, OUTPUTS = "so101_kinematics/markers.py", "so101_kinematics/outputs.py"
 T_OUT = "tests/test_output_ownership.py"
 REGISTERS, T_SDK = "so101_kinematics/virtual/registers.py", "tests/test_virtual_feetech_sdk.py"
+READINGS = "so101_kinematics/virtual/readings.py"
 T_CONTROL, T_RUN = "tests/test_control.py", "tests/test_hw_run.py"
 T_HW, T_IK = "tests/test_pick_place_hw.py", "tests/test_inverse_kinematics.py"
 T_FK, T_SIM = "tests/test_forward_kinematics.py", "tests/test_pick_place_sim.py"
@@ -225,8 +226,8 @@ MUTANTS: list[Mutant] = [
       "tests/test_feetech_protocol.py"),
     m("virtual_torque_limit_ignored", "the virtual servo's duty capped by Max_Torque_Limit "
       "only: Torque_Limit (48) written through the bus ignored", REGISTERS, "servo_settings",
-      'torque_limit=min(servo.get("Torque_Limit"), servo.get("Max_Torque_Limit")))',
-      'torque_limit=servo.get("Max_Torque_Limit"))',
+      'cap = min(servo.get("Torque_Limit"), servo.get("Max_Torque_Limit"))',
+      'cap = servo.get("Max_Torque_Limit")',
       f"{T_SDK}::test_torque_limit_30_and_the_shoulder_no_longer_lifts"),
     m("virtual_step_from_stale_goal", "step mode entered from wheel mode steps from the old "
       "position goal, not from where the joint is", REGISTERS, "ServoRegisters.write",
@@ -403,6 +404,32 @@ MUTANTS: list[Mutant] = [
       "StepLog.sync", "if touching:", "if False:",
       "tests/test_trajectories.py::"
       "test_a_jaw_on_the_table_is_reported_and_the_profiles_not_ranked"),
+    # --- the virtual STS3215's readings and the rest of its table (issue 34) -------------------
+    m("virtual_overload_keeps_the_output", "overload protection sets the bit but never drops "
+      "the output to Protective_Torque", REGISTERS, "servo_settings", "    if servo.protected:\n",
+      "    if False:\n",
+      f"{T_SDK}::test_overload_drops_the_output_to_protective_torque_and_says_so"),
+    m("virtual_id_254_accepted", "a write of ID 254 accepted (the servo then answers broadcast "
+      "READs)", REGISTERS, "ServoRegisters.write", "if regs[5] > MAX_SERVO_ID:", "if False:",
+      f"{T_SDK}::test_an_id_above_253_is_refused"),
+    m("virtual_pwm_direction_flipped", "a positive PWM duty turns the way Present_Position "
+      "counts up", READINGS, None, "PWM_DIRECTION = -1", "PWM_DIRECTION = 1",
+      f"{T_SDK}::test_pwm_mode_runs_open_loop_at_the_duty_written"),
+    m("virtual_limp_draws_current", "a limp, back-driven servo reports its EMF's current",
+      READINGS, "SensorReadings.current", "        if not servo.torque:\n",
+      "        if False:\n", f"{T_SDK}::test_a_limp_falling_joint_draws_no_current"),
+    m("virtual_duplicate_ids_always_garbled", "two servos with one ID garble every reply, "
+      "identical or not", "so101_kinematics/virtual/instructions.py", None,
+      "GARBLED_FRACTION = 0.4", "GARBLED_FRACTION = 1.0",
+      f"{T_SDK}::test_two_servos_with_one_id_fail_the_sdks_transactions_but_both_obey"),
+    m("virtual_load_constant_at_rest", "Present_Load ignores the encoder's count of noise",
+      READINGS, "SensorReadings.refresh", "load += self.jitter_duty(servo, jitter)",
+      "load += 0.0",
+      f"{T_SDK}::test_load_current_and_voltage_at_rest_live_within_a_sensors_band"),
+    m("virtual_offset_outside_position_mode", "wheel/PWM/step modes subtract Homing_Offset "
+      "from Present_Position", READINGS, None, "ENCODER_OUTSIDE_POSITION_MODE = True",
+      "ENCODER_OUTSIDE_POSITION_MODE = False",
+      f"{T_SDK}::test_present_position_is_the_bare_encoder_outside_position_mode"),
     m("output_written_in_place", "an output file written in place (lost if the run fails)",
       "so101_kinematics/outputs.py", "atomic_output", "temporary = temporary_beside(target)",
       "temporary = target",

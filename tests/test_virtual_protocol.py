@@ -157,9 +157,13 @@ def test_an_unknown_instruction_is_ignored_without_a_reply(raw):
 def test_two_servos_with_one_id_both_answer_garbled_and_both_obey(raw, arm):
     assert ask(raw, 2, fp.INST_WRITE, [5, 1]) == [(2, 0, b"")]  # shoulder_lift becomes ID 1
     assert {arm.registers(j)["ID"] for j in ("shoulder_pan", "shoulder_lift")} == {1}
-    raw.send(1, fp.INST_PING)
-    data = raw.receive(64, timeout=0.2)
-    assert data and data != fp.status_packet(1, 0)  # both answered: a collision
+    garbled = 0
+    for _ in range(20):  # identical replies garble about 4 in 10 times (servolab, issue 34)
+        raw.send(1, fp.INST_PING)
+        data = raw.receive(64, timeout=0.2)
+        assert data  # both answered
+        garbled += data != fp.status_packet(1, 0)
+    assert 3 <= garbled <= 13  # by hand: 8 of 20, standard deviation 2.2
     raw.send(1, fp.INST_READ, [PRESENT, 2])
     data = raw.receive(64, timeout=0.2)
     assert not (len(data) == 8 and data[-1] == fp.checksum(data[2:-1]))  # no clean reply
@@ -173,10 +177,10 @@ def test_two_factory_servos_on_one_bus_collide():
         raw = RawPort(arm.port)
         try:
             assert ask(raw, 1, fp.INST_PING) == [(1, 0, b"")]  # one new servo: a clean reply
-            arm.plug()  # a second new one, also ID 1
-            raw.send(1, fp.INST_PING)
+            arm.plug()  # a second new one, also ID 1, elsewhere: their positions differ
+            raw.send(1, fp.INST_READ, [PRESENT, 2])
             data = raw.receive(64, timeout=0.2)
-            assert data and data != fp.status_packet(1, 0)
+            assert data and not (len(data) == 8 and data[-1] == fp.checksum(data[2:-1]))
         finally:
             raw.close()
 
@@ -193,8 +197,8 @@ def test_acceleration_and_goal_velocity_shape_a_position_move(raw):
 
 
 def test_wheel_mode_spins_at_goal_velocity(raw):
-    start = read(raw, 5, PRESENT, 2)  # wrist_roll
-    ask(raw, 5, fp.INST_WRITE, [33, 1])  # Operating_Mode 1: constant speed
+    ask(raw, 5, fp.INST_WRITE, [33, 1])  # Operating_Mode 1: constant speed (wrist_roll)
+    start = read(raw, 5, PRESENT, 2)  # the bare encoder in this mode
     ask(raw, 5, fp.INST_WRITE, [46, *goal_bytes(300)])  # 300 counts/s
     time.sleep(1.0)
     assert abs(read(raw, 5, PRESENT, 2) - start) > 150
@@ -242,8 +246,8 @@ def test_goal_time_is_not_a_moves_duration_in_position_mode(raw):
 
 def test_step_mode_moves_by_the_counts_written(raw):
     # Operating_Mode 3 [MEM]: Goal_Position is a relative step (sign bit 15), from the goal
-    start = read(raw, 5, PRESENT, 2)  # wrist_roll, no gravity load
     ask(raw, 5, fp.INST_WRITE, [33, 3])
+    start = read(raw, 5, PRESENT, 2)  # wrist_roll, no gravity load; the bare encoder
     ask(raw, 5, fp.INST_WRITE, [GOAL, *goal_bytes(200)])
     time.sleep(0.6)
     assert abs(read(raw, 5, PRESENT, 2) - (start + 200)) <= 8  # dead zone, play, friction
@@ -253,13 +257,15 @@ def test_step_mode_moves_by_the_counts_written(raw):
 
 
 def test_pwm_mode_drives_open_loop_with_the_duty_written(raw):
-    # Operating_Mode 2 [MEM]: Goal_Time holds the duty (0.1 %), bit 10 its direction
-    start = read(raw, 5, PRESENT, 2)
+    # Operating_Mode 2 [MEM]: Goal_Time holds the duty (0.1 %), bit 10 its direction; a
+    # positive duty counts Present_Position down (lerobot PR #4547's bench check; servolab)
+    ask(raw, 5, fp.INST_WRITE, [44, *goal_bytes(0)])
     ask(raw, 5, fp.INST_WRITE, [33, 2])
+    start = read(raw, 5, PRESENT, 2)
     ask(raw, 5, fp.INST_WRITE, [44, *goal_bytes(300)])  # 30 % one way
     time.sleep(0.3)
     forward = read(raw, 5, PRESENT, 2) - start
     ask(raw, 5, fp.INST_WRITE, [44, *goal_bytes(300 | 0x400)])  # the other way
     time.sleep(0.6)
     back = read(raw, 5, PRESENT, 2) - start
-    assert abs(forward) > 50 and back * forward < abs(forward) ** 2  # it turned, then back
+    assert forward < -50 and back > forward  # it turned down, then back up

@@ -118,6 +118,7 @@ from so101_kinematics.virtual.cubes import (  # noqa: F401 - re-exported
 )
 from so101_kinematics.virtual.electrical import SUPPLY_V, THERMAL_TIME_S
 from so101_kinematics.virtual.faults import FAULT_KINDS, MAX_FAULT_MS, parse_faults  # noqa: F401
+from so101_kinematics.virtual.rules import check_rules
 
 logger = logging.getLogger("virtual_so101")
 
@@ -157,6 +158,8 @@ class VirtualSO101:
         variant: the servos' STS3215 variant (``so101_kinematics.servo.VARIANTS``; default:
             what ``supply`` implies).
         thermal_time_s: [s] the servos' thermal time constant.
+        rules: where Feetech's sources disagree, the other choice (``virtual/rules.py``:
+            ``goal_time``, ``limp_goal``, ``locked_eeprom``, ``restart_reply``).
 
     Raises:
         CalibrationError: the calibration is unusable.
@@ -171,8 +174,10 @@ class VirtualSO101:
                  log_level: int = logging.WARNING, startup_timeout: float = 60.0,
                  factory: bool = False, leader: bool = False, supply: float = SUPPLY_V,
                  thermal_time_s: float = THERMAL_TIME_S,
-                 cube=None, base_height: float = 0.0, variant: str | None = None):
+                 cube=None, base_height: float = 0.0, variant: str | None = None,
+                 rules: Mapping[str, str] | None = None):
         self.calibration = load_calibration(calibration)
+        chosen_rules = check_rules(rules)
         cubes, base_height = check_cubes(cube), check_base_height(base_height)
         self._ids = {name: entry["id"] for name, entry in self.calibration.items()}
         parsed = parse_faults(faults, self.calibration)
@@ -185,7 +190,8 @@ class VirtualSO101:
                    "torque_on_start": torque_on_start and not (factory or leader),
                    "log_level": log_level, "factory": factory, "hand_holds": factory or leader,
                    "supply": float(supply), "thermal_time_s": float(thermal_time_s),
-                   "cubes": cubes, "base_height": base_height, "variant": variant}
+                   "cubes": cubes, "base_height": base_height, "variant": variant,
+                   "rules": chosen_rules}
         # A fresh interpreter (as multiprocessing's "spawn", but without re-running
         # the caller's __main__, so scripts without a __main__ guard work too).
         parent_sock, child_sock = socket.socketpair()

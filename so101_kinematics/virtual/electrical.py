@@ -5,7 +5,19 @@ A simple model, documented so that a student can predict what the registers show
 - **Current** follows the actuator's effort: ``I = STALL_CURRENT_MA * |load| / 1000``,
   ``load`` being Present_Load (0.1 % of the stall torque, what the simulated
   actuator pushes). Present_Current counts ``CURRENT_UNIT_MA`` (6.5 mA) a unit,
-  as on the STS3215. A limp servo draws nothing.
+  as on the STS3215. A limp servo draws nothing: its driver is off, so a joint
+  moved by gravity or a hand back-drives the motor into an open circuit; only an
+  EMF above the supply plus the driver's two body diodes would push current back
+  (:func:`limp_current`). By hand, the fastest fall: the shoulder's 0.86 N m of
+  gravity against 0.61 N m s/rad of damping (BAM) falls at 1.4 rad/s, an EMF of
+  1.2116 N m/A x 1.4 rad/s = 1.7 V, well below a 5 V supply plus 1.4 V.
+- **Reading noise** (seeded): while the driver drives, Present_Current reads
+  its mean plus up to ``CURRENT_FLICKER`` unit either way (roboninecom's
+  telemetry, STS3215 at rest holding a few % of duty, 10 Hz reads: 0, 1, 2, 1, 0
+  units at a steady 4 % duty; 2, 2, 3, 2 at 6.4 %; a constant 0 with the duty 0);
+  Present_Voltage flickers by a unit (0.1 V) on about one reading in three
+  (``VOLTAGE_FLICKER``: a choice, no public log of it at rest; the same servo's
+  temperature register flickers by one unit, 35/36 degC, in that telemetry).
 - **Temperature** is a first-order thermal body: its resting value is the
   ambient temperature plus a rise proportional to the copper losses,
   ``AMBIENT_C + STALL_RISE_C * (I / I_stall) ** 2``, reached with the time
@@ -20,8 +32,11 @@ A simple model, documented so that a student can predict what the registers show
   overheat (0x04) while Present_Temperature > Max_Temperature_Limit;
   voltage (0x01) while Present_Voltage is outside [Min_Voltage_Limit,
   Max_Voltage_Limit]; overload (0x20) once |Present_Load| has stayed at or above
-  Overload_Torque (percent) for Protection_Time (10 ms a unit), cleared when the
-  load drops below it. Injected faults (``arm.parse_faults``) add their bits on top.
+  Overload_Torque (percent) for Protection_Time (10 ms a unit). With the overload
+  protection on (Unloading_Condition bit 5, the factory value) the servo then drives at
+  most Protective_Torque, and the bit stays, until a new goal or a Torque_Enable write
+  (``registers.ServoRegisters.protect``); with it off the bit clears when the load drops.
+  Injected faults (``arm.parse_faults``) add their bits on top.
 
 Example::
 
@@ -47,6 +62,14 @@ STALL_RISE_C = 80.0  # [K] steady-state rise above ambient at stall torque
 THERMAL_TIME_S = 120.0  # [s] thermal time constant of a servo
 SUPPLY_V = 5.0  # [V] default supply voltage: the SO-101 kit's (so101_kinematics.servo.KIT_SUPPLY_V)
 SUPPLY_RESISTANCE_OHM = 0.1  # [ohm] supply + cable internal resistance
+DIODE_DROP_V = 0.7  # [V] one MOSFET body diode of the H-bridge, conducting
+CURRENT_FLICKER = 1.0
+"""Present_Current's noise: a reading is the mean plus a uniform value in +-1 unit, rounded
+(roboninecom/Measuring-Backlash-in-Popular-UART-Servos, logs/motor_telemetry_single.csv: a servo
+holding at a steady 4 % duty reads 0-2 units, at 6.4 % 2-3)."""
+VOLTAGE_FLICKER = 0.75
+"""Present_Voltage's noise [0.1 V]: the mean plus a uniform value in +-0.75, rounded: one
+reading in three a unit off (a choice; see the module docstring)."""
 
 
 def current_ma(load: float) -> float:
@@ -57,6 +80,25 @@ def current_ma(load: float) -> float:
 def current_units(load: float) -> int:
     """Present_Current (6.5 mA units) for an effort of ``load`` (0.1 % of stall)."""
     return round(current_ma(load) / CURRENT_UNIT_MA)
+
+
+def limp_current(emf: float, supply: float, resistance: float) -> float:
+    """A limp (driver off) motor's current [A], back-driven at an EMF of ``emf`` [V].
+
+    The bridge is open: current flows back through two body diodes into the supply only
+    when the EMF exceeds the supply plus their drops.
+
+    >>> limp_current(1.5, 5.0, 2.676)
+    0.0
+    >>> round(limp_current(7.4, 5.0, 2.676), 3)
+    0.374
+    """
+    return max(0.0, abs(emf) - supply - 2 * DIODE_DROP_V) / resistance
+
+
+def noisy_reading(value: float, rng, flicker: float) -> int:
+    """A register reading of ``value`` [units] with a uniform noise of +-``flicker`` units."""
+    return max(0, round(value + rng.uniform(-flicker, flicker)))
 
 
 def next_temperature(temperature: float, load: float, dt: float,

@@ -26,6 +26,7 @@ from so101_kinematics.virtual.hand import Hand
 from so101_kinematics.virtual.instructions import BusInstructions
 from so101_kinematics.virtual.protocol import take_packets
 from so101_kinematics.virtual.registers import GOAL_LOG_LENGTH, ServoRegisters  # noqa: F401
+from so101_kinematics.virtual.rules import check_rules
 from so101_kinematics.virtual.servo import VirtualServo
 
 logger = logging.getLogger("virtual_so101")
@@ -72,6 +73,7 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
         self.supply = float(options.get("supply", SUPPLY_V))  # [V]
         self.voltage = round(10 * self.supply)  # [0.1 V] Present_Voltage, updated by the physics
         self.thermal_time_s = float(options.get("thermal_time_s", THERMAL_TIME_S))
+        self.rules = check_rules(options.get("rules"))  # virtual/rules.py
         self.make_servo_bank(options.get("variant"))
         self.wire_timing = bool(options["wire_timing"])
         self.goal_log: deque[tuple[float, int, int]] = deque(maxlen=GOAL_LOG_LENGTH)

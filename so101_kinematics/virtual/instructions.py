@@ -9,23 +9,27 @@ table of what is covered.
   the Registered flag (address 64), ACTION (0x05, broadcast or to one ID) applies it
   and clears the flag; RESET (0x06) restores every parameter but the ID from the
   backup image (the factory EEPROM until BACKUP, 0x09, replaces it); RESTART (0x08)
-  is a power cycle of that servo, never answered; 0x0A (clear the turn count) is
-  answered and changes nothing (no multi-turn mode here); 0x0B sets the present
-  position to the middle (2048) or to its parameter. Any other instruction, a
-  malformed one, or one to an ID nobody has is ignored: no reply.
+  is a power cycle of that servo, not answered (rule ``restart_reply``: answered);
+  0x0A (clear the turn count) is answered and changes nothing (no multi-turn mode
+  here); 0x0B sets the present position to the middle (2048) or to its parameter.
+  Any other instruction, a malformed one, or one to an ID nobody has is ignored: no
+  reply.
 - Who answers: never a broadcast, except PING; PING and READ (and SYNC_READ) always;
   every other instruction only when the servo's Response_Status_Level (address 8)
   is 1 (the factory value), judged when the instruction arrives. A reply is built
   before the instruction acts, so it comes from the addressed ID.
 - Servos sharing an ID all obey, and all answer at once: the host receives the
-  collision of their replies on the half-duplex line (:func:`protocol.collide`),
-  which fails the checksum or loses the header.
+  collision of their replies on the half-duplex line (:func:`protocol.collide`).
+  About 4 in 10 times (``GARBLED_FRACTION``, seeded) they start 2 us apart and even
+  identical replies fail the checksum or lose the header; otherwise they start in
+  step and only replies that differ collide.
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import random
 import time
 
 from so101_kinematics import cube_sensor
@@ -53,8 +57,15 @@ from so101_kinematics.virtual.protocol import (
 logger = logging.getLogger("virtual_so101")
 
 LATE_REPLY = 0.045  # [s] after this, lerobot (50 ms timeout) may have given up
-COLLISION_SKEW_S = 2e-6  # [s] between two same-ID servos' replies: one Return_Delay_Time unit
-# (2 us, the memory table's); a choice - the firmware's reply jitter is not published.
+COLLISION_SKEW_S = 2e-6  # [s] between two same-ID servos' replies when they drift apart: one
+# Return_Delay_Time unit (2 us, the memory table's); a choice: the firmware's jitter is
+# not published.
+GARBLED_FRACTION = 0.4
+"""How often two same-ID servos' replies start far enough apart to garble even identical
+replies: about 4 in 10 (the servolab client's measurement on a real bus, as issue 34 reports it).
+The rest start within a fraction of a bit, so identical replies (PING, a WRITE's status) come
+through intact; replies that differ (two READs of different positions) collide anyway."""
+IN_STEP_BITS = 0.25  # [bits] most two in-step transmitters differ by (< half a bit: read alike)
 
 
 class BusInstructions:
@@ -115,8 +126,8 @@ class BusInstructions:
                 addressed = [s for _, group in sorted(listening.items()) for s in group]
             else:
                 addressed = list(listening.get(target, ()))
-            answering = [] if broadcast or inst == INST_RESTART else \
-                [(s, target, b"") for s in addressed if s.regs[8] != 0]
+            silent = broadcast or (inst == INST_RESTART and self.rules["restart_reply"] == "none")
+            answering = [] if silent else [(s, target, b"") for s in addressed if s.regs[8] != 0]
             for servo in addressed:
                 obey(servo)
             replies = [answering] if answering else []
@@ -198,7 +209,7 @@ class BusInstructions:
             if not packets:
                 continue
             packet = packets[0] if len(packets) == 1 else \
-                collide(packets, self.host_baud, COLLISION_SKEW_S)
+                collide(packets, self.host_baud, self.collision_skew())
             t_ready += group[0][0].return_delay + len(packet) * tpb
             out.append((t_ready, packet))
         if not out:
@@ -218,6 +229,13 @@ class BusInstructions:
             now = time.perf_counter()
             self._emit(b"".join(p for _, p in out), t_end, t_end, now)
             self.replies += len(out) - 1
+
+    def collision_skew(self) -> float:
+        """[s] between two same-ID servos' replies: seeded, ``GARBLED_FRACTION`` drift apart."""
+        rng = self.__dict__.setdefault("collisions", random.Random(254))
+        if rng.random() < GARBLED_FRACTION:
+            return COLLISION_SKEW_S
+        return rng.uniform(0.0, IN_STEP_BITS) / max(1, self.host_baud)
 
     def _status(self, servo, reply_id: int, params: bytes) -> bytes | None:
         """One servo's status packet, or None when a fault drops it."""

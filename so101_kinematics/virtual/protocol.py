@@ -42,6 +42,7 @@ INST_RESTART, INST_BACKUP = 0x08, 0x09  # restart the servo; back up the paramet
 INST_RESET_TURNS, INST_CALIBRATE = 0x0A, 0x0B  # clear the turn count; present := middle / value
 INST_SYNC_READ, INST_SYNC_WRITE = 0x82, 0x83
 BROADCAST_ID = 0xFE
+MAX_SERVO_ID = 253  # memory table: ID 0-253; 254 is the broadcast ID
 ERR_VOLTAGE = 0x01  # status error bits (the status packet's error byte and the Status register)
 ERR_OVERHEAT = 0x04
 ERR_OVERLOAD = 0x20

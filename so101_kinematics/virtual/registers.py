@@ -20,7 +20,11 @@ with every position (``WritePosEx``: acceleration, position, time 0, speed); onl
 SCS series' driver passes a time (``SCSCL::WritePos``). Present_Velocity [counts/s],
 Present_Load [0.1 % duty, sign bit 10], Present_Current, Present_Temperature,
 Present_Voltage and the overheat/voltage/overload status bits follow the servo model
-and ``virtual/electrical.py``; a limp servo's Present_Load is 0.
+and ``virtual/electrical.py`` (read by ``virtual/readings.py``); a limp servo's
+Present_Load is 0. Overload protection (Unloading_Condition bit 5): after
+Protection_Time above Overload_Torque the duty is capped at Protective_Torque until a
+new goal or a Torque_Enable write (:meth:`ServoRegisters.protect`). An ID above 253 is
+refused. Where Feetech's sources disagree, ``virtual/rules.py`` switches.
 """
 
 from __future__ import annotations
@@ -34,23 +38,27 @@ from so101_kinematics.frames import JOINTS
 from so101_kinematics.gravity import feedforward
 from so101_kinematics.sim.actuation import IDEAL_GAINS
 from so101_kinematics.sim.sts3215 import ServoBank
-from so101_kinematics.virtual.calibration import TICKS_PER_RAD
 from so101_kinematics.virtual.electrical import (
     SUPPLY_RESISTANCE_OHM,
     next_temperature,
-    status_bits,
 )
-from so101_kinematics.virtual.protocol import EEPROM_END, READ_ONLY, RESOLUTION
+from so101_kinematics.virtual.protocol import (
+    EEPROM_END,
+    MAX_SERVO_ID,
+    READ_ONLY,
+    RESOLUTION,
+    decode_sign_magnitude,
+)
+from so101_kinematics.virtual.readings import PWM_DIRECTION, SensorReadings
 from so101_kinematics.virtual.servo import VirtualServo
 
 STALL_LOAD_RATE = 2000.0  # [0.1 % per s] Present_Load rise of a stalled servo
 HAND_GAINS = IDEAL_GAINS  # a hand guiding a limp joint: the upstream model's stiff spring
-ENCODER_NOISE = 0.3
-"""How often a Present_Position reading is a count off (either way, seeded): a real STS3215 at
-rest reads a count or two apart from one read to the next (issue 26, clients on real arms)."""
 STEP_MODE = 3
 """Operating_Mode 3 (step): each Goal_Position written moves the goal by that many counts
 (signed), from where it was, with the position loop [MEM]."""
+OVERLOAD_ENABLE = 0x20
+"""Unloading_Condition (19) bit 5: the overload protection is on (factory value 44) [MEM]."""
 SETTING_ADDRESSES = {16, 21, 22, 23, 24, 26, 27, 33, 41, 44, 45, 46, 47, 48}
 """Registers that change the servo's loop (gains, dead zone, mode, profile, torque limit)."""
 
@@ -61,19 +69,23 @@ def servo_settings(servo: VirtualServo) -> servo_facts.Settings:
     The duty cap is Torque_Limit, never above Max_Torque_Limit (the STS loads 48 from 16
     at power-up; a Max_Torque_Limit written since then caps it too: lerobot's gripper
     setting acts without a power cycle). The two dead zones are averaged. In wheel
-    mode Goal_Velocity is the wheel's speed, not a cap.
+    mode Goal_Velocity is the wheel's speed, not a cap. A servo in overload protection
+    drives at most Protective_Torque (34, percent of the maximum) [MEM].
     """
     regs = servo.regs
     wheel = regs[33] == 1
+    cap = min(servo.get("Torque_Limit"), servo.get("Max_Torque_Limit"))
+    if servo.protected:
+        cap = min(cap, 10 * regs[34])
     return servo_facts.Settings(
         p=regs[21], d=regs[22], i=regs[23], min_startup=servo.get("Minimum_Startup_Force"),
         dead_zone=(regs[26] + regs[27]) / 2, acceleration=regs[41],
         goal_velocity=0 if wheel else abs(servo.get("Goal_Velocity")),
-        torque_limit=min(servo.get("Torque_Limit"), servo.get("Max_Torque_Limit")))
+        torque_limit=cap)
 GOAL_LOG_LENGTH = 1_000_000  # Goal_Position writes kept (about 30 min of a 100 Hz loop)
 
 
-class ServoRegisters:
+class ServoRegisters(SensorReadings):
     """The servos' registers applied to the MuJoCo arm (a mixin of the emulator's event loop).
 
     Expects ``m``, ``d``, ``mujoco``, ``dt``, ``t0``, ``steps``, ``servos``,
@@ -85,6 +97,7 @@ class ServoRegisters:
     def make_servo_bank(self, variant: str | None = None) -> None:
         """The servos' dynamics (``sim/sts3215.py``), in ``JOINTS`` order, at the supply."""
         self.noise = random.Random(4096)  # the encoders' reading noise (ENCODER_NOISE), seeded
+        self.readings_noise = random.Random(69)  # current and voltage readings', seeded
         self.order = [self.by_joint[j] for j in JOINTS if j in self.by_joint]
         for index, s in enumerate(self.order):
             s.index = index
@@ -111,8 +124,10 @@ class ServoRegisters:
         m.actuator_biasprm[act, 2] = -kv
         m.actuator_biasprm[act, 0] = 0.0
         m.actuator_forcerange[act] = (-force, force)
-        pwm = servo.get("Goal_Time")  # Operating_Mode 2: duty [0.1 %], bit 10 the direction
-        self.bank.pwm[servo.index] = -(pwm & 0x3FF) if pwm & 0x400 else pwm & 0x3FF
+        # Operating_Mode 2: the duty [0.1 %] in Goal_Time, bit 10 the direction; a positive
+        # duty turns the way Present_Position counts down (PWM_DIRECTION)
+        self.bank.pwm[servo.index] = PWM_DIRECTION * math.copysign(1.0, servo.scale) \
+            * decode_sign_magnitude(servo.get("Goal_Time") & 0x7FF, 10)
         self.bank.wheel_speed[servo.index] = servo.get("Goal_Velocity")
 
     def _hold(self, servo: VirtualServo) -> None:
@@ -175,19 +190,6 @@ class ServoRegisters:
             self.viewer.sync()
             self.next_view = time.perf_counter() + 1 / 60
 
-    def effort(self, servo: VirtualServo) -> float:
-        """Present_Load: the duty the servo's loop applies [0.1 %]; 0 when limp."""
-        if servo.stalled_at is not None:
-            return servo.load
-        return self.bank.duty[servo.index] if servo.torque else 0.0
-
-    def current(self, servo: VirtualServo) -> float:
-        """The servo's motor current [A] (a stalled one draws its stall duty's)."""
-        if servo.stalled_at is not None:
-            return abs(servo.load) / 1000.0 * self.supply * self.bank.variant.torque_per_volt \
-                / self.bank.variant.kt
-        return self.bank.current(servo.index, float(self.d.qvel[servo.dofadr]))
-
     def update_electrical(self, dt: float) -> None:
         """Advance every servo's temperature and overload timer by ``dt`` [s]; the bus voltage."""
         amps = 0.0
@@ -197,52 +199,37 @@ class ServoRegisters:
             servo.temperature = next_temperature(servo.temperature, load, dt, self.thermal_time_s)
             limit = 10 * servo.regs[36]  # Overload_Torque [%] -> [0.1 %]
             servo.overload_time = servo.overload_time + dt if 0 < limit <= abs(load) else 0.0
+            if not servo.protected and servo.regs[19] & OVERLOAD_ENABLE and servo.torque \
+                    and servo.overload_time >= max(0.01 * servo.regs[35], dt):
+                self.protect(servo, True)  # Protection_Time over Overload_Torque: [MEM]
         volts = self.supply - SUPPLY_RESISTANCE_OHM * amps
         self.voltage = max(0, min(255, round(10.0 * volts)))
         self.bank.volts = max(0.0, volts)
 
-    def refresh(self, servo: VirtualServo, lo: int = 56, hi: int = 71) -> None:
-        """Update the servo's Present_* registers overlapping [lo, hi) from the simulation."""
-        d, regs = self.d, servo.regs
-        angle = servo.stalled_at if servo.stalled_at is not None else float(d.qpos[servo.qadr])
-        noise = self.noise.random()
-        jitter = -1 if noise < ENCODER_NOISE / 2 else 1 if noise > 1 - ENCODER_NOISE / 2 else 0
-        present = (round(servo.base + servo.scale * angle + servo.delta) + jitter) % RESOLUTION
-        regs[56] = present & 0xFF
-        regs[57] = present >> 8
-        if not servo.torque:  # the STS keeps Goal_Position on Present_Position while limp
-            regs[42], regs[43] = regs[56], regs[57]
-        if hi <= 58:
-            return
-        velocity = float(d.qvel[servo.dofadr]) * TICKS_PER_RAD
-        velocity = round(velocity / servo_facts.VELOCITY_STEP) * servo_facts.VELOCITY_STEP
-        load = max(-1000, min(1000, round(self.effort(servo))))
-        servo.set("Present_Velocity", max(-32767, min(32767, velocity)))
-        servo.set("Present_Load", load)
-        regs[62] = self.voltage
-        regs[63] = max(0, min(255, round(servo.temperature)))
-        servo.set("Present_Current", round(self.current(servo) / servo_facts.CURRENT_UNIT_A))
-        regs[66] = int(abs(velocity) > 20)
-        regs[65] = self.error_byte(servo)
+    def settings_of(self, servo: VirtualServo) -> servo_facts.Settings:
+        """The loop's registers of ``servo`` (:func:`servo_settings`)."""
+        return servo_settings(servo)
 
-    def error_byte(self, servo: VirtualServo) -> int:
-        """The servo's status error bits: injected ones, and the electrical model's.
+    def protect(self, servo: VirtualServo, on: bool) -> None:
+        """Enter (or leave) the overload protection: the duty capped at Protective_Torque.
 
-        A stalled joint (fault ``stall``) is overloaded as soon as its load
-        reaches Overload_Torque; any other load must stay there for Protection_Time.
+        Memory table: after Overload_Torque (36) has been exceeded for Protection_Time
+        (35), the output drops to Protective_Torque (34); the C018 datasheet: "a new
+        position command clears" it. Here a Goal_Position write of another value, or a
+        Torque_Enable write, clears it (a choice: an unchanged goal, which lerobot sends
+        every cycle, keeps it).
         """
-        regs = servo.regs
-        overloaded = servo.overload_time >= 0.01 * regs[35] and servo.overload_time > 0
-        if servo.stalled_at is not None and abs(servo.load) >= 10 * regs[36]:
-            overloaded = True
-        bits = status_bits(servo.temperature, self.voltage, overloaded, regs[13],
-                           (regs[15], regs[14]))
-        return servo.error_bits | bits
+        servo.protected = on
+        servo.overload_time = 0.0
+        if hasattr(self, "bank"):
+            self.bank.set(servo.index, servo_settings(servo))
 
     # --- registers ------------------------------------------------------------------------
     def write_goal(self, servo: VirtualServo, low: int, high: int) -> None:
         """Fast path: a Goal_Position write (the hot path of a control loop)."""
         regs = servo.regs
+        if servo.protected and (regs[42], regs[43]) != (low, high):
+            self.protect(servo, False)  # "a new position command clears" the protection
         regs[42] = low
         regs[43] = high
         goal = low | high << 8
@@ -250,6 +237,7 @@ class ServoRegisters:
             goal = -(goal & 0x7FFF)
         if servo.torque and servo.position_mode:
             self.d.ctrl[servo.act] = servo.goal_to_angle(goal)
+            self.timed_move(servo)
         elif servo.torque and regs[33] == STEP_MODE:  # a relative move of ``goal`` counts
             self.d.ctrl[servo.act] += goal / servo.scale
         self.goal_log.append((time.time(), servo.id, goal))
@@ -261,10 +249,18 @@ class ServoRegisters:
             return
         regs = servo.regs
         old_id, was_on, old_mode = servo.id, servo.torque, regs[33]
+        old_goal = bytes(regs[42:44])
+        locked = EEPROM_END if regs[55] and self.rules["locked_eeprom"] == "refused" else 0
         for i, byte in enumerate(data):
-            if addr + i not in READ_ONLY and addr + i < 256:
+            if addr + i not in READ_ONLY and locked <= addr + i < 256:  # rules.py: Lock
                 regs[addr + i] = byte
         touched = set(range(addr, addr + len(data)))
+        if regs[5] > MAX_SERVO_ID:  # 254 is the broadcast ID, 255 none: the ID is refused
+            regs[5] = old_id
+        if servo.protected and (40 in touched or bytes(regs[42:44]) != old_goal):
+            servo.protected = False  # a Torque_Enable write or a new goal: applied below
+            servo.overload_time = 0.0
+            touched.add(48)
         if 40 in touched and regs[40] == 128:  # "calibrate the present position to 2048"
             regs[40] = int(was_on)  # reads back 0/1: torque stays as it was
             self.set_present(servo, 2048)
@@ -280,7 +276,11 @@ class ServoRegisters:
         if touched & ({40} | SETTING_ADDRESSES):
             self._apply_torque(servo)
             if servo.torque and (not was_on or (regs[33] == STEP_MODE and old_mode != STEP_MODE)):
+                kept = servo.get("Goal_Position")
                 self._hold(servo)  # step mode steps from where the joint is (a choice)
+                if not was_on and servo.position_mode and self.rules["limp_goal"] == "kept":
+                    servo.set("Goal_Position", kept)  # the goal written while limp (rules.py)
+                    touched.add(42)
         if touched & {42, 43, 31, 32, 9, 10, 11, 12, 33}:
             if servo.torque and servo.position_mode:
                 self.d.ctrl[servo.act] = servo.goal_to_angle(servo.get("Goal_Position"))
@@ -288,6 +288,22 @@ class ServoRegisters:
                 self.d.ctrl[servo.act] += servo.get("Goal_Position") / servo.scale
             if touched & {42, 43}:
                 self.goal_log.append((time.time(), servo.id, servo.get("Goal_Position")))
+                self.timed_move(servo)
+
+    def timed_move(self, servo: VirtualServo) -> None:
+        """Rule ``goal_time = "move_time"`` (SCS series): the goal reached in Goal_Time ms.
+
+        The profile's speed is the distance over the time [counts/s] (at least 1), until
+        the next write of a loop register.
+        """
+        time_ms = servo.get("Goal_Time")
+        if self.rules["goal_time"] != "move_time" or not time_ms or not servo.torque \
+                or not servo.position_mode:
+            return
+        goal = round(float(self.d.ctrl[servo.act]) * servo_facts.COUNTS_PER_RAD)
+        distance = abs(goal - round(float(self.d.qpos[servo.qadr]) * servo_facts.COUNTS_PER_RAD))
+        speed = max(1, round(distance / (time_ms / 1000.0)))
+        self.bank.set(servo.index, servo_settings(servo).with_(goal_velocity=speed))
 
     def set_present(self, servo: VirtualServo, value: int) -> None:
         """Set Homing_Offset so that Present_Position reads ``value`` where the joint is now.

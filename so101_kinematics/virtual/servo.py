@@ -114,6 +114,7 @@ class VirtualServo:
         # the electrical model (virtual/electrical.py)
         self.temperature = AMBIENT_C  # [degC]
         self.overload_time = 0.0  # [s] the load has been at or above Overload_Torque
+        self.protected = False  # in overload protection: output at Protective_Torque
         self.plugged = True  # on the bus (factory mode plugs the servos in one at a time)
         self.sync_cache()
 
