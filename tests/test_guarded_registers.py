@@ -227,3 +227,70 @@ def test_lerobots_settings_hold_the_stretched_arm_and_each_weakening_is_named():
         "elbow_flex": "status: overloaded"}
     # a register not read decides nothing
     assert unable_to_hold({}, ZERO) == {}
+
+
+# --- the guard's table itself (no arm: a bus that records) --------------------------------
+class Recorder:
+    """Stands for lerobot's bus: records what reaches it."""
+
+    motors = dict.fromkeys(JOINTS)
+
+    def __init__(self):
+        self.written = []
+
+    def sync_write(self, name, values, normalize=True, num_retry=0):
+        self.written.append((name, values))
+
+    def write(self, name, motor, value, normalize=True, num_retry=0):
+        self.written.append((name, {motor: value}))
+
+
+class Refused(Exception):
+    pass
+
+
+def guarded():
+    from so101_kinematics.hw.guarded import GuardedBus
+
+    raw, released = Recorder(), []
+
+    def refuse(line):
+        raise Refused(line)
+
+    bus = GuardedBus(raw, lambda *a: None, lambda *a: released.append(a), refuse)
+    return bus, raw, released
+
+
+@pytest.mark.parametrize("register, value", [
+    ("ID", 7), ("Baud_Rate", 1), ("Lock", 0), ("Homing_Offset", 100),
+    ("Min_Position_Limit", 0), ("Max_Position_Limit", 4095), ("Return_Delay_Time", 250),
+    ("Torque_Enable", 128), ("Max_Torque_Limit", 0), ("I_Coefficient", 5),
+    ("D_Coefficient", 0), ("Acceleration", 0)])
+def test_every_other_register_write_is_refused_in_one_line_with_the_fix_and_bus_raw(register,
+                                                                                     value):
+    bus, raw, released = guarded()
+    for call in (lambda: bus.write(register, "elbow_flex", value),
+                 lambda: bus.sync_write(register, value)):
+        with pytest.raises(Refused) as refused:
+            call()
+        line = str(refused.value)
+        assert line.startswith("Refused: bus.") and register in line and "\n" not in line
+        assert "Fix: " in line and "bus.raw." in line
+    assert raw.written == [] and released == []
+
+
+def test_torque_enable_0_on_one_motor_is_the_whole_arms_guarded_release():
+    bus, raw, released = guarded()
+    bus.write("Torque_Enable", "gripper", 0)
+    bus.sync_write("Torque_Enable", {"elbow_flex": 1, "wrist_flex": 0})
+    assert raw.written == [] and len(released) == 2
+    bus.sync_write("Torque_Enable", 1)  # on: holds the goal register, the helpers' last goal
+    assert raw.written == [("Torque_Enable", 1)]
+
+
+@pytest.mark.parametrize("call", ["torque_disabled", "write_calibration", "reset_calibration",
+                                  "set_half_turn_homings", "setup_motor", "set_baudrate"])
+def test_lerobots_own_calls_that_write_those_registers_are_refused(call):
+    bus, raw, _ = guarded()
+    with pytest.raises(Refused, match=f"bus.raw.{call}"):
+        getattr(bus, call)()
