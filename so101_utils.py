@@ -114,7 +114,11 @@ def setup_motors(calibration, port, offset_config=None, gravity_ff=True):
     Returns:
         lerobot's ``FeetechMotorsBus``, connected, arm joints in [deg], gripper 0-100,
         guarded: a ``bus.sync_write("Goal_Position", ...)`` is checked and ramped at the
-        speed cap (``so101_kinematics/hw/guarded.py``); the bare bus is ``bus.raw``.
+        speed cap, ``Torque_Enable`` 0 is ``bus.disable_torque()``, and a write that could
+        drop, spin or weaken the arm (Torque_Limit, P, Operating_Mode, Goal_Velocity, ...)
+        is refused in one line (``so101_kinematics/hw/guarded.py``); the bare bus is
+        ``bus.raw``. Registers an earlier program left are put back to the course's values
+        (``so101_kinematics/hw/servo_settings.py``), each change named in a warning.
     """
     return _setup_motors(calibration, port, offset_config, gravity_ff)
 

@@ -79,6 +79,7 @@ T_FK, T_SIM = "tests/test_forward_kinematics.py", "tests/test_pick_place_sim.py"
 T_PROFILES = "tests/test_profile_compare.py"
 T_LINE = "tests/test_straight_line.py"
 LEAD, T_LEAD = "so101_kinematics/hw/lead.py", "tests/test_velocity_ff.py"
+GUARDED, T_GUARD = "so101_kinematics/hw/guarded.py", "tests/test_guarded_registers.py"
 
 MUTANTS: list[Mutant] = [
     # --- the servo model (issue 25) --------------------------------------------------------
@@ -486,6 +487,24 @@ MUTANTS: list[Mutant] = [
       "start's narrower gripper", "so101_kinematics/hw/putdown.py", "put_down",
       'target["gripper"] = max(start["gripper"], width)', 'target["gripper"] = start["gripper"]',
       "tests/test_putdown.py::test_a_cube_that_cannot_be_put_down_is_not_squeezed_by_the_return"),
+    # --- every register a student writes is guarded, the last line read back (issue 33) --
+    m("torque_limit_passed_through", "the guarded bus passes a motion register at any value "
+      "(Torque_Limit 0 drops the arm with torque on)", GUARDED, "register_refusal",
+      "if register in COURSE and all(", "if register in COURSE or all(",
+      f"{T_GUARD}::test_a_write_that_weakens_or_spins_the_arm_is_refused_naming_bus_raw"),
+    m("torque_enable_0_passed_through", "Torque_Enable 0 on the guarded bus drops the arm where "
+      "it is (not the guarded release)", GUARDED, "GuardedBus._register",
+      "if data_name == TORQUE and any(", "if False and any(",
+      f"{T_GUARD}::test_torque_enable_0_is_the_guarded_release_not_a_drop"),
+    m("leftovers_survive_setup", "setup_motors leaves an earlier program's Goal_Velocity and "
+      "Torque_Limit", "so101_kinematics/hw/servo_settings.py", "restore_course_values",
+      "            bus.sync_write(register, wrong, normalize=False)", "            pass",
+      f"{T_GUARD}::test_setup_motors_puts_back_what_an_earlier_program_left_and_says_so"),
+    m("last_line_from_the_command", "the last line says what was commanded (torque ON, "
+      "holding), not whether the servos can hold", RUN, "finish",
+      "result.torque, result.unable = read_back(", "_ = read_back(",
+      f"{T_GUARD}::test_the_last_line_says_which_servo_cannot_hold_read_back",
+      f"{T_GUARD}::test_the_hardware_scripts_ending_reads_back_too"),
 ]
 
 

@@ -22,7 +22,11 @@ is released only at the starting pose, the pose the arm had at
 
 The bus handed out is a :class:`~so101_kinematics.hw.guarded.GuardedBus`: the
 student's own ``bus.sync_write("Goal_Position", ...)`` is a checked move
-ramped at the speed cap (:func:`course_write_goal`); raw lerobot is ``bus.raw``.
+ramped at the speed cap (:func:`course_write_goal`), ``Torque_Enable`` 0 is
+``bus.disable_torque()``, a write that could drop, spin or weaken the arm is
+refused (:func:`course_refuse_write`); raw lerobot is ``bus.raw``.
+:func:`setup_motors` puts every register that decides motion back to the
+course's values and says which it changed (``hw/servo_settings.py``).
 Each move and hold starts from where the arm stands when it is elsewhere than
 the last command (a goal written on ``bus.raw``): ``guarded.resync``.
 """
@@ -81,6 +85,7 @@ from so101_kinematics.hw.run import (
     format_pose,
     starting_pose,
 )
+from so101_kinematics.hw.servo_settings import COURSE, read_registers, restore_course_values
 from so101_kinematics.planning.motion import Configuration
 from so101_kinematics.trims import Trims, as_trims
 
@@ -152,7 +157,12 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
         start = trims.from_wire(starting_pose(bus, checked, port, robot_id))
         armed = True
         with bus_errors("configuring the servos and enabling torque"):
+            before = read_registers(bus, COURSE)  # what an earlier program left
             with_retries(configure, bus)
+            changed = with_retries(lambda b: restore_course_values(b, before), bus)
+            for leftover, line in changed:  # an earlier program's values: a warning each
+                (logger.warning if leftover else logger.info)(
+                    "setup_motors: %s%s.", line, " (left by an earlier program)" * leftover)
             feedforward = read_feedforward(bus, gravity_ff)
             with_retries(lambda b: torque_on_in_place(b, feedforward, trims.to_wire(start)), bus)
     except BaseException as error:
@@ -187,7 +197,8 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
 
     bus.disable_torque = disable_torque  # lerobot's own disconnect() calls it too
     guarded = GuardedBus(bus, lambda values, what, normalize: course_write_goal(
-        guarded, values, what, normalize), disable_torque)
+        guarded, values, what, normalize), disable_torque,
+        lambda line: course_refuse_write(guarded, line))
     run.key = id(guarded)
     _RUNS[run.key] = run
     logger.info("Torque on, holding where the arm stands (%s); trims: %s.", format_pose(start),
@@ -310,6 +321,19 @@ def course_write_goal(bus, values: Mapping[str, Any], what: str, normalize: bool
     if not normalize:
         raise refuse(PlanError(f"{what} {RAW_TICKS}"), "Refused (this write; it moved nothing)")
     _guarded(bus, what, lambda session: ramp_to_goal(session, values, what))
+
+
+def course_refuse_write(bus, line: str) -> None:
+    """A register write refused (``hw/guarded.py``): the line, the ending at the start, exit 2.
+
+    Nothing was written; the arm returns to its starting pose and is released there, as
+    when a script ends, and the script ends with the refusal (exit status 2).
+    """
+    print(line, file=sys.stderr, flush=True)
+    run = _RUNS.get(id(bus))
+    if run is not None:
+        end_at_start(run, "A refused write:")
+    raise ScriptEnded(2, line)
 
 
 def end_at_start(run: CourseRun, why: str) -> str:

@@ -68,13 +68,8 @@ from so101_kinematics.hw.preflight import (  # noqa: F401 - the run's checks, re
     validate_plan_for_arm,
 )
 from so101_kinematics.hw.putdown import held_grip, put_down
-from so101_kinematics.planning.motion import (
-    Configuration,
-    Plan,
-    Step,
-    run_plan,
-    unit,
-)
+from so101_kinematics.hw.servo_settings import describe_unable, read_back
+from so101_kinematics.planning.motion import Configuration, Plan, Step, run_plan, unit
 from so101_kinematics.trims import Trims, as_trims
 
 logger = logging.getLogger("pick_place_hw")
@@ -114,6 +109,7 @@ class RunResult:
     cube: CubeReading | None = None  # the virtual lab's cube sensor at the end; None on a real arm
     cubes: list[CubeReading] = field(default_factory=list)  # every cube it reports (stacking)
     torque: dict[str, bool] | None = None  # Torque_Enable read back at the end (None: unread)
+    unable: dict[str, str] = field(default_factory=dict)  # joint -> why it cannot hold (read back)
 
 
 def _describe(error: BaseException, step: str) -> str:
@@ -225,6 +221,8 @@ def finish(session: ArmSession, result: RunResult) -> None:
             result.unreleased = release_torque(session.bus)
             result.torque_released = not result.unreleased
         result.torque = read_torque(session.bus)  # the last line says what the servos say
+        if not result.torque_released:  # and whether each can hold where it is
+            result.torque, result.unable = read_back(session.bus, result.final_pose, result.torque)
 
 
 def ending(result: RunResult, release: str) -> str:
@@ -246,25 +244,32 @@ def ending(result: RunResult, release: str) -> str:
                 f"powered silent servo holds its last goal). Check the cable and power of the "
                 f"silent servo(s). {hold}")
     pose = "" if result.final_pose is None else f" ({format_pose(result.final_pose)})"
-    torque = torque_words(result.torque)
+    torque = torque_words(result.torque, result.unable)
+    holding = "NOT holding" if result.unable else "holding"
     if result.frozen:
         return f"Frozen where it was by a second stop signal{pose}, {torque}. {hold}"
     if result.aborted is None:
-        return (f"Done: holding the final pose '{result.final_step}'{pose}, {torque} (the plan "
-                f"has return_to_start: false). {hold}")
-    return f"The arm is holding where it stopped{pose}, {torque}. {hold}"
+        return (f"Done: {holding} the final pose "
+                f"'{result.final_step}'{pose}, {torque} (the plan has return_to_start: "
+                f"false). {hold}")
+    return f"The arm is {holding} where it stopped{pose}, {torque}. {hold}"
 
 
-def torque_words(torque: dict[str, bool] | None) -> str:
-    """The torque as read back from the servos, for a last line (never what was commanded)."""
+def torque_words(torque: dict[str, bool] | None, unable: Mapping[str, str] | None = None) -> str:
+    """The torque as read back from the servos, for a last line (never what was commanded).
+
+    ``unable``: the servos that cannot hold where they are (``servo_settings.unable_to_hold``).
+    """
+    cannot = f", but {describe_unable(unable)}" if unable else ""
     if torque is None:
-        return "torque not read back (commanded ON)"
+        return f"torque not read back (commanded ON){cannot}"
     limp = [joint for joint, on in torque.items() if not on]
     if not limp:
-        return "torque ON"
+        return f"torque ON{cannot}"
     if len(limp) == len(torque):
         return "torque OFF on every servo (read back): the arm is limp"
-    return f"torque ON, but OFF on {', '.join(limp)} (read back: limp)"
+    return (f"torque ON, but OFF on {', '.join(limp)} (read back: limp)"
+            f"{cannot.replace(', but', ';')}")
 
 
 def starting_pose(bus, calibration, port: str, robot_id: str | None) -> Configuration:
