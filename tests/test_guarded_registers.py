@@ -141,6 +141,32 @@ def test_setup_motors_puts_back_what_an_earlier_program_left_and_says_so(course_
     bus.disable_torque()
 
 
+@pytest.mark.hw
+def test_the_hardware_script_puts_back_what_an_earlier_program_left_too(course_arm, caplog):
+    """pick_place_hw.py's run arms the servos through the same path as setup_motors: a
+    Torque_Limit and a Goal_Velocity left behind are put back (and named) before torque."""
+    from so101_kinematics.calibration import load_calibration
+    from so101_kinematics.hw import run as hw
+    from so101_kinematics.hw.bus import connect, disconnect
+    from so101_kinematics.planning.motion import Plan, Step
+
+    other = connect(course_arm.port, load_calibration(CALIBRATION_PATH))  # an earlier program
+    try:
+        other.write("Goal_Velocity", "shoulder_lift", 100)
+        other.write("Torque_Limit", "elbow_flex", 150)
+    finally:
+        disconnect(other)
+    start = course_arm.joint_positions()
+    plan = Plan([Step("stay", {j: start[j] for j in JOINTS}, 0.5, 0.2)], return_duration=0.5)
+    hw.run_on_arm(course_arm.port, load_calibration(CALIBRATION_PATH), plan)
+    assert course_arm.registers("shoulder_lift")["Goal_Velocity"] == 0
+    assert course_arm.registers("elbow_flex")["Torque_Limit"] == 1000
+    for register, joint in [("Goal_Velocity", "shoulder_lift"), ("Torque_Limit", "elbow_flex")]:
+        said = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"
+                and r.getMessage().startswith(f"pick_place_hw: {register} was ")]
+        assert len(said) == 1 and joint in said[0] and "earlier program" in said[0], register
+
+
 # --- the last line, read back ------------------------------------------------------------
 @pytest.mark.hw
 @pytest.mark.parametrize("writes, joint, reason", [

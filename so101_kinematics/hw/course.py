@@ -58,7 +58,6 @@ from so101_kinematics.errors import CalibrationError, PlanError, SO101Error
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.bus import (
     bus_errors,
-    configure,
     connect,
     disconnect,
     release_torque,
@@ -85,7 +84,7 @@ from so101_kinematics.hw.run import (
     format_pose,
     starting_pose,
 )
-from so101_kinematics.hw.servo_settings import COURSE, read_registers, restore_course_values
+from so101_kinematics.hw.servo_settings import configure_as_course
 from so101_kinematics.planning.motion import Configuration
 from so101_kinematics.trims import Trims, as_trims
 
@@ -157,12 +156,7 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
         start = trims.from_wire(starting_pose(bus, checked, port, robot_id))
         armed = True
         with bus_errors("configuring the servos and enabling torque"):
-            before = read_registers(bus, COURSE)  # what an earlier program left
-            with_retries(configure, bus)
-            changed = with_retries(lambda b: restore_course_values(b, before), bus)
-            for leftover, line in changed:  # an earlier program's values: a warning each
-                (logger.warning if leftover else logger.info)(
-                    "setup_motors: %s%s.", line, " (left by an earlier program)" * leftover)
+            configure_as_course(bus, "setup_motors")
             feedforward = read_feedforward(bus, gravity_ff)
             with_retries(lambda b: torque_on_in_place(b, feedforward, trims.to_wire(start)), bus)
     except BaseException as error:

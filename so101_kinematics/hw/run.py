@@ -33,7 +33,6 @@ from so101_kinematics.hw.bus import (
     PortLost,
     bus_errors,
     clamp_to_limits,
-    configure,
     connect,
     disconnect,
     format_pose,
@@ -68,7 +67,7 @@ from so101_kinematics.hw.preflight import (  # noqa: F401 - the run's checks, re
     validate_plan_for_arm,
 )
 from so101_kinematics.hw.putdown import held_grip, put_down
-from so101_kinematics.hw.servo_settings import describe_unable, read_back
+from so101_kinematics.hw.servo_settings import configure_as_course, describe_unable, read_back
 from so101_kinematics.planning.motion import Configuration, Plan, Step, run_plan, unit
 from so101_kinematics.trims import Trims, as_trims
 
@@ -356,7 +355,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
             raise NotConfirmed("Not confirmed: nothing moved.")
         armed = True
         with bus_errors("configuring the servos and enabling torque"):
-            with_retries(configure, bus)
+            configure_as_course(bus, "pick_place_hw")
             session.feedforward = feedforward = read_feedforward(bus, gravity_ff)
             session.velocity_lead = VelocityLead.for_feedforward(feedforward, velocity_ff)
             with_retries(lambda b: torque_on_in_place(b, feedforward, trims.to_wire(start)), bus)

@@ -32,7 +32,7 @@ from collections.abc import Mapping
 from so101_kinematics import servo
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.gravity import holding_torques
-from so101_kinematics.hw.bus import discard_stale_input, recover_port
+from so101_kinematics.hw.bus import configure, discard_stale_input, recover_port, with_retries
 from so101_kinematics.hw.checks import GRIPPER_OVERLOAD, STATUS_BITS
 from so101_kinematics.hw.timing import TRACKING_TOLERANCE_DEG
 
@@ -97,6 +97,25 @@ def read_registers(bus, registers) -> dict[str, dict[str, int]]:
         except Exception as error:  # noqa: BLE001 - unread: the caller says what it does not know
             recover_port(bus, settle=isinstance(error, ConnectionError))  # a timeout: settle
     return values
+
+
+def configure_as_course(bus, who: str) -> None:
+    """Lerobot's configure, then the course's values it leaves; each change logged, torque off.
+
+    One path for every program that arms the servos (``setup_motors`` and
+    ``pick_place_hw.py``): a Torque_Limit, Goal_Velocity or gain left by an
+    earlier program is put back and named, never kept silently.
+
+    Args:
+        bus: the connected lerobot bus.
+        who: the program, for the log lines (``"setup_motors"``, ``"pick_place_hw"``).
+    """
+    before = read_registers(bus, COURSE)  # what an earlier program left
+    with_retries(configure, bus)
+    changed = with_retries(lambda b: restore_course_values(b, before), bus)
+    for leftover, line in changed:  # an earlier program's values: a warning each
+        (logger.warning if leftover else logger.info)(
+            "%s: %s%s.", who, line, " (left by an earlier program)" * leftover)
 
 
 def restore_course_values(bus, before: Mapping[str, Mapping[str, int]]
