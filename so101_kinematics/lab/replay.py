@@ -98,7 +98,8 @@ def replay(recording: Recording, volts: float | None = None, variant: str | None
 
     Args:
         recording: the recording.
-        volts, variant: the servo (None: the project's default).
+        volts: the supply [V] (None: the project's default servo).
+        variant: a key of ``servo.VARIANTS`` (None: what ``volts`` implies).
         episodes: the episode numbers to replay (None: all).
     """
     m = load_model()
