@@ -105,3 +105,22 @@ def test_the_old_damping_overshot_where_the_arm_does_not(record_test, monkeypatc
     assert max(over for _, over, _ in real["step"].values()) < 0.1
     assert sum(steps[j][1] > OVERSHOOT_DEG for j in ("shoulder_pan", "shoulder_lift",
                                                       "wrist_flex")) >= 2
+
+
+@pytest.mark.hw
+@pytest.mark.slow
+def test_the_virtual_arm_through_lerobots_bus_tracks_the_recording_as_the_simulator_does():
+    # record_test episode 0's first 10 s, in real time through lerobot's bus: the virtual arm
+    # runs the same servo model, so its figures are the recording's as the simulator's are.
+    pytest.importorskip("lerobot")
+    recording = replay.load("record_test")
+    frames = recording.episodes([0])[0][slice(*replay.VIRTUAL_FRAMES)]
+    part = _subset(recording, [0])
+    part = replay.Recording(part.name, part.action[:len(frames)], part.state[:len(frames)],
+                            part.episode[:len(frames)], part.fps)
+    real = replay.figures(part)
+    virtual = replay.figures(replay.replay_virtual(recording, frames))
+    assert virtual["rms_arm"] == pytest.approx(real["rms_arm"], rel=TRACKING_OVER_ARM)
+    assert abs(virtual["delay"] - real["delay"]) <= 1
+    for joint in ("shoulder_pan", "shoulder_lift", "wrist_flex"):  # the elbow: see above
+        assert virtual["step"][joint][1] <= OVERSHOOT_DEG, joint

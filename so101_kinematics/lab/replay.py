@@ -132,6 +132,55 @@ def replay(recording: Recording, volts: float | None = None, variant: str | None
                      recording.episode[frames], recording.fps)
 
 
+VIRTUAL_FRAMES = (0, 300)
+"""record_test episode 0's frames replayed through the virtual arm (10 s in real time)."""
+
+VIRTUAL_BASE_HEIGHT = 0.035
+"""The virtual arm's base above its table [m]: the recorded poses lie up to 32 mm inside the
+modelled table (docs/servo_model.md), and the replay is of the servo, not of contacts."""
+
+
+def replay_virtual(recording: Recording, frames, volts: float | None = None,
+                   variant: str | None = None) -> Recording:
+    """The recording's goals replayed in real time through the virtual arm and lerobot's bus.
+
+    The loop is lerobot's record loop: read Present_Position, write Goal_Position, wait for
+    the next frame (30 fps), on the follower's registers (``hw.bus.configure``).
+
+    Args:
+        recording: the recording.
+        frames: the frame indices to replay (consecutive, one episode).
+        volts: the virtual arm's supply [V] (None: the project's default).
+        variant: a key of ``servo.VARIANTS`` (None: what ``volts`` implies).
+    """
+    import time
+
+    from so101_kinematics.calibration import load_calibration
+    from so101_kinematics.hw.bus import configure, connect, disconnect, enable_torque_in_place
+    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+
+    volts = servo.DEFAULT_SUPPLY_V if volts is None else volts
+    frames = np.asarray(frames)
+    state = np.zeros((len(frames), len(JOINTS)))
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, supply=volts, variant=variant,
+                      initial=_clamped(recording.state[frames[0]]),
+                      base_height=VIRTUAL_BASE_HEIGHT) as arm:
+        bus = connect(arm.port, load_calibration(DEFAULT_CALIBRATION_PATH))
+        try:
+            configure(bus)
+            enable_torque_in_place(bus)
+            start = time.perf_counter()
+            for row, k in enumerate(frames):
+                read = bus.sync_read("Present_Position")
+                state[row] = [read[j] for j in JOINTS]
+                bus.sync_write("Goal_Position", _clamped(recording.action[k]))
+                time.sleep(max(0.0, start + (row + 1) / recording.fps - time.perf_counter()))
+        finally:
+            disconnect(bus)
+    return Recording(recording.name, recording.action[frames], state, recording.episode[frames],
+                     recording.fps)
+
+
 def _delay(recording: Recording, joints=slice(0, ARM)) -> int:
     """The goal's shift [frames] that best matches the readings (least RMS, all episodes)."""
     best, chosen = math.inf, 0
@@ -221,10 +270,26 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--quick", action="store_true",
                         help="pick_place_tape's first 10 episodes only (record_test whole)")
+    parser.add_argument("--virtual", action="store_true",
+                        help="also replay record_test episode 0's first 10 s through the "
+                        "virtual arm and lerobot's bus (real time; needs the hw extra)")
     args = parser.parse_args(argv)
     print(f"Servo model: lerobot's P {servo.LEROBOT.p} / I {servo.LEROBOT.i} / "
           f"D {servo.LEROBOT.d}, contacts off, no feed-forward.")
     print(report(episodes=range(10) if args.quick else None))
+    if args.virtual:
+        recording = load("record_test")
+        frames = recording.episodes([0])[0][slice(*VIRTUAL_FRAMES)]
+        part = Recording(recording.name, recording.action[frames], recording.state[frames],
+                         recording.episode[frames], recording.fps)
+        print(f"record_test episode 0, frames {VIRTUAL_FRAMES[0]}-{VIRTUAL_FRAMES[1]}: the "
+              f"simulator and the virtual arm through lerobot's bus (its base "
+              f"{VIRTUAL_BASE_HEIGHT * 1000:g} mm above its table, contacts on)")
+        lines = _row("recording", figures(part), None)
+        lines += _row("simulator", figures(replay(part)), figures(part))
+        lines += _row("virtual arm (bus)", figures(replay_virtual(recording, frames)),
+                      figures(part))
+        print("\n".join(lines))
     return 0
 
 
