@@ -113,7 +113,7 @@ class ServoBank:
         newtons = self.variant.torque_per_volt * self.volts / 1000.0  # [N m per 0.1 %]
         half_play, rate = self.backlash_half, servo.D_SCALE_S / dt
         targets, speeds, last, duties = self.target, self.target_speed, self.last_error, self.duty
-        exact_last = self.last_exact
+        exact_last, p_duties = self.last_exact, self._p_duty
         pushes, cached = self._push, self._cached_on
         modes, on, i_gain = self.mode, self.torque_on, self.i
         sqrt, copysign = math.sqrt, math.copysign
@@ -139,17 +139,30 @@ class ServoBank:
                 else:
                     target += step
                 targets[k], speeds[k] = target, speed
-            exact = target - q[k] * cpr
+            counts = q[k] * cpr
+            exact = target - counts  # unrounded, for the D term
             before = exact_last[k]
             exact_last[k] = exact
-            damp = 0.0 if before is None or not on[k] else d4 * (exact - before) * rate
-            error = round(target) - round(q[k] * cpr)
+            error = round(target) - round(counts)
             if error == last[k] and cached[k] == on[k] and mode == 0 and not i_gain[k]:
-                # the same error: the same P duty; the D term on the error's rate
-                push = pushes[k] + damp
-                duties[k] = max(-cap, min(cap, self._p_duty[k] + damp))
-                out.append(newtons * max(-cap, min(cap, push)))
+                # the same error: the same P duty, plus the D term on the error's rate
+                if before is None or not on[k]:
+                    out.append(newtons * pushes[k])
+                    continue
+                damp = d4 * (exact - before) * rate
+                push, duty = pushes[k] + damp, p_duties[k] + damp
+                if push > cap:
+                    push = cap
+                elif push < -cap:
+                    push = -cap
+                if duty > cap:
+                    duty = cap
+                elif duty < -cap:
+                    duty = -cap
+                duties[k] = duty
+                out.append(newtons * push)
                 continue
+            damp = 0.0 if before is None or not on[k] else d4 * (exact - before) * rate
             size = error if error >= 0 else -error
             if size > zone:
                 duty = startup + p4 * (size - zone)
@@ -172,7 +185,7 @@ class ServoBank:
             else:
                 duty += extra
                 push += extra
-            self._p_duty[k], pushes[k] = duty, push  # before the D term (reused above)
+            p_duties[k], pushes[k] = duty, push  # before the D term (reused above)
             if damp:
                 duty += damp
                 push += damp
