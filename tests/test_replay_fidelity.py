@@ -59,6 +59,17 @@ def test_pick_place_tape_is_tracked_as_the_arm_tracked_it_first_10_episodes():
     _assert_tracks_like(real, replay.figures(replay.replay(recording)))
 
 
+def test_the_shoulder_lags_the_pan_as_on_the_arm_first_10_episodes():
+    # pick_place_tape's shoulder_lift trails its goal ~20 ms longer than shoulder_pan (the
+    # issue's "shoulder lags the other joints"); the model's does too, from its larger load.
+    recording = _subset(replay.load("pick_place_tape"), range(10))
+    simulated = replay.replay(recording)
+    real = replay.delay_ms(recording, 1) - replay.delay_ms(recording, 0)
+    model = replay.delay_ms(simulated, 1) - replay.delay_ms(simulated, 0)
+    assert real > 10.0 and model > 10.0
+    assert model == pytest.approx(real, abs=10.0)
+
+
 @pytest.mark.slow
 def test_pick_place_tape_is_tracked_as_the_arm_tracked_it_all_50_episodes():
     recording = replay.load("pick_place_tape")
