@@ -40,7 +40,7 @@ from so101_kinematics.hw.log import sidecar_path
 from so101_kinematics.outputs import atomic_output
 from so101_kinematics.planning.motion import Plan, Step
 from so101_kinematics.planning.plans import pick_and_place_steps
-from so101_kinematics.servo import LEROBOT
+from so101_kinematics.servo import KIT_SUPPLY_V, LEROBOT
 
 SETTLE_WINDOW_S = 0.2  # the pick/place pose: mean measured pose over the step's last [s]
 MAX_SPEED_DEG_S = 3400 * 360.0 / 4096.0  # [deg/s] the STS3215's fastest (../shared/SERVO_NOTES.md)
@@ -233,7 +233,8 @@ def replay(t: np.ndarray, commands: dict[str, np.ndarray], start: dict[str, floa
 
     m = load_model()
     servo = servo or {}
-    actuation.use_servo(m, volts=float(servo.get("supply_v", actuation.DEFAULT_VOLTS)),
+    # a log that records no supply: the kit's 5 V, as _describe_servo says (not the default)
+    actuation.use_servo(m, volts=float(servo.get("supply_v", KIT_SUPPLY_V)),
                         p=int(servo.get("p", 16)), feedforward=bool(servo.get("gravity_ff")))
     d = mujoco.MjData(m)
     set_initial_pose(d, start)
@@ -319,7 +320,7 @@ def _describe_servo(result: Comparison, servo: dict | None, roles) -> None:
         result.servo = "not recorded (a log from before the servo model): replayed as STS3215 " \
                        "at lerobot's P = 16 on 5 V, without the feed-forward"
         servo = {}
-    volts, p = float(servo.get("supply_v", 5.0)), int(servo.get("p", 16))
+    volts, p = float(servo.get("supply_v", KIT_SUPPLY_V)), int(servo.get("p", 16))
     if not result.servo:
         with_ff = "with" if servo.get("gravity_ff") else "without"
         result.servo = f"STS3215 at P = {p} on {volts:.1f} V, {with_ff} the gravity feed-forward"
