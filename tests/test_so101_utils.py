@@ -133,7 +133,7 @@ def test_assignment_8_starting_position_form_never_jumps(arm, capsys, caplog):
     assert "starting configuration is 25.0 deg from the last command (shoulder_pan" in caplog.text
     assert_near(session.segments[-1].start, starting_pose, tol_deg=1e-6, tol_gripper=1e-6,
                 label="the move began at the last goal")
-    assert_near(arm.joint_positions(), target, label="reached")
+    assert_near(arm.joint_positions(), target, tol_deg=1.5, label="reached")  # as "back"
     bus.disable_torque()
     assert last_line(capsys.readouterr().out) == "Done: back at the starting pose, torque off."
     bus.disconnect(disable_torque=False)

@@ -29,6 +29,7 @@ from so101_kinematics.gravity import feedforward
 from so101_kinematics.paths import REPO
 from so101_kinematics.planning.motion import JointLimitError
 from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+from so101_kinematics.virtual.electrical import SUPPLY_V
 
 TICK_DEG = 360.0 / 4095.0  # one encoder tick [deg]
 GRIPPER_TICK = 100.0 / 1251.0  # one gripper tick in [0, 100] units (shipped calibration)
@@ -354,7 +355,7 @@ def test_commanded_pose_is_reached_and_matches_the_simulator(bus, fresh_arm, mod
     from so101_kinematics.sim import actuation
 
     sim = smu.load_model()
-    actuation.use_servo(sim, p=32, feedforward=False)
+    actuation.use_servo(sim, volts=SUPPLY_V, p=32, feedforward=False)  # the virtual arm's 5 V
     d = mujoco.MjData(sim)
     smu.set_initial_pose(d, HOME)
     smu.send_position_command(d, POSE)
