@@ -33,6 +33,7 @@ from so101_kinematics.outputs import (
 )
 from so101_kinematics.outputs import atomic_output as _atomic_output
 from so101_kinematics.planning.motion import PROFILES, PlanError
+from so101_kinematics.servo import DEFAULT_SUPPLY_V
 from so101_kinematics.sim import actuation, straight, tracking
 from so101_kinematics.sim.ik_demo import open_scene
 from so101_mujoco_utils import MODEL_DIR, ViewerClosed, load_model
@@ -43,7 +44,8 @@ log = logging.getLogger("test_trajectory_mujoco")
 
 VELOCITY_SCENE = MODEL_DIR / "scene_with_velocity.xml"  # the course's week-9 model
 DEFAULT_PROFILE = "cubic"  # the assignment's
-SERVO_DEFAULTS = {"mode": "sts3215", "volts": 5.0, "variant": None, "p": 16, "feedforward": True}
+SERVO_DEFAULTS = {"mode": "sts3215", "volts": DEFAULT_SUPPLY_V, "variant": None, "p": 16,
+                  "feedforward": True}
 COLUMNS = (("tracking_rms_deg", "RMS [deg]", ".2f"), ("tracking_max_deg", "max [deg]", ".2f"),
            ("peak_velocity_deg_s", "peak vel [deg/s]", ".1f"),
            ("peak_acceleration_deg_s2", "peak acc [deg/s^2]", ".0f"),

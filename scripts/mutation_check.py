@@ -505,6 +505,19 @@ MUTANTS: list[Mutant] = [
       "result.torque, result.unable = read_back(", "_ = read_back(",
       f"{T_GUARD}::test_the_last_line_says_which_servo_cannot_hold_read_back",
       f"{T_GUARD}::test_the_hardware_scripts_ending_reads_back_too"),
+    # --- the servo held to real arms' recordings (issue 34) ------------------------------------
+    m("d_scale_one_period", "the D term's scale back to one 1 ms loop period (underdamped: "
+      "steps overshoot where the recorded arms do not)", "so101_kinematics/servo.py", None,
+      "D_SCALE_S = 0.03\n", "D_SCALE_S = 0.001\n",
+      "tests/test_replay_fidelity.py::"
+      "test_the_step_from_rest_does_not_overshoot_and_stops_short_as_the_arm_did"),
+    m("c001_on_12_v_accepted", "a supply above the variant's Max_Voltage_Limit accepted",
+      "so101_kinematics/servo.py", "supply_problem", "if volts <= chosen.max_volts:",
+      "if True:", "tests/test_servo_options.py::test_a_c001_on_12_v_is_refused_with_the_fix"),
+    m("ideal_ignores_options", "--servo ideal silently ignores --supply/--variant/--p-coefficient",
+      "so101_kinematics/cli.py", "servo_from_arguments", 'if args.servo == "ideal" and given:',
+      "if False:",
+      "tests/test_servo_options.py::test_the_ideal_servo_refuses_the_options_it_would_ignore"),
 ]
 
 

@@ -3,7 +3,7 @@
 Side view (the arm's vertical plane) at the all-zero pose and at the course's pick
 configuration: the commanded pose (the FK), the simulated arm at rest without the
 gravity feed-forward, and with it. Each pose is the simulator's, settled for 3 s on
-the kit's 5 V supply. Run: ``python scripts/plot_sag.py`` (about 5 s).
+the default servo (the course's C018 on 12 V). Run: ``python scripts/plot_sag.py`` (about 5 s).
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def main() -> None:
         sagged = pose_of(cfg, {"feedforward": False})
         fixed = pose_of(cfg, {"feedforward": True})
         for points, style, label in ((target, "k--", "FK (commanded)"),
-                                     (sagged, "r-", "STS3215, P = 16, 5 V"),
+                                     (sagged, "r-", "STS3215 C018, P = 16, 12 V"),
                                      (fixed, "g-", "... with gravity feed-forward")):
             ax.plot(points[:, 0], points[:, 1], style, marker="o", markersize=3, label=label)
         miss = np.linalg.norm(sagged[-1] - target[-1])

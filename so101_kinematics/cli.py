@@ -16,6 +16,8 @@ import math
 import sys
 from collections.abc import Callable, Sequence
 
+from so101_kinematics import servo
+from so101_kinematics.errors import PlanError
 from so101_kinematics.planning.motion import format_range
 
 EXIT_BAD_INPUT = 2
@@ -230,19 +232,38 @@ def add_servo_arguments(parser: argparse.ArgumentParser) -> None:
                        help="sts3215: the measured servo at lerobot's settings (P 16, D 32, "
                        "Acceleration 254); ideal: the upstream model's kp = 998 servo, about "
                        "110x stiffer than the real one (default %(default)s)")
-    group.add_argument("--supply", type=number(0.0, 14.0, "V", low_open=True), default=5.0,
+    group.add_argument("--supply", type=number(0.0, 14.0, "V", low_open=True), default=None,
                        metavar="VOLTS", help="the servos' supply [V], in (0, 14] (default "
-                       "%(default)g: the kit's; 7.4 for a C001 on a 7.4 V pack, 12 for C018s)")
+                       f"{servo.DEFAULT_SUPPLY_V:g}: the course's follower; 5 for the standard "
+                       "kit's C001s, 7.4 for a C001 on a 7.4 V pack; at most 8 V for a C001)")
     group.add_argument("--variant", choices=("C001", "C001-datasheet", "C018"), default=None,
                        help="STS3215 variant (default: C018 above 9 V, else C001 with Rhoban "
                        "BAM's identified motor; C001-datasheet: the datasheet's, 1.75x weaker)")
-    group.add_argument("--p-coefficient", type=number(1, 255, integer=True), default=16,
+    group.add_argument("--p-coefficient", type=number(1, 255, integer=True), default=None,
                        metavar="P",
-                       help="P_Coefficient, in [1, 255] (default %(default)g: lerobot's)")
+                       help=f"P_Coefficient, in [1, 255] (default {servo.LEROBOT.p}: lerobot's)")
     add_gravity_ff_argument(group)
 
 
 def servo_from_arguments(args: argparse.Namespace) -> dict:
-    """``use_servo``'s keywords from :func:`add_servo_arguments`' options."""
-    return {"mode": args.servo, "volts": args.supply, "variant": args.variant,
-            "p": int(args.p_coefficient), "feedforward": args.gravity_ff}
+    """``use_servo``'s keywords from :func:`add_servo_arguments`' options.
+
+    Raises:
+        PlanError: ``--servo ideal`` with an option only the STS3215 model has (it would be
+            ignored), or a supply above the variant's Max_Voltage_Limit.
+    """
+    given = [name for name, value in (("--supply", args.supply), ("--variant", args.variant),
+                                      ("--p-coefficient", args.p_coefficient))
+             if value is not None]
+    if args.servo == "ideal" and given:
+        raise PlanError(f"{', '.join(given)} with --servo ideal: the ideal servo has no supply, "
+                        "variant or P (it would be ignored). Fix: leave "
+                        f"{' and '.join(given)} out, or use --servo sts3215.")
+    volts = servo.DEFAULT_SUPPLY_V if args.supply is None else args.supply
+    variant = args.variant or servo.default_variant(volts)
+    problem = servo.supply_problem(variant, volts) if args.servo != "ideal" else None
+    if problem:
+        raise PlanError(problem)
+    p = servo.LEROBOT.p if args.p_coefficient is None else int(args.p_coefficient)
+    return {"mode": args.servo, "volts": volts, "variant": args.variant, "p": p,
+            "feedforward": args.gravity_ff}

@@ -58,8 +58,16 @@ CURRENT_UNIT_A = 0.0065
 """One unit of Present_Current [A] [MEM]."""
 
 LOOP_PERIOD_S = 0.001
-"""The firmware's loop period [s]. An ASSUMPTION (undocumented): it sets the scale of the D
-term (D acts on the error's change over one period, with P's duty scale) and of the I term."""
+"""The firmware's loop period [s]. An ASSUMPTION (undocumented); it no longer sets the D
+term's scale (``D_SCALE_S`` does, fitted)."""
+
+D_SCALE_S = 0.03
+"""The D term's scale [s]: D acts as P does (D / 4 of duty per count) on the error's rate
+[counts/s] times this. FITTED to two real SO-101 recordings (``docs/servo_model.md``,
+``so101_kinematics/lab/replay.py``): the firmware's scale is undocumented, and the first
+guess (one 1 ms loop period) left the loop underdamped: steps from rest overshot 0.4-2.5 deg
+where the recorded arms overshoot 0.00-0.07 deg. At P 16 / D 32 on 12 V this adds about
+0.46 N m s/rad of damping while the servo is torqued (the motor's own back-EMF: 0.49)."""
 
 I_RATE = 10.0
 """The I term's scale: I acts as P does on the error integrated over 1 / I_RATE s. An
@@ -85,6 +93,7 @@ class Variant:
         coulomb: Coulomb friction [N m]; viscous: viscous friction [N m s/rad];
             armature: reflected rotor inertia [kg m^2] (BAM, the same 1/345 gearbox).
         source: where the numbers come from.
+        max_volts: the highest supply it takes [V]: its Max_Voltage_Limit as shipped [MEM].
     """
 
     name: str
@@ -96,6 +105,7 @@ class Variant:
     viscous: float = 0.0591
     armature: float = 0.0284
     source: str = ""
+    max_volts: float = 14.0
 
     def no_load_speed(self, volts: float) -> float:
         """Speed [rad/s] at full duty with no load: the motor's torque spent on friction."""
@@ -108,7 +118,7 @@ class Variant:
 
 
 def _from_datasheet(name: str, volts: float, stall: float, rpm: float, stall_amps: float,
-                    source: str) -> Variant:
+                    source: str, max_volts: float) -> Variant:
     """A variant from a datasheet's stall torque, no-load speed and stall current.
 
     kt / R = stall / volts; the damping is what leaves the no-load speed at ``rpm``
@@ -119,23 +129,48 @@ def _from_datasheet(name: str, volts: float, stall: float, rpm: float, stall_amp
     base = Variant("", volts, per_volt, 0.0, 1.0)
     drive = per_volt * volts * DUTY_MAX / 1000.0 - base.coulomb
     return Variant(name, volts, per_volt, drive / speed - base.viscous, stall / stall_amps,
-                   source=source)
+                   source=source, max_volts=max_volts)
 
+
+C001_MAX_VOLTS = 8.0
+"""The 7.4 V C001's Max_Voltage_Limit as shipped (80, in 0.1 V) [MEM]: above it the servo
+reports a voltage error and drops its torque. The 12 V C018's is 14.0 V."""
 
 VARIANTS = {
-    # BAM identified this one (the SO-101 kit's 7.4 V servo): the project's choice.
+    # BAM identified this one (the standard SO-101 kit's 7.4 V servo).
     "C001": Variant("C001", 7.4, 1.2116 / 2.676, 1.2116 ** 2 / 2.676, 1.2116,
-                    source="BAM, identified at 7.4 V (stall 3.35 N m at full duty)"),
+                    source="BAM, identified at 7.4 V (stall 3.35 N m at full duty)",
+                    max_volts=C001_MAX_VOLTS),
     # The same servo by its datasheet: 1.75x weaker than BAM identified. Tested both ways.
     "C001-datasheet": _from_datasheet("C001-datasheet", 7.4, 1.91, 52.0, 1.91 / 1.2116 * 1.0,
-                                      "Feetech C001 datasheet: 19.5 kg cm, 52 rpm at 7.4 V"),
+                                      "Feetech C001 datasheet: 19.5 kg cm, 52 rpm at 7.4 V",
+                                      C001_MAX_VOLTS),
+    # The 12 V follower's (the course's lab, docs/servo_model.md): the project's default.
     "C018": _from_datasheet("C018", 12.0, 2.94, 45.0, 2.7,
-                            "Feetech C018 datasheet: 30 kg cm, 45 rpm, 2.7 A at 12 V"),
+                            "Feetech C018 datasheet: 30 kg cm, 45 rpm, 2.7 A at 12 V", 14.0),
 }
 """The variants: the kit's C001 (BAM's numbers, or its datasheet's) and the 12 V C018."""
 
 KIT_SUPPLY_V = 5.0
-"""The SO-101 kit's supply [V] for its C001 servos (SO-ARM100 README, issue #36)."""
+"""The standard SO-101 kit's supply [V] for its C001 servos (SO-ARM100 README, issue #36)."""
+
+DEFAULT_SUPPLY_V = 12.0
+"""The follower's supply by default [V]: the course's (ECE4560 assignment 3: "You will need to
+use the 12V power supply with the follower arm"); its servos are 12 V C018s. The two real
+arms' recordings are reproduced best by this servo (docs/servo_model.md)."""
+
+DEFAULT_VARIANT = "C018"
+"""The variant by default: the 12 V SO-101 follower's (docs/servo_model.md)."""
+
+
+def supply_problem(variant: str, volts: float) -> str | None:
+    """Why ``volts`` [V] does not suit ``variant`` (one line with the fix), or None if it does."""
+    chosen = VARIANTS[variant]
+    if volts <= chosen.max_volts:
+        return None
+    return (f"supply {volts:g} V is above the {variant}'s Max_Voltage_Limit "
+            f"{chosen.max_volts:g} V (it would cut its torque). Fix: give --variant C018 for "
+            f"a 12 V supply, or --supply 5 or 7.4 for a {variant}.")
 
 
 def default_variant(volts: float) -> str:

@@ -104,10 +104,11 @@ def test_week9_student_s_own_cubic_loop():
     # linearised), but each move ends in the page's hold_position, the project's: the servo
     # model with the feed-forward, as so101_utils on the arm, holds the goal within its
     # friction band; without it the stretched arm would sag by gravity torque over
-    # stiffness (hand calculation from the model's masses: over 4 deg)
-    sag = math.degrees(-holding_torques(HOME_ZERO)["shoulder_lift"] / 5.90)
+    # stiffness (hand calculation from the model's masses over the 12 V C018's linearised
+    # stiffness, 2.94 N m / 12 V x 12 V x 0.004 x 651.9 = 7.67 N m/rad: about 4 deg)
+    sag = math.degrees(-holding_torques(HOME_ZERO)["shoulder_lift"] / 7.67)
     home = float(re.search(r"back home: shoulder_lift ([-\d.]+) deg", done.stdout).group(1))
-    assert sag > 4.0 and abs(home) <= 1.0
+    assert sag > 3.5 and abs(home) <= 1.0
 
 
 @pytest.fixture

@@ -36,9 +36,11 @@ from so101_mujoco_utils import (
 # What "reached" means, from the task and the model, not from the script's constants: an
 # ideal servo (kp ~ 1000 N m/rad) holds the arm within a fraction of a millimetre (0.1-0.25
 # mm measured), so 2 mm and 1 deg catch a wrong IK branch, a wrong offset or a wrong yaw.
-# The STS3215 at P = 16 (the default) rests anywhere in its friction band, +-0.5 deg a joint
-# (BAM's Coulomb 0.052 N m over 5.9 N m/rad at 5 V) less what the feed-forward takes out:
-# up to 5.3 mm and 1.4 deg at the object frame over 50 random targets (2026-12-02).
+# The STS3215 at P = 16 rests anywhere in its friction band, +-0.5 deg a joint on the kit's
+# 5 V (BAM's Coulomb 0.052 N m over 5.9 N m/rad), +-0.4 deg on the default C018 at 12 V
+# (over 7.7 N m/rad), less what the feed-forward takes out: up to 5.3 mm and 1.4 deg at the
+# object frame over 50 random targets on 5 V (2026-12-02); 1.6 mm and 0.06 deg at worst over
+# 20 on the default (seed 1, 2026-12-03).
 POSITION_TOL = 0.002  # [m], the ideal servo
 YAW_TOL = 1.0  # [deg], modulo 90
 SERVO_POSITION_TOL = 0.007  # [m], the STS3215

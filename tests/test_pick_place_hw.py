@@ -37,7 +37,9 @@ from so101_kinematics.hw.bus import (  # noqa: E402
 )
 from so101_kinematics.planning.motion import JointLimitError, Plan, Step  # noqa: E402
 from so101_kinematics.planning.plans import default_plan  # noqa: E402
+from so101_kinematics.sim import actuation  # noqa: E402
 from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
+from so101_kinematics.virtual.electrical import SUPPLY_V  # noqa: E402
 
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
 HOME = HOME_POSE  # the virtual arm powers up there
@@ -143,6 +145,8 @@ def _simulate_segments(segments, start_pose):
     line up; returns (times [s], configurations (N, 6)).
     """
     m = mu.load_model()
+    # the virtual arm's servos (its default supply, 5 V: C001s), not the simulator's default
+    actuation.use_servo(m, volts=SUPPLY_V)
     d = mujoco.MjData(m)
     mu.set_initial_pose(d, start_pose)
     times, poses = [], []

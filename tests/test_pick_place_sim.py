@@ -31,10 +31,11 @@ from so101_kinematics.sim import stepping
 
 REPO = Path(__file__).resolve().parent.parent
 WAYPOINTS = REPO / "waypoints"
-# The STS3215 at lerobot's P = 16 on the kit's 5 V, with the feed-forward (gravity, and
-# friction in the direction of motion), rests within a few tenths of a degree of the goal
-# (0.56 deg at worst measured on 2026-12-02: its dead zone, half its gear play and the held
-# cube's weight, which the feed-forward leaves out). 1.0 deg is under the 3-6 deg the sag
+# The STS3215 at lerobot's P = 16 (the default: C018 on 12 V), with the feed-forward
+# (gravity, and friction in the direction of motion), rests within a few tenths of a degree
+# of the goal (0.79 deg at worst measured on 2026-12-03, 0.56 on the kit's 5 V before the D
+# term's fit: its dead zone, half its gear play and the held cube's weight, which the
+# feed-forward leaves out). 1.0 deg is under the 3-6 deg the sag
 # shows without the feed-forward, and under what a misplaced waypoint would.
 WAYPOINT_TOLERANCE_DEG = 1.0
 # 5 mm in eight horizontal directions (every 45 deg), and 10 deg about z both ways.

@@ -408,8 +408,10 @@ def test_two_profiles_run_on_the_virtual_arm_compare(tmp_path):
         assert sim["peak_acceleration_deg_s2"] == pytest.approx(arm["peak_acceleration_deg_s2"],
                                                                 rel=0.25)
     linear, cubic = (report["profiles"][p][0]["arm"] for p in ("linear", "cubic"))
-    # the same move in the same time: the cubic peaks at 1.5x linear's speed (profiles.py);
-    # the servo's lag rounds both off a little, and a servo that lags errs with speed
+    # the same move in the same time: the cubic's plan peaks at 1.5x linear's speed
+    # (profiles.py); the servo filters the cubic's 0.8 s bell more than linear's plateau
+    # (measured 1.29 on the virtual arm's C001 at 5 V once the D term was fitted to real
+    # arms, docs/servo_model.md; within 0.15 of 1.5 before), and a servo that lags errs with speed
     ratio = cubic["peak_velocity_deg_s"] / linear["peak_velocity_deg_s"]
-    assert ratio == pytest.approx(1.5, abs=0.15)
+    assert 1.15 < ratio < 1.5
     assert cubic["tracking_rms_deg"] > linear["tracking_rms_deg"]

@@ -124,13 +124,16 @@ def test_assignment_8_starting_position_form_never_jumps(arm, capsys, caplog):
     move_to_pose(bus, starting_pose, target, 1.0)
     move_to_pose(bus, target, starting_pose, 1.0)
     assert "starting configuration" not in caplog.text
-    assert_near(arm.joint_positions(), starting_pose, label="back")
+    # read as the move ends: the servo still trails its goal there (the simulator on the same
+    # servo, the C001 at P = 16 on 5 V with the D term fitted to real arms (docs/servo_model.md),
+    # this 1 s minimum-jerk move: 1.1 deg at its end, 0.5 deg 0.1 s later; 0.25 before the fit)
+    assert_near(arm.joint_positions(), starting_pose, tol_deg=1.5, label="back")
     elsewhere = dict(starting_pose, shoulder_pan=starting_pose["shoulder_pan"] - 25.0)
     move_to_pose(bus, elsewhere, target, 1.0)
     assert "starting configuration is 25.0 deg from the last command (shoulder_pan" in caplog.text
     assert_near(session.segments[-1].start, starting_pose, tol_deg=1e-6, tol_gripper=1e-6,
                 label="the move began at the last goal")
-    assert_near(arm.joint_positions(), target, label="reached")
+    assert_near(arm.joint_positions(), target, tol_deg=1.5, label="reached")  # as "back"
     bus.disable_torque()
     assert last_line(capsys.readouterr().out) == "Done: back at the starting pose, torque off."
     bus.disconnect(disable_torque=False)
@@ -161,8 +164,10 @@ def test_disable_torque_away_from_the_start_returns_there_first(arm, capsys, cap
     bus = setup_motors(load_calibration(str(CALIBRATION_PATH)), arm.port)
     away = dict(HOME, shoulder_lift=-40.0, elbow_flex=40.0)  # released here, the arm would fall
     move_to_pose(bus, away, 1.0)
-    # at the end of a 1 s move the STS3215 at P = 16 still trails by up to a degree or two
-    assert_near(arm.joint_positions(), away, tol_deg=2.0, label="away")
+    # at the end of a 1 s move the STS3215 at P = 16 still trails by a few degrees (the
+    # simulator on the same servo, C001 5 V, D fitted to real arms: shoulder_lift 2.4 deg at
+    # the end of this 1 s minimum-jerk move, 1.2 deg 0.1 s later; 0.8 before the fit)
+    assert_near(arm.joint_positions(), away, tol_deg=3.0, label="away")
     bus.disable_torque()
     assert not any(arm.torque_enabled().values())
     assert_near(arm.commanded_positions(), HOME_GOAL, tol_deg=2.0, label="last goal before release")

@@ -29,6 +29,7 @@ from so101_kinematics.gravity import feedforward
 from so101_kinematics.paths import REPO
 from so101_kinematics.planning.motion import JointLimitError
 from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+from so101_kinematics.virtual.electrical import SUPPLY_V
 
 TICK_DEG = 360.0 / 4095.0  # one encoder tick [deg]
 GRIPPER_TICK = 100.0 / 1251.0  # one gripper tick in [0, 100] units (shipped calibration)
@@ -354,7 +355,7 @@ def test_commanded_pose_is_reached_and_matches_the_simulator(bus, fresh_arm, mod
     from so101_kinematics.sim import actuation
 
     sim = smu.load_model()
-    actuation.use_servo(sim, p=32, feedforward=False)
+    actuation.use_servo(sim, volts=SUPPLY_V, p=32, feedforward=False)  # the virtual arm's 5 V
     d = mujoco.MjData(sim)
     smu.set_initial_pose(d, HOME)
     smu.send_position_command(d, POSE)
@@ -527,9 +528,12 @@ def test_stalled_joint_misses_its_goal_with_rising_load_and_overload(bus, fresh_
     assert present["elbow_flex"] == pytest.approx(90.0, abs=0.5)  # blocked, off its goal
     p = fresh_arm.registers("wrist_flex")["P_Coefficient"]  # 32, or lerobot's 16 if it wrote it
     # the others still move: to the goal less the sag, within the friction band on the
-    # approach side (0.5 deg at P = 16 on 5 V) and what is left to settle after 0.75 s
+    # approach side (0.5 deg at P = 16 on 5 V) and what is left to settle after 0.75 s: the
+    # D term fitted to real arms (docs/servo_model.md) brakes the approach, so more is left
+    # (measured here: 1.58 deg short, where the old D left less than 1.5; the simulator
+    # without the stalled elbow: 0.56 deg at 0.75 s, 0.34 at 3 s)
     assert present["wrist_flex"] == pytest.approx(
-        resting(HOME | {"wrist_flex": 10.0}, p=p)["wrist_flex"], abs=1.5)
+        resting(HOME | {"wrist_flex": 10.0}, p=p)["wrist_flex"], abs=2.0)
     with pytest.raises(RuntimeError, match="Overload error"):
         bus.read("Present_Position", "elbow_flex")
     fresh_arm.clear_faults()

@@ -13,6 +13,7 @@ same simulation without the table: 6.8 and 3.0 deg).
 from __future__ import annotations
 
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
+from so101_kinematics.servo import KIT_SUPPLY_V
 from so101_kinematics.sim.table_contact import table_force_n
 
 SETTLE_S = 1.5  # [s] held before the reading; the sag above settles within 0.5 s
@@ -54,7 +55,7 @@ def describe_servo(result, servo: dict | None, roles) -> None:
         result.servo = "not recorded (a log from before the servo model): replayed as STS3215 " \
                        "at lerobot's P = 16 on 5 V, without the feed-forward"
         servo = {}
-    volts, p = float(servo.get("supply_v", 5.0)), int(servo.get("p", 16))
+    volts, p = float(servo.get("supply_v", KIT_SUPPLY_V)), int(servo.get("p", 16))
     if not result.servo:
         with_ff = "with" if servo.get("gravity_ff") else "without"
         result.servo = f"STS3215 at P = {p} on {volts:.1f} V, {with_ff} the gravity feed-forward"

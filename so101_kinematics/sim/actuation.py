@@ -46,8 +46,9 @@ DEFAULT_FEEDFORWARD = True
 """Goals are offset by the gravity feed-forward unless asked otherwise (``--no-gravity-ff``):
 the real-arm path does the same by default, so the simulated arm is the arm you get."""
 
-DEFAULT_VOLTS = servo.KIT_SUPPLY_V
-"""The simulator's supply by default [V]: the kit's 5 V (``servo.KIT_SUPPLY_V``)."""
+DEFAULT_VOLTS = servo.DEFAULT_SUPPLY_V
+"""The simulator's supply by default [V]: the course's 12 V follower (``servo.DEFAULT_SUPPLY_V``),
+with its C018 servos."""
 
 
 @dataclass(frozen=True)
@@ -118,6 +119,9 @@ def use_servo(m: mujoco.MjModel, mode: str = "sts3215", volts: float = DEFAULT_V
     if variant not in servo.VARIANTS:
         raise PlanError(f"servo variant {variant!r} is not one of "
                         f"{', '.join(servo.VARIANTS)}. Fix: use C001 (7.4 V) or C018 (12 V).")
+    problem = servo.supply_problem(variant, float(volts))
+    if problem:
+        raise PlanError(problem)
     if p is not None and not 1 <= int(p) <= 255:
         raise PlanError(f"P coefficient {p} is outside [1, 255]. Fix: lerobot uses 16.")
     if not 0 <= int(i) <= 255:

@@ -9,8 +9,9 @@ Each physics step, for each servo (numbers and sources in ``so101_kinematics/ser
    the signed wheel speed instead.
 2. **Loop**: the error (target - encoder, in whole counts) gives the duty by the
    [TEL] law: 0 inside the dead zone, else Minimum_Startup_Force + P/4 per count;
-   plus D x (the error's change over one firmware period) / 4 and I x (the error
-   integrated over 1 / I_RATE s) / 4 (scales: stated assumptions); capped by
+   plus D x (the error's rate times ``servo.D_SCALE_S``) / 4, the error taken unrounded
+   (fitted to real arms' recordings, ``lab/replay.py``), and I x (the error integrated
+   over 1 / I_RATE s) / 4 (a stated assumption); capped by
    Torque_Limit and 97 %. That duty is Present_Load. In PWM mode (Operating_Mode 2)
    the duty is the one written.
 3. **Motor**: torque = (kt/R) V x duty, where the push is computed on the error less
@@ -61,7 +62,8 @@ class ServoBank:
         self.target: list[float] | None = None  # [counts] the profile's, set on the first step
         self.target_speed = [0.0] * n  # [counts/s]
         self.integral = [0.0] * n  # [counts s]
-        self.last_error = [0.0] * n  # [counts]
+        self.last_error = [0.0] * n  # [counts] whole
+        self.last_exact = [None] * n  # [counts] the unrounded error, for the D term
         self.duty = [0.0] * n  # [0.1 %] the last step's, signed: Present_Load
         self._derive()
 
@@ -73,7 +75,8 @@ class ServoBank:
 
     def _derive(self) -> None:
         """The per-servo constants of the hot loop, from the registers (and a fresh cache)."""
-        self._push = [0.0] * self.n  # [0.1 %] the last push, reused while the error stands
+        self._push = [0.0] * self.n  # [0.1 %] the last push before D, reused while the error stands
+        self._p_duty = [0.0] * self.n  # [0.1 %] the same for the duty (Present_Load)
         self._cached_on = [None] * self.n  # the torque state it was computed for (None: none)
         self._fixed = list(zip(
             [v or servo.TARGET_RATE_MAX for v in self.goal_velocity],  # [counts/s]
@@ -89,6 +92,7 @@ class ServoBank:
             self.target_speed[index] = 0.0
             self.integral[index] = 0.0
             self.last_error[index] = 0.0
+            self.last_exact[index] = None
             self._cached_on[index] = None
     def stiffness(self) -> list[float]:
         """Each servo's linearised stiffness [N m/rad] at its P and this bank's supply."""
@@ -107,8 +111,9 @@ class ServoBank:
         if self.target is None:
             self.target = [float(round(x * cpr)) for x in q]
         newtons = self.variant.torque_per_volt * self.volts / 1000.0  # [N m per 0.1 %]
-        half_play, period = self.backlash_half, servo.LOOP_PERIOD_S / dt
+        half_play, rate = self.backlash_half, servo.D_SCALE_S / dt
         targets, speeds, last, duties = self.target, self.target_speed, self.last_error, self.duty
+        exact_last, p_duties = self.last_exact, self._p_duty
         pushes, cached = self._push, self._cached_on
         modes, on, i_gain = self.mode, self.torque_on, self.i
         sqrt, copysign = math.sqrt, math.copysign
@@ -134,10 +139,30 @@ class ServoBank:
                 else:
                     target += step
                 targets[k], speeds[k] = target, speed
-            error = round(target) - round(q[k] * cpr)
+            counts = q[k] * cpr
+            exact = target - counts  # unrounded, for the D term
+            before = exact_last[k]
+            exact_last[k] = exact
+            error = round(target) - round(counts)
             if error == last[k] and cached[k] == on[k] and mode == 0 and not i_gain[k]:
-                out.append(newtons * pushes[k])  # the same error: the same duty, no D term
+                # the same error: the same P duty, plus the D term on the error's rate
+                if before is None or not on[k]:
+                    out.append(newtons * pushes[k])
+                    continue
+                damp = d4 * (exact - before) * rate
+                push, duty = pushes[k] + damp, p_duties[k] + damp
+                if push > cap:
+                    push = cap
+                elif push < -cap:
+                    push = -cap
+                if duty > cap:
+                    duty = cap
+                elif duty < -cap:
+                    duty = -cap
+                duties[k] = duty
+                out.append(newtons * push)
                 continue
+            damp = 0.0 if before is None or not on[k] else d4 * (exact - before) * rate
             size = error if error >= 0 else -error
             if size > zone:
                 duty = startup + p4 * (size - zone)
@@ -147,19 +172,23 @@ class ServoBank:
                     duty, push = -duty, -push
             else:
                 duty = push = 0.0
-            extra = d4 * (error - last[k]) * period
+            extra = 0.0
             last[k] = error
             if i_gain[k]:
                 limit = servo.DUTY_MAX * 4.0 / (i_gain[k] * servo.I_RATE)
                 self.integral[k] = max(-limit, min(limit, self.integral[k] + error * dt))
                 extra += i_gain[k] / 4.0 * self.integral[k] * servo.I_RATE
             if mode == 2:  # PWM: the duty written, open loop
-                duty = push = self.pwm[k] - extra
+                duty, push, extra, damp = self.pwm[k], self.pwm[k], 0.0, 0.0
             if not on[k]:
                 duty = push = 0.0
             else:
                 duty += extra
                 push += extra
+            p_duties[k], pushes[k] = duty, push  # before the D term (reused above)
+            if damp:
+                duty += damp
+                push += damp
                 if duty > cap:
                     duty = cap
                 elif duty < -cap:
@@ -168,7 +197,7 @@ class ServoBank:
                     push = cap
                 elif push < -cap:
                     push = -cap
-            duties[k], pushes[k], cached[k] = duty, push, on[k]
+            duties[k], cached[k] = duty, on[k]
             out.append(newtons * push)
         return out
 

@@ -1,0 +1,319 @@
+"""Real SO-101 recordings replayed through the servo model: does the model track as the arms do?
+
+Two public lerobot recordings of a follower teleoperated from a leader
+(``tests/data/fidelity/``, provenance in its ``SOURCES.md``) hold, frame by frame at
+30 fps, the goal lerobot wrote (``action``) and the position it read (``state``), in
+degrees from the calibrated mid-range. Each episode is replayed here as lerobot's record
+loop ran it: the simulated arm starts at rest at the episode's first reading; at frame k
+its position is read (rounded to whole encoder counts, as the servo reports it), then
+the frame's goal is written and the physics runs one frame. Contacts are off (the
+recordings' tables and objects are unknown) and the gravity feed-forward too (lerobot
+writes the goal as it is), so the figures are the servo's and the arm's inertia.
+
+Figures, the same for the recording and the replay (:func:`figures`):
+
+- tracking: RMS(goal - state) per arm joint and over the five [deg];
+- delay: the shift [frames] of the goal that best matches the state (least RMS);
+- the step (``record_test`` episode 0: the leader's pose held 1.2 s while the follower
+  starts 12-42 deg away on four joints): per joint moved, time to 90 % [ms], overshoot
+  beyond the goal [deg], and the error left at 1.2 s [deg] (positive: short of the goal).
+
+Usage::
+
+    python -m so101_kinematics.lab.replay [--quick] [--servo SUPPLY:VARIANT ...]
+
+prints both recordings beside the model on the project's default servo and the
+alternatives (C001 on 5 V and 7.4 V, C018 on 12 V).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from so101_kinematics import servo
+from so101_kinematics.frames import ARM_JOINTS, JOINT_LIMITS, JOINTS
+from so101_kinematics.paths import REPO
+from so101_kinematics.sim import actuation
+from so101_kinematics.sim.scene import load_model, set_initial_pose, to_radians
+
+DATA_DIR = REPO / "tests" / "data" / "fidelity"
+"""The recordings (``.npz``) and their provenance (``SOURCES.md``)."""
+
+RECORDINGS = ("record_test", "pick_place_tape")
+
+STEP_FRAMES = 36
+"""record_test episode 0 holds the leader's pose for its first 1.2 s (36 frames at 30 fps)."""
+
+STEP_MIN_DEG = 5.0
+"""A joint counts as stepped when its goal is at least this far from its start [deg]."""
+
+MAX_DELAY = 10
+"""Largest delay searched [frames]."""
+
+SERVOS = (("default", None, None), ("C001 5 V", 5.0, "C001"), ("C001 7.4 V", 7.4, "C001"),
+          ("C001-datasheet 5 V", 5.0, "C001-datasheet"), ("C018 12 V", 12.0, "C018"))
+"""(label, supply [V], variant) replayed by default; None: the project's default."""
+
+ARM = len(ARM_JOINTS)
+
+
+@dataclass(frozen=True)
+class Recording:
+    """One recording: goals and readings [deg] (gripper [0, 100]) per frame, episode index."""
+
+    name: str
+    action: np.ndarray  # (N, 6)
+    state: np.ndarray  # (N, 6)
+    episode: np.ndarray  # (N,)
+    fps: float
+
+    def episodes(self, chosen=None) -> list[np.ndarray]:
+        """The frame indices of each episode (``chosen``: those episode numbers only)."""
+        numbers = np.unique(self.episode) if chosen is None else chosen
+        return [np.flatnonzero(self.episode == e) for e in numbers]
+
+
+def load(name: str, directory: Path = DATA_DIR) -> Recording:
+    """A recording by name (``RECORDINGS``)."""
+    data = np.load(directory / f"{name}.npz")
+    return Recording(name, data["action"].astype(float), data["state"].astype(float),
+                     data["episode"].astype(int), float(data["fps"]))
+
+
+def _clamped(row) -> dict[str, float]:
+    """A frame's values as a configuration, inside the model's limits."""
+    return {j: min(max(float(v), JOINT_LIMITS[j][0]), JOINT_LIMITS[j][1])
+            for j, v in zip(JOINTS, row, strict=True)}
+
+
+def replay(recording: Recording, volts: float | None = None, variant: str | None = None,
+           episodes=None) -> Recording:
+    """The recording's goals replayed in the simulator: the same frames, simulated readings.
+
+    Args:
+        recording: the recording.
+        volts: the supply [V] (None: the project's default servo).
+        variant: a key of ``servo.VARIANTS`` (None: what ``volts`` implies).
+        episodes: the episode numbers to replay (None: all).
+    """
+    m = load_model()
+    m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    options = {"feedforward": False}
+    if volts is not None:
+        options |= {"volts": volts, "variant": variant}
+    actuation.use_servo(m, **options)
+    d = mujoco.MjData(m)
+    steps = round(1.0 / recording.fps / m.opt.timestep)
+    qadr = [int(m.joint(j).qposadr[0]) for j in JOINTS]
+    acts = [int(m.actuator(j).id) for j in JOINTS]
+    count = 2 * math.pi / 4096
+    frames = np.concatenate(recording.episodes(episodes))
+    state = np.zeros((len(frames), len(JOINTS)))
+    row = 0
+    for indices in recording.episodes(episodes):
+        mujoco.mj_resetData(m, d)
+        set_initial_pose(d, _clamped(recording.state[indices[0]]))
+        for k in indices:
+            angles = np.round(d.qpos[qadr] / count) * count
+            state[row] = [math.degrees(a) for a in angles]
+            goal = to_radians(m, _clamped(recording.action[k]))
+            d.ctrl[acts] = [goal[j] for j in JOINTS]
+            actuation.step(m, d, steps)
+            row += 1
+    lower, upper = m.jnt_range[m.joint("gripper").id]
+    state[:, -1] = (np.radians(state[:, -1]) - lower) / (upper - lower) * 100.0
+    return Recording(recording.name, recording.action[frames], state,
+                     recording.episode[frames], recording.fps)
+
+
+VIRTUAL_FRAMES = (0, 300)
+"""record_test episode 0's frames replayed through the virtual arm (10 s in real time)."""
+
+VIRTUAL_BASE_HEIGHT = 0.035
+"""The virtual arm's base above its table [m]: the recorded poses lie up to 32 mm inside the
+modelled table (docs/servo_model.md), and the replay is of the servo, not of contacts."""
+
+
+def replay_virtual(recording: Recording, frames, volts: float | None = None,
+                   variant: str | None = None) -> Recording:
+    """The recording's goals replayed in real time through the virtual arm and lerobot's bus.
+
+    The loop is lerobot's record loop: read Present_Position, write Goal_Position, wait for
+    the next frame (30 fps), on the follower's registers (``hw.bus.configure``).
+
+    Args:
+        recording: the recording.
+        frames: the frame indices to replay (consecutive, one episode).
+        volts: the virtual arm's supply [V] (None: the project's default).
+        variant: a key of ``servo.VARIANTS`` (None: what ``volts`` implies).
+    """
+    import time
+
+    from so101_kinematics.calibration import load_calibration
+    from so101_kinematics.hw.bus import configure, connect, disconnect, enable_torque_in_place
+    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+
+    volts = servo.DEFAULT_SUPPLY_V if volts is None else volts
+    frames = np.asarray(frames)
+    state = np.zeros((len(frames), len(JOINTS)))
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, supply=volts, variant=variant,
+                      initial=_clamped(recording.state[frames[0]]),
+                      base_height=VIRTUAL_BASE_HEIGHT) as arm:
+        bus = connect(arm.port, load_calibration(DEFAULT_CALIBRATION_PATH))
+        try:
+            configure(bus)
+            enable_torque_in_place(bus)
+            start = time.perf_counter()
+            for row, k in enumerate(frames):
+                read = bus.sync_read("Present_Position")
+                state[row] = [read[j] for j in JOINTS]
+                bus.sync_write("Goal_Position", _clamped(recording.action[k]))
+                time.sleep(max(0.0, start + (row + 1) / recording.fps - time.perf_counter()))
+        finally:
+            disconnect(bus)
+    return Recording(recording.name, recording.action[frames], state, recording.episode[frames],
+                     recording.fps)
+
+
+def _delay(recording: Recording, joints=slice(0, ARM)) -> int:
+    """The goal's shift [frames] that best matches the readings (least RMS, all episodes)."""
+    best, chosen = math.inf, 0
+    for shift in range(MAX_DELAY + 1):
+        errors = [recording.action[i[:len(i) - shift], joints] - recording.state[i[shift:], joints]
+                  for i in recording.episodes()]
+        value = float(np.sqrt(np.mean(np.concatenate(errors) ** 2)))
+        if value < best:
+            best, chosen = value, shift
+    return chosen
+
+
+def delay_ms(recording: Recording, joint: int) -> float:
+    """One joint's delay [ms], to a tenth of a frame (the shoulder's ~20 ms is below one).
+
+    The shift of the goal (linearly interpolated) that best matches the readings, over all
+    episodes.
+    """
+    best, chosen = math.inf, 0.0
+    for shift in np.arange(0.0, MAX_DELAY + 0.01, 0.1):
+        errors = []
+        for frames in recording.episodes():
+            t = np.arange(len(frames))
+            goal = np.interp(t - shift, t, recording.action[frames, joint])
+            first = math.ceil(shift)
+            errors.append(goal[first:] - recording.state[frames, joint][first:])
+        value = float(np.sqrt(np.mean(np.concatenate(errors) ** 2)))
+        if value < best:
+            best, chosen = value, float(shift)
+    return chosen * 1000.0 / recording.fps
+
+
+def step_figures(recording: Recording) -> dict[str, tuple[float, float, float]]:
+    """The step of episode 0: per joint moved, (time to 90 % [ms], overshoot, error left [deg])."""
+    frames = recording.episodes([0])[0][:STEP_FRAMES + 1]
+    out = {}
+    for j, joint in enumerate(ARM_JOINTS):
+        start, goal = recording.state[frames[0], j], recording.action[frames[0], j]
+        if abs(goal - start) < STEP_MIN_DEG:
+            continue
+        sign = math.copysign(1.0, goal - start)
+        progress = (recording.state[frames, j] - start) / (goal - start)
+        crossed = np.flatnonzero(progress >= 0.9)
+        if len(crossed) and crossed[0] > 0:
+            k = crossed[0]
+            fraction = (0.9 - progress[k - 1]) / (progress[k] - progress[k - 1])
+            t90 = (k - 1 + fraction) / recording.fps * 1000.0
+        else:
+            t90 = math.nan
+        overshoot = max(0.0, float(np.max(sign * (recording.state[frames, j] - goal))))
+        left = float(sign * (goal - recording.state[frames[-1], j]))
+        out[joint] = (t90, overshoot, left)
+    return out
+
+
+def figures(recording: Recording) -> dict:
+    """Tracking RMS per joint and over the arm [deg], delay [frames], and the step if any."""
+    error = recording.action[:, :ARM] - recording.state[:, :ARM]
+    out = {"rms": dict(zip(ARM_JOINTS, np.sqrt(np.mean(error ** 2, axis=0)).tolist(),
+                           strict=True)),
+           "rms_arm": float(np.sqrt(np.mean(error ** 2))),
+           "delay": _delay(recording),
+           "delay_joint": {joint: _delay(recording, slice(j, j + 1))
+                           for j, joint in enumerate(ARM_JOINTS)},
+           "delay_ms": {joint: delay_ms(recording, j) for j, joint in enumerate(ARM_JOINTS)}}
+    if recording.name == "record_test" and 0 in set(recording.episode.tolist()):
+        out["step"] = step_figures(recording)
+    return out
+
+
+def _row(label: str, result: dict, real: dict | None) -> list[str]:
+    ratio = f" (x{result['rms_arm'] / real['rms_arm']:.2f})" if real else ""
+    lines = [f"  {label:22s} RMS arm {result['rms_arm']:5.2f} deg{ratio}   delay "
+             f"{result['delay']} frames (per joint "
+             + " ".join(str(v) for v in result["delay_joint"].values()) + "; ms "
+             + " ".join(f"{v:.0f}" for v in result["delay_ms"].values()) + ")",
+             "  " + " " * 22 + " RMS per joint "
+             + " ".join(f"{v:5.2f}" for v in result["rms"].values())]
+    for joint, (t90, over, left) in result.get("step", {}).items():
+        lines.append(f"  {'':22s} step {joint:13s} t90 {t90:5.0f} ms  overshoot {over:4.2f} deg  "
+                     f"left at 1.2 s {left:+5.2f} deg")
+    return lines
+
+
+def report(names=RECORDINGS, servos=SERVOS, episodes=None) -> str:
+    """The table: each recording's own figures, then the model's on each servo."""
+    lines = []
+    for name in names:
+        recording = load(name)
+        chosen = episodes if name != "record_test" else None
+        if chosen is not None:
+            frames = np.concatenate(recording.episodes(chosen))
+            recording = Recording(name, recording.action[frames], recording.state[frames],
+                                  recording.episode[frames], recording.fps)
+        real = figures(recording)
+        lines.append(f"{name}: {len(np.unique(recording.episode))} episodes, "
+                     f"{len(recording.episode)} frames (joints: {' '.join(ARM_JOINTS)})")
+        lines += _row("recording", real, None)
+        for label, volts, variant in servos:
+            if volts is None:
+                spec = actuation.use_servo(load_model())
+                label = f"default ({spec.variant} {spec.volts:g} V)"
+            lines += _row(label, figures(replay(recording, volts, variant)), real)
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    """``python -m so101_kinematics.lab.replay``: print the table."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser.add_argument("--quick", action="store_true",
+                        help="pick_place_tape's first 10 episodes only (record_test whole)")
+    parser.add_argument("--virtual", action="store_true",
+                        help="also replay record_test episode 0's first 10 s through the "
+                        "virtual arm and lerobot's bus (real time; needs the hw extra)")
+    args = parser.parse_args(argv)
+    print(f"Servo model: lerobot's P {servo.LEROBOT.p} / I {servo.LEROBOT.i} / "
+          f"D {servo.LEROBOT.d}, contacts off, no feed-forward.")
+    print(report(episodes=range(10) if args.quick else None))
+    if args.virtual:
+        recording = load("record_test")
+        frames = recording.episodes([0])[0][slice(*VIRTUAL_FRAMES)]
+        part = Recording(recording.name, recording.action[frames], recording.state[frames],
+                         recording.episode[frames], recording.fps)
+        print(f"record_test episode 0, frames {VIRTUAL_FRAMES[0]}-{VIRTUAL_FRAMES[1]}: the "
+              f"simulator and the virtual arm through lerobot's bus (its base "
+              f"{VIRTUAL_BASE_HEIGHT * 1000:g} mm above its table, contacts on)")
+        lines = _row("recording", figures(part), None)
+        lines += _row("simulator", figures(replay(part)), figures(part))
+        lines += _row("virtual arm (bus)", figures(replay_virtual(recording, frames)),
+                      figures(part))
+        print("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
