@@ -44,7 +44,8 @@ def mp4_params(program: str) -> list[str]:
     return ["-metadata", f"comment={GENERATOR} {program}"]
 
 
-def _head(path: Path, size: int) -> bytes:
+def head_bytes(path: Path, size: int) -> bytes:
+    """The first ``size`` bytes of ``path`` (empty when it cannot be read)."""
     try:
         with path.open("rb") as handle:
             return handle.read(size)
@@ -110,7 +111,7 @@ def mp4_ours(path: Path) -> bool:
 
 def pdf_ours(path: Path) -> bool:
     """A PDF whose Info dictionary (near its end) names us as its ``Creator``."""
-    if _head(path, 5) != b"%PDF-":
+    if head_bytes(path, 5) != b"%PDF-":
         return False
     try:
         with path.open("rb") as handle:

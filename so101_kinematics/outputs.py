@@ -35,13 +35,11 @@ from pathlib import Path
 from so101_kinematics.errors import OutputPathError as OutputPathError
 from so101_kinematics.markers import (
     GENERATOR,
+    head_bytes,
     mp4_ours,
     pdf_ours,
     png_ours,
 )
-from so101_kinematics.markers import mp4_params as mp4_params
-from so101_kinematics.markers import pdf_metadata as pdf_metadata
-from so101_kinematics.markers import png_metadata as png_metadata
 
 MAX_RECOGNISED_JSON_BYTES = 64 * 1024 * 1024  # a larger .json is not one of our reports
 
@@ -61,16 +59,8 @@ class OutputKind:
     """False: an existing file of this kind (a log of an earlier run) is refused too."""
 
 
-def _head(path: Path, size: int) -> bytes:
-    try:
-        with path.open("rb") as handle:
-            return handle.read(size)
-    except OSError:
-        return b""
-
-
 def _magic(magic: bytes, offset: int = 0) -> Callable[[Path], bool]:
-    return lambda path: _head(path, offset + len(magic))[offset:] == magic
+    return lambda path: head_bytes(path, offset + len(magic))[offset:] == magic
 
 
 def stamp(report, program: str):
@@ -127,7 +117,7 @@ def report_of(program: str) -> OutputKind:
 def csv_kind(header: Sequence[str], description: str) -> OutputKind:
     """A CSV of ours: its first line is exactly ``header`` (comma-separated)."""
     line = (",".join(header) + "\n").encode()
-    return OutputKind(description, lambda path: _head(path, len(line) + 1).replace(
+    return OutputKind(description, lambda path: head_bytes(path, len(line) + 1).replace(
         b"\r\n", b"\n")[:len(line)] == line)
 
 

@@ -17,13 +17,13 @@ from pathlib import Path
 
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.control import ArmSession, Cycle
+from so101_kinematics.markers import png_metadata
 from so101_kinematics.outputs import (
     JSON_REPORT,
     OutputKind,
     atomic_output,
     csv_kind,
     forget_temporary,
-    png_metadata,
     stamp,
     temporary_beside,
     write_text_atomic,

@@ -38,11 +38,11 @@ from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.log import sidecar_path
 from so101_kinematics.lab.log_ending import run_ending, stop_index
-from so101_kinematics.lab.sag import describe_servo
-from so101_kinematics.outputs import atomic_output, png_metadata
+from so101_kinematics.lab.sag import describe_servo, logged_supply
+from so101_kinematics.markers import png_metadata
+from so101_kinematics.outputs import atomic_output
 from so101_kinematics.planning.motion import Plan, Step
 from so101_kinematics.planning.plans import pick_and_place_steps
-from so101_kinematics.servo import KIT_SUPPLY_V
 
 SETTLE_WINDOW_S = 0.2  # the pick/place pose: mean measured pose over the step's last [s]
 MAX_SPEED_DEG_S = 3400 * 360.0 / 4096.0  # [deg/s] the STS3215's fastest (../shared/SERVO_NOTES.md)
@@ -267,8 +267,7 @@ def replay(t: np.ndarray, commands: dict[str, np.ndarray], start: dict[str, floa
 
     m = load_model()
     servo = servo or {}
-    # a log that records no supply: the kit's 5 V, as _describe_servo says (not the default)
-    actuation.use_servo(m, volts=float(servo.get("supply_v", KIT_SUPPLY_V)),
+    actuation.use_servo(m, volts=logged_supply(servo),
                         p=int(servo.get("p", 16)), feedforward=bool(servo.get("gravity_ff")))
     d = mujoco.MjData(m)
     set_initial_pose(d, start)

@@ -33,7 +33,8 @@ import numpy as np
 
 from so101_kinematics.frames import ARM_JOINTS
 from so101_kinematics.lab.compare import Comparison, compare_run, read_log
-from so101_kinematics.outputs import atomic_output, png_metadata
+from so101_kinematics.markers import png_metadata
+from so101_kinematics.outputs import atomic_output
 from so101_kinematics.planning import motion_metrics
 from so101_kinematics.planning.profiles import PROFILES
 

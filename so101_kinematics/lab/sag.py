@@ -49,13 +49,18 @@ def simulated_sag(cfg: dict[str, float], volts: float, p: int) -> tuple[dict[str
             round(table_force_n(m, d), 2))
 
 
+def logged_supply(servo: dict) -> float:
+    """The supply [V] a log's servo record names; a log that records none: the kit's 5 V."""
+    return float(servo.get("supply_v", KIT_SUPPLY_V))
+
+
 def describe_servo(result, servo: dict | None, roles) -> None:
     """``result.servo`` (the servo the log records) and the sag at the pick and the place."""
     if not isinstance(servo, dict):
         result.servo = "not recorded (a log from before the servo model): replayed as STS3215 " \
                        "at lerobot's P = 16 on 5 V, without the feed-forward"
         servo = {}
-    volts, p = float(servo.get("supply_v", KIT_SUPPLY_V)), int(servo.get("p", 16))
+    volts, p = logged_supply(servo), int(servo.get("p", 16))
     if not result.servo:
         with_ff = "with" if servo.get("gravity_ff") else "without"
         result.servo = f"STS3215 at P = {p} on {volts:.1f} V, {with_ff} the gravity feed-forward"

@@ -33,7 +33,8 @@ import numpy as np
 
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, FIXED_TRANSFORMS
-from so101_kinematics.outputs import atomic_output, pdf_metadata
+from so101_kinematics.markers import pdf_metadata
+from so101_kinematics.outputs import atomic_output
 from so101_kinematics.planning.motion import Plan
 from so101_kinematics.planning.plans import pick_and_place_steps
 

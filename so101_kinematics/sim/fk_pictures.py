@@ -26,7 +26,8 @@ from so101_kinematics.frames import (
     Rz,
     get_frame_chain,
 )
-from so101_kinematics.outputs import atomic_output, png_metadata
+from so101_kinematics.markers import png_metadata
+from so101_kinematics.outputs import atomic_output
 from so101_kinematics.paths import DOCS_DIR, REPO
 from so101_kinematics.sim.scene import (
     load_model,

@@ -75,12 +75,8 @@ class VideoRecorder:
         import imageio.v2 as imageio
         from tqdm import tqdm
 
-        from so101_kinematics.outputs import (
-            OutputPathError,
-            check_output_path,
-            mp4_params,
-            temporary_beside,
-        )
+        from so101_kinematics.markers import mp4_params
+        from so101_kinematics.outputs import OutputPathError, check_output_path, temporary_beside
 
         path = Path(path)
         if path.suffix.lower() != ".mp4":
