@@ -186,17 +186,17 @@ class ServoBank:
                 duty += extra
                 push += extra
             p_duties[k], pushes[k] = duty, push  # before the D term (reused above)
-            if damp:
-                duty += damp
-                push += damp
-                if duty > cap:
-                    duty = cap
-                elif duty < -cap:
-                    duty = -cap
-                if push > cap:
-                    push = cap
-                elif push < -cap:
-                    push = -cap
+            duty += damp
+            push += damp
+            # the firmware's cap on every duty: P, I and D, and a PWM write alike
+            if duty > cap:
+                duty = cap
+            elif duty < -cap:
+                duty = -cap
+            if push > cap:
+                push = cap
+            elif push < -cap:
+                push = -cap
             duties[k], cached[k] = duty, on[k]
             out.append(newtons * push)
         return out
