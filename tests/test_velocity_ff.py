@@ -140,7 +140,9 @@ def runs():
     pytest.importorskip("lerobot")
     from so101_kinematics.lab.tracking_hw import measure
 
-    return {mode: measure(mode, short_cubic_plan()) for mode in ("plain", "lead")}
+    # HAND_LAG_S is the kit's 5 V C001's (by hand, above): its arm, pinned
+    return {mode: measure(mode, short_cubic_plan(), supply=servo.KIT_SUPPLY_V)
+            for mode in ("plain", "lead")}
 
 
 @pytest.mark.hw
@@ -215,7 +217,8 @@ def test_pick_place_hw_velocity_ff_logs_its_lead(tmp_path, capsys):
                                            "duration": 1.0, "hold": 0.2}],
                                 "return_duration": 1.0}))
     log = tmp_path / "run.csv"
-    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as arm:
+    # HAND_LAG_S is the kit's 5 V C001's (by hand, above): its arm, pinned
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, supply=servo.KIT_SUPPLY_V) as arm:
         status = cli.main(["--port", arm.port, "--calibration", str(DEFAULT_CALIBRATION_PATH),
                            "--plan", str(plan), "--profile", "cubic", "--velocity-ff", "--yes",
                            "--log", str(log)])
