@@ -95,7 +95,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="a stable symlink to the pty (e.g. /tmp/ttySO101), removed on exit")
     parser.add_argument("--supply", type=float, default=SUPPLY_V,
                         help="the servos' supply voltage [V], 0..25 (default %(default)g: the "
-                        "kit's); Present_Voltage reports it, the servos' torque follows it")
+                        "course's follower, 12 V C018 servos; --supply 5 for the kit's 5 V "
+                        "C001s); Present_Voltage reports it, the servos' torque follows it")
     parser.add_argument("--variant", choices=sorted(VARIANTS), default=None,
                         help="STS3215 variant (default: C018 above 9 V, else C001)")
     parser.add_argument("--viewer", action="store_true", help="show the arm (needs a display)")

@@ -518,6 +518,16 @@ MUTANTS: list[Mutant] = [
       "so101_kinematics/cli.py", "servo_from_arguments", 'if args.servo == "ideal" and given:',
       "if False:",
       "tests/test_servo_options.py::test_the_ideal_servo_refuses_the_options_it_would_ignore"),
+    m("virtual_arm_kit_default", "the virtual arm powers up on the kit's 5 V, not as the "
+      "course's 12 V C018 follower", "so101_kinematics/virtual/electrical.py", None,
+      "SUPPLY_V = DEFAULT_SUPPLY_V\n", "SUPPLY_V = 5.0\n",
+      "tests/test_virtual_feetech_sdk.py::"
+      "test_the_default_virtual_arm_is_the_courses_12_v_c018_follower"),
+    m("unread_supply_kit", "with no Present_Voltage read the feed-forward guesses the kit's 5 V",
+      "so101_kinematics/hw/feedforward.py", "read_feedforward",
+      "if volts else servo.DEFAULT_SUPPLY_V", "if volts else servo.KIT_SUPPLY_V",
+      "tests/test_velocity_ff.py::"
+      "test_nothing_read_the_feedforward_and_lead_assume_the_courses_12_v_c018"),
 ]
 
 

@@ -23,11 +23,16 @@ import pytest
 
 from so101_kinematics.gravity import feedforward
 from so101_kinematics.paths import REPO
-from so101_kinematics.servo import LEROBOT
+from so101_kinematics.servo import KIT_SUPPLY_V, LEROBOT
 
 pytestmark = [pytest.mark.hw, pytest.mark.slow, pytest.mark.newest_lerobot]
 BIN = Path(sys.executable).parent
 SHIPPED = json.loads((REPO / "calibration" / "virtual_so101.json").read_text())
+
+
+KIT_FOLLOWER = ("--supply", f"{KIT_SUPPLY_V:g}")
+"""The kit's 5 V C001 follower: the sag and lag the teleoperation tests allow are its figures
+(the virtual arm's default is the course's 12 V C018 follower)."""
 
 
 class ShellArm:
@@ -181,7 +186,7 @@ def test_teleoperate_the_follower_follows_the_shell_moved_leader(env):
     """lerobot-teleoperate at 60 fps: a hand moves the leader, the follower ends where it is."""
     install_calibration(env, "robots/so_follower", "vf")
     install_calibration(env, "teleoperators/so_leader", "vl")
-    follower, leader = ShellArm(), ShellArm("--leader")
+    follower, leader = ShellArm(*KIT_FOLLOWER), ShellArm("--leader")
     try:
         teleop = tool("lerobot-teleoperate", *teleop_args(follower, leader), "--fps=60",
                       "--display_data=false", env=env)
@@ -198,7 +203,7 @@ def test_teleoperate_the_follower_follows_the_shell_moved_leader(env):
     assert abs(follow["shoulder_pan"] - before["shoulder_pan"]) > 20.0  # it really moved
     # lerobot alone has no feed-forward: the follower's STS3215s at P = 16 (5 V) rest below
     # the leader by the sag gravity causes there (the model's masses over the servo's law)
-    sag = feedforward(lead, LEROBOT, 5.0)
+    sag = feedforward(lead, LEROBOT, KIT_SUPPLY_V)
     for joint in ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll"):
         assert abs(lead[joint] - follow[joint]) < abs(sag[joint]) + 1.0, (
             joint, lead[joint], follow[joint], sag[joint])
@@ -209,7 +214,7 @@ def test_record_a_short_episode_between_shell_started_arms(env, tmp_path):
     pytest.importorskip("datasets", reason="lerobot-record needs lerobot[dataset] here")
     install_calibration(env, "robots/so_follower", "vf")
     install_calibration(env, "teleoperators/so_leader", "vl")
-    follower, leader = ShellArm(), ShellArm("--leader")
+    follower, leader = ShellArm(*KIT_FOLLOWER), ShellArm("--leader")
     root = tmp_path / "dataset"
     try:
         record = tool("lerobot-record", *teleop_args(follower, leader),

@@ -145,7 +145,7 @@ def _simulate_segments(segments, start_pose):
     line up; returns (times [s], configurations (N, 6)).
     """
     m = mu.load_model()
-    # the virtual arm's servos (its default supply, 5 V: C001s), not the simulator's default
+    # the virtual arm's servos at its default supply (electrical.SUPPLY_V: the course's 12 V C018s)
     actuation.use_servo(m, volts=SUPPLY_V)
     d = mujoco.MjData(m)
     mu.set_initial_pose(d, start_pose)

@@ -21,6 +21,7 @@ from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.log import HEADER, sidecar_path
 from so101_kinematics.lab.profile_compare import DEFAULT_PROFILE, compare_profiles
 from so101_kinematics.planning import motion_metrics
+from so101_kinematics.servo import KIT_SUPPLY_V
 
 RATE_HZ = 100.0  # [Hz] pick_place_hw.py's default loop rate
 COUNT_DEG = 360.0 / 4096.0  # [deg] one encoder count (../shared/SERVO_NOTES.md)
@@ -386,7 +387,8 @@ def test_two_profiles_run_on_the_virtual_arm_compare(tmp_path):
     plan_path = tmp_path / "swing.json"
     plan_path.write_text(json.dumps(plan))
     logs = []
-    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as arm:
+    # the ratio below was measured on the kit's 5 V C001 arm: that arm, pinned
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, supply=KIT_SUPPLY_V) as arm:
         for profile in ("linear", "cubic"):
             logs.append(tmp_path / f"{profile}.csv")
             assert pick_place_hw.main(["--port", arm.port, "--calibration",

@@ -15,6 +15,7 @@ from so101_forward_kinematics import get_forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS
 from so101_kinematics.hw.log import sidecar_path
 from so101_kinematics.planning.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION
+from so101_kinematics.servo import KIT_SUPPLY_V
 
 pytestmark = [pytest.mark.hw, pytest.mark.slow]
 OFFSET_DEG = 3.0
@@ -25,7 +26,8 @@ def logged_run(folder, *options: str):
     from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
 
     log = folder / "run.csv"
-    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as arm:
+    # the kit's 5 V C001 arm: the figures below (friction band, the report's servo) are its
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, supply=KIT_SUPPLY_V) as arm:
         assert pick_place_hw.main(["--port", arm.port, "--calibration",
                                    str(DEFAULT_CALIBRATION_PATH), "--yes", "--move-duration",
                                    "0.8", "--hold", "0.2", *options, "--log", str(log)]) == 0
@@ -205,7 +207,8 @@ def test_a_lab_days_logs_compare_though_the_arm_slumps_past_a_limit(tmp_path, ca
     from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
 
     logs = [tmp_path / f"run{k}.csv" for k in range(3)]
-    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as arm:
+    # the slumps above were measured on the kit's 5 V C001 arm: that arm, pinned
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, supply=KIT_SUPPLY_V) as arm:
         for log in logs:
             assert pick_place_hw.main(["--port", arm.port, "--calibration",
                                        str(DEFAULT_CALIBRATION_PATH), "--yes", "--move-duration",

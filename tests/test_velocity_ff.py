@@ -140,7 +140,9 @@ def runs():
     pytest.importorskip("lerobot")
     from so101_kinematics.lab.tracking_hw import measure
 
-    return {mode: measure(mode, short_cubic_plan()) for mode in ("plain", "lead")}
+    # HAND_LAG_S is the kit's 5 V C001's (by hand, above): its arm, pinned
+    return {mode: measure(mode, short_cubic_plan(), supply=servo.KIT_SUPPLY_V)
+            for mode in ("plain", "lead")}
 
 
 @pytest.mark.hw
@@ -215,7 +217,8 @@ def test_pick_place_hw_velocity_ff_logs_its_lead(tmp_path, capsys):
                                            "duration": 1.0, "hold": 0.2}],
                                 "return_duration": 1.0}))
     log = tmp_path / "run.csv"
-    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as arm:
+    # HAND_LAG_S is the kit's 5 V C001's (by hand, above): its arm, pinned
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, supply=servo.KIT_SUPPLY_V) as arm:
         status = cli.main(["--port", arm.port, "--calibration", str(DEFAULT_CALIBRATION_PATH),
                            "--plan", str(plan), "--profile", "cubic", "--velocity-ff", "--yes",
                            "--log", str(log)])
@@ -264,3 +267,23 @@ def move_cycles_of(session) -> list:
     from so101_kinematics.lab.tracking_hw import move_cycles
 
     return move_cycles(session, session.segments[-1])
+
+
+def test_nothing_read_the_feedforward_and_lead_assume_the_courses_12_v_c018(calibration):
+    """No Present_Voltage read (a fake bus answers none): the guess is the course's follower,
+    12 V with C018s (ECE4560 assignment 3; docs/servo_model.md), not the kit's 5 V. Its lag by
+    hand from the C018's datasheet (2.94 N m stall, 45 rpm no-load at 12 V) with BAM's
+    friction (0.0524 N m): damping = (2.94 x 0.97 - 0.0524) / (45 rpm) = 0.594 N m s/rad,
+    over the stiffness 2.94 N m x 16/4000 x 4096/(2 pi) = 7.67 N m/rad: 0.0775 s."""
+    from hw_fakes import FakeBus
+
+    from so101_kinematics.hw.feedforward import read_feedforward
+
+    feedforward = read_feedforward(FakeBus(calibration, dict(HOME_POSE)))
+    assert (feedforward.volts, feedforward.variant) == (12.0, "C018")
+    damping = (2.94 * 0.97 - 0.0524) / (45.0 * 2 * math.pi / 60)
+    hand = damping / (2.94 * 16 / 4000 * 4096 / (2 * math.pi))
+    lead = VelocityLead.for_feedforward(None)
+    assert all(lead.lag_s[j] == pytest.approx(hand, rel=1e-3) for j in ARM_JOINTS)
+    assert VelocityLead.for_feedforward(feedforward).lag_s["elbow_flex"] == pytest.approx(
+        hand, rel=1e-3)

@@ -20,8 +20,8 @@ import time
 import pytest
 from test_virtual_so101 import HOME
 
+from so101_kinematics.servo import KIT_SUPPLY_V
 from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
-from so101_kinematics.virtual.electrical import SUPPLY_V
 
 sdk = pytest.importorskip("scservo_sdk")
 MODEL_NUMBER = 777  # STS3215
@@ -35,7 +35,8 @@ COUNTS_PER_DEG = 4096 / 360.0  # 4096 counts a turn [memory table: 0.087 deg a c
 
 @pytest.fixture
 def arm():
-    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as virtual_arm:
+    # the figures below are the kit's 5 V C001's (by hand, module docstring): its arm, pinned
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, supply=KIT_SUPPLY_V) as virtual_arm:
         virtual_arm.set_pose(HOME)
         yield virtual_arm
 
@@ -401,7 +402,7 @@ def test_load_current_and_voltage_at_rest_live_within_a_sensors_band(client, arm
     assert min(currents) > 0
     middle = statistics.median(voltages)
     assert len(set(voltages)) > 1 and sum(abs(v - middle) <= 1 for v in voltages) >= 40
-    assert abs(middle - 10 * SUPPLY_V) <= 3  # 0.1 V units: the default supply's
+    assert abs(middle - 10 * KIT_SUPPLY_V) <= 3  # 0.1 V units: the kit's 5 V supply's
 
 
 def test_overload_drops_the_output_to_protective_torque_and_says_so(client, arm):
@@ -497,7 +498,8 @@ def ruled():
     opened = []
 
     def start(**rules):
-        arm = VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, rules=rules)
+        arm = VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, rules=rules,
+                           supply=KIT_SUPPLY_V)  # the kit's 5 V C001, as ``arm`` above
         arm.set_pose(HOME)
         port = sdk.PortHandler(arm.port)
         assert port.openPort()
@@ -562,3 +564,43 @@ def test_restart_reply_rule(ruled, rule, answered):
     assert (result == sdk.COMM_SUCCESS) == answered
     time.sleep(0.1)
     assert read1((port, handler), 3, 5) == 3  # it came back, as ID 3
+
+
+# --- the default arm: the course's follower -------------------------------------------------
+C018_STALL_MA = 2700.0  # Feetech's C018 datasheet: 2.7 A at stall on 12 V (docs/servo_model.md)
+CURRENT_UNIT_MA = 6.5  # one unit of Present_Current (memory table)
+
+
+def test_the_default_virtual_arm_is_the_courses_12_v_c018_follower():
+    """No supply given: the course's follower (ECE4560 assignment 3: "use the 12V power supply
+    with the follower arm"; its servos are 12 V C018s, docs/servo_model.md).
+
+    Present_Voltage reads the 12 V supply, about 120 (0.1 V), less the bus's sag (a unit or
+    two). The servo bank is the C018: holding the arm's weight at a steady duty, its current
+    is the duty's share of its stall current, 2.7 A at 12 V (the C018's datasheet), so
+    Present_Current / |Present_Load| = 2700 mA / 6.5 mA / 1000 = 0.415 units per 0.1 % of
+    duty. A C001 (BAM's kt/R) on 12 V would draw 12 V x 0.4528 / 1.2116 = 4.48 A at stall
+    (0.69), the C001 by its datasheet 1.97 A (0.30): neither within 12 %.
+    """
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as arm:
+        arm.set_pose(dict(HOME, shoulder_lift=-30.0, elbow_flex=0.0, wrist_flex=0.0))
+        port = sdk.PortHandler(arm.port)
+        assert port.openPort()
+        try:
+            client = (port, sdk.PacketHandler(0))
+            wait_sim(arm, 0.5)
+            voltage = statistics.median(read1(client, 2, PRESENT_VOLTAGE) for _ in range(15))
+            snapshots = []  # Present_Load .. Present_Current in one read: the same instant
+            for _ in range(40):
+                data, result, error = client[1].readTxRx(port, 2, PRESENT_LOAD, 11)
+                if result == sdk.COMM_SUCCESS and error == 0:
+                    load = signed(data[0] | data[1] << 8, 10)
+                    snapshots.append((abs(load), data[9] | data[10] << 8))
+        finally:
+            port.closePort()
+    assert abs(voltage - 120) <= 3, voltage  # 0.1 V units
+    assert len(snapshots) >= 30
+    load = statistics.median(s[0] for s in snapshots)
+    current = statistics.median(s[1] for s in snapshots)
+    assert load >= 50, load  # well above the current's one-unit flicker
+    assert current / load == pytest.approx(C018_STALL_MA / CURRENT_UNIT_MA / 1000.0, rel=0.12)

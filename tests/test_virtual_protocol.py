@@ -15,6 +15,7 @@ import pytest
 from test_virtual_so101 import HOME, RawPort, split_status
 
 import so101_kinematics.virtual.protocol as fp
+from so101_kinematics.servo import KIT_SUPPLY_V
 from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
 
 REG_WRITE, ACTION, RESET, UNKNOWN = 0x04, 0x05, 0x06, 0x07  # Feetech's instruction codes
@@ -24,7 +25,8 @@ TICK_DEG = 360.0 / 4095.0
 
 @pytest.fixture
 def arm():
-    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as virtual_arm:
+    # the figures below (the current at rest, the duty) are the kit's 5 V C001's, by hand
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, supply=KIT_SUPPLY_V) as virtual_arm:
         virtual_arm.set_pose(HOME)
         yield virtual_arm
 

@@ -40,7 +40,8 @@ def read_feedforward(bus, enabled: bool = True) -> Feedforward:
     """The arm's feed-forward from its servos' registers (offsets only when ``enabled``).
 
     A register that cannot be read is taken at lerobot's value (and the supply at the
-    kit's 5 V), with a warning: the offsets are then only as good as that guess.
+    course's follower's 12 V, ``servo.DEFAULT_SUPPLY_V``: C018s), with a warning: the
+    offsets are then only as good as that guess.
 
     Args:
         bus: a connected lerobot ``FeetechMotorsBus``.
@@ -69,10 +70,11 @@ def read_feedforward(bus, enabled: bool = True) -> Feedforward:
             dead_zone=(value("CW_Dead_Zone", 1) + value("CCW_Dead_Zone", 1)) / 2,
             torque_limit=value("Torque_Limit", default.torque_limit) or default.torque_limit)
     volts = [v / 10.0 for v in values["Present_Voltage"].values() if v > 0]
-    supply = statistics.median(volts) if volts else servo.KIT_SUPPLY_V
+    supply = statistics.median(volts) if volts else servo.DEFAULT_SUPPLY_V
     if not volts:
-        logger.warning("No Present_Voltage read: the gravity feed-forward assumes the kit's "
-                       "%g V supply.", supply)
+        logger.warning("No Present_Voltage read: the gravity feed-forward assumes the course's "
+                       "follower's %g V supply (%s servos).", supply,
+                       servo.default_variant(supply))
     feedforward = Feedforward(settings, supply, enabled=enabled)
     logger.info("%s", describe_at_pose(bus, feedforward))
     return feedforward

@@ -54,11 +54,11 @@ so the lead alone never trips the stall check."""
 
 def add_velocity_ff_argument(parser: argparse.ArgumentParser) -> None:
     """``--velocity-ff`` / ``--no-velocity-ff`` (default off) of ``pick_place_hw.py``."""
+    lag = lag_time(servo.LEROBOT, servo.DEFAULT_SUPPLY_V, servo.DEFAULT_VARIANT)
     parser.add_argument("--velocity-ff", action=argparse.BooleanOptionalAction, default=False,
                         help="lead each goal by the servos' lag (read from them: "
-                             f"{lag_time(servo.LEROBOT, servo.KIT_SUPPLY_V):.2f} s at P = 16 on "
-                             f"5 V) times the planned velocity, at most {LEAD_CAP_DEG:g} deg: "
-                             "the arm lags "
+                             f"{lag:.2f} s at P = 16 on the course's 12 V C018s) times the "
+                             f"planned velocity, at most {LEAD_CAP_DEG:g} deg: the arm lags "
                              "the plan less (default off: the plain plan, the course's baseline)")
 
 
@@ -140,10 +140,11 @@ class VelocityLead:
                         enabled: bool = True) -> VelocityLead:
         """The lead from what the gravity feed-forward read from the bus (``hw/feedforward.py``).
 
-        Without it (nothing read): lerobot's registers at the kit's 5 V supply.
+        Without it (nothing read): lerobot's registers on the course's follower's supply
+        (``servo.DEFAULT_SUPPLY_V``, 12 V: C018s).
         """
         if feedforward is None:
-            return cls.for_settings(dict.fromkeys(JOINTS, servo.LEROBOT), servo.KIT_SUPPLY_V,
+            return cls.for_settings(dict.fromkeys(JOINTS, servo.LEROBOT), servo.DEFAULT_SUPPLY_V,
                                     enabled=enabled)
         return cls.for_settings(feedforward.settings, feedforward.volts, feedforward.variant,
                                 enabled)

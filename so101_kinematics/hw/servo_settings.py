@@ -180,6 +180,8 @@ def unable_to_hold(state: Mapping[str, Mapping[str, int]],
         return state.get(name, {}).get(joint)
 
     volts = [v / 10.0 for v in state.get("Present_Voltage", {}).values() if v > 0]
+    # unread: the kit's 5 V C001s, the weaker servo (less stiff, less torque than the
+    # course's 12 V C018s), so that a guess never claims a hold the arm may not make
     supply = statistics.median(volts) if volts else servo.KIT_SUPPLY_V
     torques = holding_torques(pose) if pose is not None else {}
     reasons = {}

@@ -154,13 +154,14 @@ def tracking_figures(result, plan: Plan) -> dict:
 
 
 def measure(mode: str, plan: Plan | None = None, profile: str = "cubic",
-            **run_options) -> dict:
+            supply: float | None = None, **run_options) -> dict:
     """One run of ``plan`` (default: the course's pick-and-place) on a fresh virtual arm.
 
     Args:
         mode: one of :data:`MODES`.
         plan: the plan.
         profile: its time scaling.
+        supply: the virtual arm's supply [V] (None: its default, the course's 12 V follower).
         run_options: more of ``run_on_arm``'s options (``on_cycle``, ...).
 
     Returns:
@@ -184,7 +185,8 @@ def measure(mode: str, plan: Plan | None = None, profile: str = "cubic",
         if on_cycle is not None:
             on_cycle(session, cycle)
 
-    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as arm:
+    volts = {} if supply is None else {"supply": supply}
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, **volts) as arm:
         try:
             result = hw_run.run_on_arm(arm.port, calibration, plan, profile=profile,
                                        velocity_ff=mode == "lead", on_cycle=hook, **run_options)

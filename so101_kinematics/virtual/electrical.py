@@ -53,6 +53,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 
+from so101_kinematics.servo import DEFAULT_SUPPLY_V
 from so101_kinematics.virtual.protocol import ERR_OVERHEAT, ERR_OVERLOAD, ERR_VOLTAGE
 
 CURRENT_UNIT_MA = 6.5  # [mA] one unit of Present_Current (STS3215)
@@ -60,7 +61,10 @@ STALL_CURRENT_MA = 2700.0  # [mA] current at stall torque (12 V STS3215)
 AMBIENT_C = 25.0  # [degC]
 STALL_RISE_C = 80.0  # [K] steady-state rise above ambient at stall torque
 THERMAL_TIME_S = 120.0  # [s] thermal time constant of a servo
-SUPPLY_V = 5.0  # [V] default supply voltage: the SO-101 kit's (so101_kinematics.servo.KIT_SUPPLY_V)
+SUPPLY_V = DEFAULT_SUPPLY_V
+"""[V] The virtual arm's supply by default: the course's follower's, 12 V (its servos then
+default to the 12 V C018; ``servo.DEFAULT_SUPPLY_V``, docs/servo_model.md says why). The kit's
+5 V C001 arm is ``supply=servo.KIT_SUPPLY_V`` (``virtual_so101.py --supply 5``)."""
 SUPPLY_RESISTANCE_OHM = 0.1  # [ohm] supply + cable internal resistance
 DIODE_DROP_V = 0.7  # [V] one MOSFET body diode of the H-bridge, conducting
 CURRENT_FLICKER = 1.0
