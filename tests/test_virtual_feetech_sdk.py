@@ -351,6 +351,7 @@ def test_readings_move_like_a_sensors(client, arm):
     """
     readings = {read2(client, 2, PRESENT) for _ in range(50)}
     assert len(readings) > 1 and max(readings) - min(readings) <= 4
+    wait_sim(arm, 0.5)  # the arm settled after set_pose: no servo still pulling current
     rest_volts = volts(client, 5)
     assert read2(client, 5, PRESENT_CURRENT) <= 2  # holding an unloaded joint
     write1(client, 5, OPERATING_MODE, 2)
