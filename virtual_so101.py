@@ -33,7 +33,7 @@ from so101_kinematics.errors import (
     VirtualSO101Error,
 )
 from so101_kinematics.outputs import check_output_path, write_text_atomic
-from so101_kinematics.servo import VARIANTS
+from so101_kinematics.servo import KIT_SUPPLY_V, VARIANTS
 from so101_kinematics.sim.scene import load_model
 from so101_kinematics.virtual import shell
 from so101_kinematics.virtual.arm import (  # noqa: F401 - the virtual arm's API, re-exported
@@ -93,10 +93,11 @@ def main(argv: list[str] | None = None) -> int:
                       help="a leader arm: limp, moved by `demo` / `play FILE` / `pose`")
     parser.add_argument("--link", metavar="PATH",
                         help="a stable symlink to the pty (e.g. /tmp/ttySO101), removed on exit")
-    parser.add_argument("--supply", type=float, default=SUPPLY_V,
-                        help="the servos' supply voltage [V], 0..25 (default %(default)g: the "
-                        "course's follower, 12 V C018 servos; --supply 5 for the kit's 5 V "
-                        "C001s); Present_Voltage reports it, the servos' torque follows it")
+    parser.add_argument("--supply", type=float, default=None,
+                        help=f"the servos' supply voltage [V], 0..25 (default: the course's: "
+                        f"{SUPPLY_V:g} V C018 servos for the follower, {KIT_SUPPLY_V:g} V for "
+                        "--leader; --supply 5 for the kit's C001 follower); Present_Voltage "
+                        "reports it, the servos' torque follows it")
     parser.add_argument("--variant", choices=sorted(VARIANTS), default=None,
                         help="STS3215 variant (default: C018 above 9 V, else C001)")
     parser.add_argument("--viewer", action="store_true", help="show the arm (needs a display)")
@@ -143,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
         print("error: --viewer needs a display (DISPLAY or WAYLAND_DISPLAY is not set); "
               "run without --viewer.", file=sys.stderr)
         return 2
-    if not 0.0 <= args.supply <= 25.0:
+    if args.supply is not None and not 0.0 <= args.supply <= 25.0:
         print(f"error: --supply {args.supply:g}: outside 0..25 V; use e.g. --supply 12.",
               file=sys.stderr)
         return 2

@@ -572,6 +572,20 @@ C018_STALL_MA = 2700.0  # Feetech's C018 datasheet: 2.7 A at stall on 12 V (docs
 CURRENT_UNIT_MA = 6.5  # one unit of Present_Current (memory table)
 
 
+def test_a_leader_arm_runs_on_the_courses_5_v_by_default():
+    """The course's leader runs on the kit's 5 V supply (ECE4560 assignment 2), not the
+    follower's 12 V: Present_Voltage about 50 (0.1 V) with no supply given."""
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, leader=True) as arm:
+        port = sdk.PortHandler(arm.port)
+        assert port.openPort()
+        try:
+            client = (port, sdk.PacketHandler(0))
+            voltage = statistics.median(read1(client, 2, PRESENT_VOLTAGE) for _ in range(15))
+        finally:
+            port.closePort()
+    assert abs(voltage - 50) <= 2, voltage  # 0.1 V units; a limp leader draws nothing
+
+
 def test_the_default_virtual_arm_is_the_courses_12_v_c018_follower():
     """No supply given: the course's follower (ECE4560 assignment 3: "use the 12V power supply
     with the follower arm"; its servos are 12 V C018s, docs/servo_model.md).

@@ -106,6 +106,7 @@ from so101_kinematics.errors import (  # noqa: F401
     VirtualSO101Error,
 )
 from so101_kinematics.paths import REPO
+from so101_kinematics.servo import KIT_SUPPLY_V
 from so101_kinematics.virtual.calibration import (
     DEFAULT_CALIBRATION_PATH,
     load_calibration,
@@ -154,7 +155,8 @@ class VirtualSO101:
             plugged in one at a time, gripper first (``lerobot-setup-motors``).
         leader: a leader arm: limp from power-up, a hand resting on it (it
             does not sag) that ``hand_move`` moves.
-        supply: [V] the servos' supply voltage (``virtual/electrical.py``).
+        supply: [V] the servos' supply voltage (``virtual/electrical.py``); default: the
+            course's, 12 V for the follower (assignment 3), 5 V for a ``leader`` (assignment 2).
         variant: the servos' STS3215 variant (``so101_kinematics.servo.VARIANTS``; default:
             what ``supply`` implies).
         thermal_time_s: [s] the servos' thermal time constant.
@@ -172,11 +174,12 @@ class VirtualSO101:
                  wire_timing: bool = False, faults: str | None = None, viewer: bool = False,
                  initial: Mapping[str, float] | None = None, torque_on_start: bool = True,
                  log_level: int = logging.WARNING, startup_timeout: float = 60.0,
-                 factory: bool = False, leader: bool = False, supply: float = SUPPLY_V,
+                 factory: bool = False, leader: bool = False, supply: float | None = None,
                  thermal_time_s: float = THERMAL_TIME_S,
                  cube=None, base_height: float = 0.0, variant: str | None = None,
                  rules: Mapping[str, str] | None = None):
         self.calibration = load_calibration(calibration)
+        supply = (KIT_SUPPLY_V if leader else SUPPLY_V) if supply is None else supply
         chosen_rules = check_rules(rules)
         cubes, base_height = check_cubes(cube), check_base_height(base_height)
         self._ids = {name: entry["id"] for name, entry in self.calibration.items()}
