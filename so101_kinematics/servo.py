@@ -4,7 +4,7 @@ Every backend needs these facts: the simulator and the virtual arm step the
 servo's dynamics on them (``sim/sts3215.py``), the real-arm path offsets its
 goals by the sag they predict (``gravity.py``). No MuJoCo, no lerobot here.
 
-Sources (``../shared/SERVO_NOTES.md`` quotes them with their numbers):
+Sources, with their numbers (the one list this repository cites for the servo):
 
 - [BAM] Rhoban's identified STS3215 model (repository Rhoban/bam,
   ``bam/feetech/actuator.py``, ``bam/params/feetech_sts3215_7_4V/m1.json``):

@@ -24,7 +24,7 @@ from so101_kinematics.planning import motion_metrics
 from so101_kinematics.servo import KIT_SUPPLY_V
 
 RATE_HZ = 100.0  # [Hz] pick_place_hw.py's default loop rate
-COUNT_DEG = 360.0 / 4096.0  # [deg] one encoder count (../shared/SERVO_NOTES.md)
+COUNT_DEG = 360.0 / 4096.0  # [deg] one encoder count ([MEM], so101_kinematics/servo.py)
 
 
 def cubic_move(t, q0, qf, duration):

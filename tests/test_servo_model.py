@@ -1,6 +1,6 @@
 """The simulated STS3215 against the measurements it claims to reproduce.
 
-Each test names its source (../shared/SERVO_NOTES.md quotes them) and takes its expected
+Each test names its source (so101_kinematics/servo.py lists them) and takes its expected
 value from it, or from a hand calculation on the model's own physics (gravity torque over
 the loop's stiffness), never from the constant under test:
 

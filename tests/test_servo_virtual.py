@@ -2,7 +2,7 @@
 
 The virtual arm runs the simulator's servo model (so101_kinematics/sim/sts3215.py) driven by
 the registers a client writes. Expected values come from the measurements quoted in
-../shared/SERVO_NOTES.md ([TEL] roboninecom's telemetry, [BAM] Rhoban's identification)
+so101_kinematics/servo.py's sources ([TEL] roboninecom's telemetry, [BAM] Rhoban's identification)
 and from the hand calculation gravity torque / stiffness; the windows are the issue's.
 """
 

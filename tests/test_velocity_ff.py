@@ -1,7 +1,7 @@
 """The velocity feed-forward on the real-arm path (hw/lead.py, --velocity-ff).
 
 The lead's arithmetic is checked against a hand calculation from the STS3215's
-identified numbers ([BAM] in ../shared/SERVO_NOTES.md); the rest runs the hardware
+identified numbers ([BAM] in so101_kinematics/servo.py); the rest runs the hardware
 path through lerobot's bus against the virtual arm (the same servo model, lerobot's
 P = 16, the kit's 5 V): the lead is applied, bounded and zero at rest, it removes
 the lag the model predicts, and a fault drill ends as the fault matrix says.

@@ -5,7 +5,7 @@ REG_WRITE, ACTION or RESET, nor changes the baud rate to anything but 1 Mbit/s).
 Expected values are Feetech's (protocol page and STS3215 memory table; see
 tests/test_virtual_protocol.py, which sends the same requests as raw packets), or computed
 by hand below from the memory table's units and the servo's measured motor ([BAM] in
-``../shared/SERVO_NOTES.md``: kt/R = 0.4528 N m/V, kt^2/R = 0.549 N m s/rad, R = 2.676 ohm,
+``so101_kinematics/servo.py`` ([BAM]): kt/R = 0.4528 N m/V, kt^2/R = 0.549 N m s/rad, R = 2.676 ohm,
 Coulomb 0.0524 N m, viscous 0.0591 N m s/rad, for the kit's C001 at its 5 V supply).
 Durations are measured on the simulation's clock (``reply_stats()["sim_time_s"]``), which
 slips behind the wall clock on a busy machine.

@@ -13,7 +13,7 @@ steps (``sim/tracking.py``), a hardware run's log and the simulator's replay of 
 Where the derivatives come from: the simulator knows its joints' velocity and
 acceleration exactly at each physics step (:func:`step_derivatives`); a log holds only
 positions, and the arm's are whole encoder counts (1 count = 360/4096 deg = 0.088 deg,
-``../shared/SERVO_NOTES.md``). Differencing them sample by sample turns one count
+``so101_kinematics/servo.py``'s sources). Differencing them sample by sample turns one count
 into 8.8 deg/s, 880 deg/s^2 and 88 000 deg/s^3 at the arm's 100 Hz loop, far above a
 2 s move's own figures (tens of deg/s^3). :func:`fitted_derivatives` therefore fits a
 cubic in time to the samples of a :data:`DERIVATIVE_WINDOW_S` window around each
@@ -44,7 +44,7 @@ METRIC_KEYS = ("tracking_rms_deg", "tracking_max_deg", "peak_velocity_deg_s",
 """The figures of :func:`metrics`, in their units."""
 DERIVATIVE_WINDOW_S = 0.4  # [s] the fit's window for positions-only data (see the module)
 MIN_WINDOW_SAMPLES = 5  # a cubic (4 coefficients) fitted to at least one sample more
-ENCODER_COUNT_DEG = 360.0 / 4096.0  # [deg] one STS3215 count (../shared/SERVO_NOTES.md)
+ENCODER_COUNT_DEG = 360.0 / 4096.0  # [deg] one STS3215 count ([MEM], servo.py)
 
 
 def fitted_derivatives(time: Sequence[float], positions,
