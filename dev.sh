@@ -26,9 +26,10 @@ job="${1:-sim}"
 [ $# -gt 0 ] && shift
 case "$job" in
   sim) extras="" ;;
-  test|bench|shell) extras="dev,hw" ;;
+  test|test-all|bench|shell) extras="dev,hw" ;;
   test-base|lint) extras="dev" ;;
-  *) echo "usage: ./dev.sh {sim|test|test-base|lint|bench|shell} [ARGS]" >&2; exit 2 ;;
+  docs) extras="docs" ;;
+  *) echo "usage: ./dev.sh {sim|test|test-all|test-base|lint|docs|bench|shell} [ARGS]" >&2; exit 2 ;;
 esac
 
 python="${PYTHON:-python3}"
@@ -46,14 +47,16 @@ if ! "$python" -c "import sys; sys.exit(not (${lowest/./, }) <= sys.version_info
 fi
 
 root="${SO101_VENV_ROOT:-${XDG_CACHE_HOME:-$HOME/.cache}/so101-kinematics}"
-# Keyed by what the environment contains: the dependency lists (comments and
-# blank lines dropped), the extras and the interpreter; not the rest of
-# pyproject.toml, so moving modules, adding a console script (the editable
-# install below refreshes those on every run) or editing tool settings
-# rebuilds nothing.
-deps="$(awk '/^dependencies = \[/ { on = 1 }
-             on && /^\[/ && $0 != "[project.optional-dependencies]" { exit }
-             on' pyproject.toml | grep -v -e '^ *#' -e '^ *$')"
+# Keyed by what the environment contains: the base dependency list and the
+# lists of the extras it installs (comments and blank lines dropped) and the
+# interpreter; not the rest of pyproject.toml, so moving modules, adding a
+# console script (the editable install below refreshes those on every run),
+# editing tool settings or another extra's list rebuilds nothing.
+block() {  # block NAME: the lines of pyproject.toml's list "NAME = [" up to its "]"
+  awk -v name="$1" '$0 ~ "^" name " = \\[" { on = 1; next } on && /^\]/ { exit } on' pyproject.toml \
+    | grep -v -e '^ *#' -e '^ *$' || true
+}
+deps="$(block dependencies; for extra in ${extras//,/ }; do echo "[$extra]"; block "$extra"; done)"
 key="$( (echo "$deps"; echo "$extras"; "$python" -V) | sha256sum | cut -c1-16)"
 venv="$root/venv-$key-${extras:-base}"
 
@@ -90,7 +93,9 @@ case "$job" in
     "$venv/bin/python" -c 'import importlib.metadata as m, platform
 print("Python", platform.python_version() + ", lerobot", m.version("lerobot"))' >&2 || true
     exec "$venv/bin/python" -m pytest "$@" ;;
+  test-all) exec "$venv/bin/python" -m pytest --durations=25 "$@" ;;
   test-base) exec "$venv/bin/python" -m pytest -m "not hw" "$@" ;;
+  docs) exec "$venv/bin/python" -m sphinx -W --keep-going -q -b html docs docs/_build/html "$@" ;;
   lint) exec "$venv/bin/python" -m ruff check "$@" . ;;
   bench) exec "$venv/bin/python" benchmarks/run.py "$@" ;;
   shell) PATH="$venv/bin:$PATH" exec "${SHELL:-bash}" ;;
