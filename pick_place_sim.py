@@ -29,8 +29,8 @@ from so101_kinematics.cli import (
     servo_from_arguments,
     zero_duration_warning,
 )
-from so101_kinematics.lab.compare import LogError, draw_report, sidecar_path
 from so101_kinematics.lab.profile_compare import compare_profiles, draw_profiles
+from so101_kinematics.lab.sim_vs_arm import LogError, draw_report, sidecar_path
 from so101_kinematics.outputs import (
     MP4,
     PNG,

@@ -75,8 +75,8 @@ from so101_kinematics.frames import (  # noqa: F401
     JOINT_LIMITS,
     JOINT_RANGES_RAD,
 )
-from so101_kinematics.ik.course import _as_rotation as as_rotation
-from so101_kinematics.ik.course import get_inverse_kinematics  # noqa: F401
+from so101_kinematics.ik.call_shapes import _as_rotation as as_rotation
+from so101_kinematics.ik.call_shapes import get_inverse_kinematics  # noqa: F401
 from so101_kinematics.ik.geometry import (  # noqa: F401
     GRIPPER_OPEN,
     MIN_HEIGHT,

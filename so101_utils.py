@@ -60,7 +60,7 @@ from __future__ import annotations
 
 import math
 
-from so101_kinematics.hw.course import (  # noqa: F401 - the course's helpers and their settings
+from so101_kinematics.hw.course_helpers import (  # noqa: F401 - the course's helpers and their settings
     AT_START_TOLERANCE_DEG,
     MISSING,
     START_MISMATCH,
@@ -72,7 +72,7 @@ from so101_kinematics.hw.course import (  # noqa: F401 - the course's helpers an
     course_move_to_pose,
     course_trims,
 )
-from so101_kinematics.hw.course import setup_motors as _setup_motors
+from so101_kinematics.hw.course_helpers import setup_motors as _setup_motors
 from so101_kinematics.ik.blocks import pick_up_moves, place_moves
 from so101_kinematics.planning.motion import check_configuration
 from so101_kinematics.planning.trajectory_log import (  # noqa: F401 - week 8's plot

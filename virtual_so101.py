@@ -42,8 +42,8 @@ from so101_kinematics.virtual.arm import (  # noqa: F401 - the virtual arm's API
     VirtualSO101,
     parse_faults,
 )
-from so101_kinematics.virtual.calibration import make_default_calibration
 from so101_kinematics.virtual.electrical import SUPPLY_V
+from so101_kinematics.virtual.shipped_calibration import make_default_calibration
 
 logger = logging.getLogger("virtual_so101")
 

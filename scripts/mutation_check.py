@@ -64,7 +64,7 @@ def m(name, why, path, function, old, new, *tests, more=()):
 
 
 CONTROL, TIMING = "so101_kinematics/hw/control.py", "so101_kinematics/hw/timing.py"
-CHECKS, RUN, LOG = ("so101_kinematics/hw/checks.py", "so101_kinematics/hw/run.py",
+CHECKS, RUN, LOG = ("so101_kinematics/hw/cycle_checks.py", "so101_kinematics/hw/run.py",
                     "so101_kinematics/hw/log.py")
 FRAMES, SCENE = "so101_kinematics/frames.py", "so101_kinematics/sim/scene.py"
 CAL, PICK = "so101_kinematics/calibration.py", "so101_kinematics/sim/pick_place.py"
@@ -72,7 +72,7 @@ PROTOCOL = "so101_kinematics/virtual/protocol.py"
 MARKERS, OUTPUTS = "so101_kinematics/markers.py", "so101_kinematics/outputs.py"
 T_OUT = "tests/test_output_ownership.py"
 REGISTERS, T_SDK = "so101_kinematics/virtual/registers.py", "tests/test_virtual_feetech_sdk.py"
-READINGS = "so101_kinematics/virtual/readings.py"
+READINGS = "so101_kinematics/virtual/sensor_registers.py"
 T_CONTROL, T_RUN = "tests/test_control.py", "tests/test_hw_run.py"
 T_HW, T_IK = "tests/test_pick_place_hw.py", "tests/test_inverse_kinematics.py"
 T_FK, T_SIM = "tests/test_forward_kinematics.py", "tests/test_pick_place_sim.py"
@@ -125,17 +125,18 @@ MUTANTS: list[Mutant] = [
                  '"5t": Ry(180.0),'),
             Edit("so101_kinematics/fast_fk.py", None, "    Rx,\n", "    Rx,\n    Ry,\n"))),
     m("ik_course_yaw_any_grasp", "the course's IK shapes take any of the cube's grasps, not "
-      "the asked frame", "so101_kinematics/ik/course.py", "get_inverse_kinematics",
+      "the asked frame", "so101_kinematics/ik/call_shapes.py", "get_inverse_kinematics",
       'return solve_keywords(position, "down", 0.0, initial=initial, gripper=gripper,\n'
       '                                  min_height=min_height, exact_yaw=True)',
       'return solve_keywords(position, "down", 0.0, initial=initial, gripper=gripper,\n'
       '                                  min_height=min_height, exact_yaw=False)',
       "tests/test_ik_course_shapes.py",
-      more=(Edit("so101_kinematics/ik/course.py", "_solve_rotation",
+      more=(Edit("so101_kinematics/ik/call_shapes.py", "_solve_rotation",
                  'return solve_keywords(position, "down", yaw, exact_yaw=True, **solve)',
                  'return solve_keywords(position, "down", yaw, exact_yaw=False, **solve)'),)),
     m("ik_tilted_yaw_uncorrected", "a tilted orientation solved once, its yaw never corrected",
-      "so101_kinematics/ik/course.py", "_solve_rotation", "        yaw += turn", "        break",
+      "so101_kinematics/ik/call_shapes.py", "_solve_rotation", "        yaw += turn",
+      "        break",
       "tests/test_ik_course_shapes.py"),
     m("hold_ignores_cfg", "hold_position(m, d, viewer, cfg, duration) holds the old command",
       "so101_kinematics/sim/stepping.py", "hold_position", "d.ctrl[act] = angles[name]", "pass",
@@ -146,13 +147,13 @@ MUTANTS: list[Mutant] = [
       "path = Trajectory(dict(command, **(start or {})), goal, duration, profile)",
       "tests/test_mujoco_utils.py"),
     m("hw_move_jumps_to_start", "the arm's move_to_pose jumps to the starting_position given",
-      "so101_kinematics/hw/course.py", "course_move_to_pose",
+      "so101_kinematics/hw/course_helpers.py", "course_move_to_pose",
       "        session.move(target, seconds, profile=profile, velocity_ff=velocity_ff)",
       "        session.command.update(start or {})\n"
       "        session.move(target, seconds, profile=profile, velocity_ff=velocity_ff)",
       "tests/test_so101_utils.py"),
     m("start_mismatch_silent", "a starting configuration far from the last command not named",
-      "so101_kinematics/checks.py", "start_mismatch", "if gap <= START_MISMATCH:", "if True:",
+      "so101_kinematics/inputs.py", "start_mismatch", "if gap <= START_MISMATCH:", "if True:",
       "tests/test_mujoco_utils.py", "tests/test_so101_utils.py"),
     m("degrees_off_5", "one joint's degree conversion off by 5 deg (elbow_flex)",
       SCENE, "to_radians", "else math.radians(value)",
@@ -237,7 +238,7 @@ MUTANTS: list[Mutant] = [
       f"{T_SDK}::test_step_mode_moves_by_the_counts_written_from_where_the_joint_is"),
     # --- the control loop and its fault policy --------------------------------------------------
     m("misread_acted_on", "a reading outside the calibrated range taken as the arm's pose",
-      "so101_kinematics/hw/readings.py", "ReadingCheck.__call__",
+      "so101_kinematics/hw/misreads.py", "ReadingCheck.__call__",
       "if not (lower - RANGE_MARGIN <= value <= upper + RANGE_MARGIN):", "if False:",
       "tests/test_readings.py"),
     m("speed_cap_ignored", "the speed cap ignored: a move never stretched",
@@ -327,7 +328,7 @@ MUTANTS: list[Mutant] = [
       "so101_kinematics/planning/motion_metrics.py", "fitted_derivatives",
       "6.0 * c[:, 3] / scale**3", "2.0 * c[:, 3] / scale**3", T_PROFILES),
     m("misread_reply_kept", "a misread reply (-2900 deg for one cycle) kept in the figures",
-      "so101_kinematics/lab/compare.py", "compare_run", "    if wrong:\n", "    if False:\n",
+      "so101_kinematics/lab/sim_vs_arm.py", "compare_run", "    if wrong:\n", "    if False:\n",
       T_PROFILES),
     m("return_refused_at_rest", "the return to where the released arm slumped refused (the "
       "clearance margin applied to the arm's own rest)", "so101_kinematics/clearance.py",
@@ -371,16 +372,16 @@ MUTANTS: list[Mutant] = [
       None, 'between=getattr(self, "serve_serial", None),', "between=None,",
       "tests/test_virtual_fidelity.py::test_the_bus_is_answered_while_the_hand_checks_a_long_path"),
     m("replay_drops_the_lead", "the --compare replay sends the plan, not the led goals the "
-      "servos got (--velocity-ff)", "so101_kinematics/lab/compare.py", "compare_run",
+      "servos got (--velocity-ff)", "so101_kinematics/lab/sim_vs_arm.py", "compare_run",
       'commanded[j] + np.array([r[f"lead_{j}"] for r in rows])', "commanded[j] + 0.0",
       "tests/test_sim_vs_arm.py::test_a_led_run_is_replayed_with_the_goals_the_servos_got"),
     m("replay_on_schedule", "the --compare replay sends each goal at its scheduled time, not "
-      "when the late cycle sent it", "so101_kinematics/lab/compare.py", "compare_run",
+      "when the late cycle sent it", "so101_kinematics/lab/sim_vs_arm.py", "compare_run",
       "simulated = replay(read_s, written,", "simulated = replay(t, written,",
       "tests/test_sim_vs_arm.py::test_the_replay_sends_each_goal_when_the_arm_got_it"),
     m("replay_refuses_past_limit", "--compare sends the return to a slumped start (just past a "
       "model limit) as logged: the replay refuses it and stops every log's comparison",
-      "so101_kinematics/lab/compare.py", "compare_run",
+      "so101_kinematics/lab/sim_vs_arm.py", "compare_run",
       "replay(read_s, commands_inside_limits(written, notes), start,",
       "replay(read_s, written, start,",
       f"{T_PROFILES}::test_a_log_that_starts_past_a_limit_is_replayed_from_the_limit"),

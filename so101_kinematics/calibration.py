@@ -7,7 +7,8 @@ is found by robot id, loaded and validated from a file or a mapping
 normalises: [deg] for the arm joints, [0, 100] for the gripper
 (:func:`ticks_to_user`, its inverse :func:`user_to_ticks`,
 :func:`calibrated_limits`). The one implementation for both backends: the
-real arm (``so101_kinematics.hw.bus``) and the virtual arm (``so101_kinematics.virtual.calibration``
+real arm (``so101_kinematics.hw.bus``) and the virtual arm
+(``so101_kinematics.virtual.shipped_calibration``
 adds only what is specific to it).
 
 Also home of :class:`HardwareError`, the base of the hardware error family

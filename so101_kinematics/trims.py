@@ -29,9 +29,9 @@ import math
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
-from so101_kinematics.checks import Configuration, Limits, describe_value, is_finite_number, unit
 from so101_kinematics.errors import TrimError
 from so101_kinematics.frames import JOINTS
+from so101_kinematics.inputs import Configuration, Limits, describe_value, is_finite_number, unit
 from so101_kinematics.planning.plans import data_kind, parse_data, read_text_file
 
 TRIM_LIMIT_DEG = 5.0  # the largest trim accepted [deg] (gripper [%]); beyond it, recalibrate

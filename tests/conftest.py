@@ -95,7 +95,7 @@ def course_arm():
     to end it later on a closed virtual arm.)
     """
     pytest.importorskip("lerobot")
-    import so101_kinematics.hw.course as course
+    import so101_kinematics.hw.course_helpers as course
     from so101_kinematics.servo import KIT_SUPPLY_V
     from so101_kinematics.virtual.arm import VirtualSO101
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import so101_kinematics.virtual.calibration as vcal
+import so101_kinematics.virtual.shipped_calibration as vcal
 from so101_forward_kinematics import JOINTS
 from so101_kinematics.calibration import (
     CalibrationError,
@@ -25,7 +25,7 @@ from so101_kinematics.calibration import (
     ticks_to_user,
     user_to_ticks,
 )
-from so101_kinematics.virtual.servo import VirtualServo
+from so101_kinematics.virtual.servo_memory import VirtualServo
 
 SHIPPED = Path(__file__).resolve().parent.parent / "calibration" / "virtual_so101.json"
 TICKS_PER_RAD = 4095 / (2 * math.pi)  # lerobot's DEGREES scale: 360 deg = 4095 ticks

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from so101_kinematics.checker import report, traj, traj_standin
-from so101_kinematics.checker.cli import check_file
+from so101_kinematics.checker.fk import check_file
 from so101_kinematics.checker.ik import check_ik_file
 from so101_kinematics.frames import JOINTS
 
@@ -250,7 +250,7 @@ def test_a_4x4_return_is_named_broken_with_its_pose_right(tmp_path):
 
 
 def test_nan_returned_by_a_factor_names_the_angle(tmp_path):
-    from so101_kinematics.checker.compare import factor_angles
+    from so101_kinematics.checker.fk_compare import factor_angles
 
     module = tmp_path / "so101_forward_kinematics.py"
     module.write_text(CORRECT_FK.replace("def get_g23(theta3_deg):\n",

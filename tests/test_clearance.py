@@ -137,7 +137,7 @@ def sent_lift(arm, count):
 
 @pytest.mark.hw
 def test_move_to_pose_into_the_table_is_refused_before_anything_moves(course_arm, capsys):
-    import so101_kinematics.hw.course as course
+    import so101_kinematics.hw.course_helpers as course
     from so101_utils import load_calibration, move_to_pose, setup_motors
 
     bus = setup_motors(load_calibration("calibration/virtual_so101.json"), course_arm.port)

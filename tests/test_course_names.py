@@ -23,14 +23,14 @@ from so101_forward_kinematics import (
     get_g34,
     get_gw1,
 )
-from so101_kinematics.checks import (
+from so101_kinematics.errors import JointLimitError, PlanError, UnreachableError
+from so101_kinematics.frames import JOINT_LIMITS
+from so101_kinematics.inputs import (
     LIMIT_TOLERANCE,
     check_configuration,
     format_limit,
     limit_excess,
 )
-from so101_kinematics.errors import JointLimitError, PlanError, UnreachableError
-from so101_kinematics.frames import JOINT_LIMITS
 
 REPO = Path(__file__).resolve().parent.parent
 START = {"shoulder_pan": -45.0, "shoulder_lift": 45.0, "elbow_flex": -45.0, "wrist_flex": 90.0,
@@ -235,7 +235,7 @@ def test_offset_config_reads_the_trims_given_to_setup_motors(course_arm):
 
 @pytest.mark.hw
 def test_an_unreachable_block_on_the_arm_ends_the_script_before_it_moves(course_arm, capsys):
-    import so101_kinematics.hw.course as course
+    import so101_kinematics.hw.course_helpers as course
     import so101_utils
 
     calibration = so101_utils.load_calibration(str(REPO / "calibration" / "virtual_so101.json"))

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from so101_kinematics.checker import check_file, compare, diagnose, report
-from so101_kinematics.checker.cli import main
+from so101_kinematics.checker import check_file, diagnose, fk_compare, report
+from so101_kinematics.checker.fk import main
 from so101_kinematics.frames import joint_transform
 
 SUBMISSIONS = Path(__file__).resolve().parent / "fk_submissions"
@@ -97,7 +97,7 @@ def test_whole_fk_mistakes_are_named_in_the_fk(checks, name, cause):
 
 def test_radians_everywhere_is_named_in_every_factor_and_once_for_all(checks):
     check = checks["radians_everywhere"]
-    for function in compare.FACTORS:
+    for function in fk_compare.FACTORS:
         causes = test_by_name(check, function)["causes"]
         assert len(causes) == 1 and causes[0].startswith("degrees passed where radians"), causes
     assert check["note"].startswith("Degrees are used as radians in 5 of 5 factors")
@@ -191,9 +191,9 @@ def test_a_missing_file_cannot_be_checked():
 
 def test_every_factor_matches_the_package_at_its_test_angles():
     """The package's own factors raise no diagnosis, and the test angles are distinct."""
-    for name, joint in compare.FACTORS.values():
-        angles = compare.factor_angles(joint)
-        assert len(set(angles)) == len(compare.ANGLE_FRACTIONS)
+    for name, joint in fk_compare.FACTORS.values():
+        angles = fk_compare.factor_angles(joint)
+        assert len(set(angles)) == len(fk_compare.ANGLE_FRACTIONS)
         assert diagnose.rotation_causes(name, angles, [joint_transform(name, a)[:3, :3]
                                                        for a in angles]) == []
 

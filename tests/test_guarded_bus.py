@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-import so101_kinematics.hw.course as course
+import so101_kinematics.hw.course_helpers as course
 from so101_kinematics.calibration import load_calibration
 from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.hw.timing import MAX_JOINT_SPEED_DEG_S

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-import so101_kinematics.hw.course as course
+import so101_kinematics.hw.course_helpers as course
 from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.gravity import feedforward

@@ -17,7 +17,7 @@ from so101_kinematics.checker.ik import check_ik_file, main
 from so101_kinematics.errors import UnreachableError
 from so101_kinematics.fast_fk import forward_kinematics_batch
 from so101_kinematics.frames import ARM_JOINTS
-from so101_kinematics.ik.course import get_inverse_kinematics
+from so101_kinematics.ik.call_shapes import get_inverse_kinematics
 
 try:
     import tomllib

@@ -1,4 +1,4 @@
-"""A reading no servo could give is refused (hw/readings.py), and the loop never acts on it."""
+"""A reading no servo could give is refused (hw/misreads.py), and the loop never acts on it."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import pytest
 from hw_fakes import HOME, make_session
 
 from so101_forward_kinematics import JOINTS
-from so101_kinematics.hw.readings import Misread, ReadingCheck
+from so101_kinematics.hw.misreads import Misread, ReadingCheck
 
 LIMITS = {joint: (-110.0, 110.0) for joint in JOINTS} | {"gripper": (0.0, 100.0)}
 POSE = {"shoulder_pan": 0.0, "shoulder_lift": -90.0, "elbow_flex": 90.0, "wrist_flex": 30.0,

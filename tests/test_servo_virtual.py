@@ -123,7 +123,7 @@ def test_through_the_course_helpers_the_start_pose_rests_within_half_a_degree(co
     # so101_utils on the virtual arm at lerobot's P = 16 on the kit's 5 V: with the
     # feed-forward (the default) the course's start configuration holds within 0.5 deg a
     # joint; without it the shoulder sags degrees.
-    import so101_kinematics.hw.course as course
+    import so101_kinematics.hw.course_helpers as course
     import so101_utils
     from so101_kinematics.planning.plans import STARTING_CONFIGURATION
 

@@ -93,7 +93,7 @@ def test_a_led_run_is_replayed_with_the_goals_the_servos_got(led_log, tmp_path):
 def test_the_replay_sends_each_goal_when_the_arm_got_it(hw_log, tmp_path, monkeypatch):
     # A cycle that woke late (the log's wall_s after its t_s) sent its goal late: the
     # simulator is stepped to the wake times, not the schedule.
-    from so101_kinematics.lab import compare as compare_module
+    from so101_kinematics.lab import sim_vs_arm as compare_module
 
     late = tmp_path / "late.csv"
     rows, fields = read_rows(hw_log)
@@ -156,7 +156,7 @@ def read_rows(log):
 
 def test_a_run_stopped_before_the_pick_is_compared(hw_log, tmp_path, capsys):
     """Ctrl-C during the first move: the log has no cycle of the pick or the place step."""
-    from so101_kinematics.lab.compare import _plan
+    from so101_kinematics.lab.sim_vs_arm import _plan
     from so101_kinematics.planning.plans import pick_and_place_steps
 
     info = json.loads(sidecar_path(hw_log).read_text())

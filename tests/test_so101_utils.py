@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import so101_kinematics.hw.course as course
+import so101_kinematics.hw.course_helpers as course
 from so101_forward_kinematics import ARM_JOINTS, JOINTS
 from so101_kinematics.calibration import calibrated_limits, load_calibration
 from so101_kinematics.constants import HOME_POSE

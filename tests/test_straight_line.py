@@ -17,7 +17,7 @@ import pytest
 
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINT_RANGES_RAD
-from so101_kinematics.ik.course import get_inverse_kinematics
+from so101_kinematics.ik.call_shapes import get_inverse_kinematics
 from so101_kinematics.planning.cartesian_plan import cartesian_plan
 from so101_kinematics.planning.motion import Plan, PlanError, Step
 from so101_kinematics.planning.straight_line import (

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from hw_fakes import HOME, make_session
 
-import so101_kinematics.hw.course as course
+import so101_kinematics.hw.course_helpers as course
 from so101_kinematics.errors import TorqueLost
 from so101_kinematics.hw.control import STATUS_EVERY
 from so101_kinematics.hw.run import RunResult, ending

@@ -289,7 +289,7 @@ def virtual_arm_calibration(tmp_path, monkeypatch):
 def test_the_arm_s_cubic_and_logged_moves_on_the_virtual_arm(course_arm, virtual_arm_calibration,
                                                              caplog):
     pytest.importorskip("pandas")
-    import so101_kinematics.hw.course as course
+    import so101_kinematics.hw.course_helpers as course
     from so101_utils import (
         load_calibration,
         move_to_pose_cubic,

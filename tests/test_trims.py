@@ -169,7 +169,7 @@ PLAN = {"steps": [{"name": "pick", "configuration": dict(HOME, shoulder_lift=-40
 @pytest.mark.hw
 def test_trims_reach_the_wire_the_log_and_the_report(arm, tmp_path, capsys):
     import pick_place_hw as cli
-    from so101_kinematics.lab.compare import compare_run
+    from so101_kinematics.lab.sim_vs_arm import compare_run
 
     (tmp_path / "plan.json").write_text(json.dumps(PLAN))
     (tmp_path / "trims.json").write_text(json.dumps(TRIMS))

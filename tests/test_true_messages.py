@@ -96,7 +96,7 @@ def test_the_approach_hint_suggests_only_an_approach_that_is_accepted(given):
 def test_raw_ticks_refused_after_a_move_do_not_claim_nothing_moved(course_arm, capsys):
     """The arm moved before the refused write: the refusal says that write moved nothing, and
     the run's ending (back at the start, torque off) follows at the script's exit."""
-    import so101_kinematics.hw.course as course
+    import so101_kinematics.hw.course_helpers as course
     from so101_utils import load_calibration, move_to_pose, setup_motors
 
     bus = setup_motors(load_calibration(str(REPO / "calibration" / "virtual_so101.json")),

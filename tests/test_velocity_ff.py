@@ -238,7 +238,7 @@ def test_pick_place_hw_velocity_ff_logs_its_lead(tmp_path, capsys):
 @pytest.mark.hw
 @pytest.mark.slow
 def test_the_course_helpers_take_velocity_ff_and_keep_their_shapes_without(course_arm):
-    import so101_kinematics.hw.course as course
+    import so101_kinematics.hw.course_helpers as course
     from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH
     from so101_utils import load_calibration, move_to_pose, move_to_pose_cubic, setup_motors
 

@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 
 import so101_kinematics.virtual.arm as vso
-import so101_kinematics.virtual.calibration as vcal
 import so101_kinematics.virtual.protocol as fp
+import so101_kinematics.virtual.shipped_calibration as vcal
 import so101_mujoco_utils as smu
 from benchmarks.bench_hw import measure_cycle, virtual_arm_bus
 from so101_forward_kinematics import JOINTS

@@ -2,7 +2,7 @@
 
 ``so101-check-fk PATH`` (or ``python -m so101_kinematics.checker PATH``): the module is
 imported in a separate, time-bounded process (:mod:`.sandbox`, :mod:`.probe`), its
-factors and its FK are compared with this package (:mod:`.compare`), known mistakes are
+factors and its FK are compared with this package (:mod:`.fk_compare`), known mistakes are
 named (:mod:`.diagnose`), and the result is written for the student, as JSON, as
 Gradescope's ``results.json`` or as one CSV row per student (:mod:`.report`).
 
@@ -17,6 +17,6 @@ stand-in for MuJoCo and names what differs from the course's cubic (:mod:`.traj`
 :mod:`.traj_probe`, :mod:`.traj_compare`).
 """
 
-from so101_kinematics.checker.cli import check_file, main
+from so101_kinematics.checker.fk import check_file, main
 
 __all__ = ["check_file", "main"]

@@ -1,8 +1,8 @@
-"""``python -m so101_kinematics.checker PATH``: see :mod:`so101_kinematics.checker.cli`."""
+"""``python -m so101_kinematics.checker PATH``: see :mod:`so101_kinematics.checker.fk`."""
 
 import sys
 
-from so101_kinematics.checker.cli import main
+from so101_kinematics.checker.fk import main
 
 if __name__ == "__main__":
     sys.exit(main())

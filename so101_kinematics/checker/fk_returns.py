@@ -1,6 +1,6 @@
 """What an FK's returns say beyond their accuracy: its form, NaN, a changed input.
 
-Used by :mod:`.compare` on the probe's results for ``get_forward_kinematics``. The course's
+Used by :mod:`.fk_compare` on the probe's results for ``get_forward_kinematics``. The course's
 form is ``return position, rotation`` (the assignment's ``get_forward_kinematics``: ``position
 = gwt[0:3, 3]``, ``rotation = gwt[0:3, 0:3]``; its test script unpacks the two).
 """

@@ -23,7 +23,7 @@ import sys
 from pathlib import Path
 
 from so101_kinematics.checker import ik_compare, ik_targets, sandbox
-from so101_kinematics.checker.cli import (
+from so101_kinematics.checker.fk import (
     add_class_options,
     add_tolerance_options,
     check_outputs,

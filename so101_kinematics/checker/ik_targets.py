@@ -25,7 +25,7 @@ import numpy as np
 from so101_kinematics.errors import UnreachableError
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINT_LIMITS, joint_transform
-from so101_kinematics.ik.course import get_inverse_kinematics
+from so101_kinematics.ik.call_shapes import get_inverse_kinematics
 from so101_kinematics.ik.geometry import PAN_AXIS_POINT
 from so101_kinematics.ik.solver import sample_top_down_targets
 

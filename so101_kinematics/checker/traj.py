@@ -23,7 +23,7 @@ import sys
 from pathlib import Path
 
 from so101_kinematics.checker import traj_compare
-from so101_kinematics.checker.cli import (
+from so101_kinematics.checker.fk import (
     add_class_options,
     check_outputs,
     exit_status,

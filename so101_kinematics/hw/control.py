@@ -5,7 +5,7 @@ The motion side of the hardware backend of the shared motion code
   - the speed cap and the deadline scheduler are ``hw/timing.py``'s, the stop
     signals and the frozen garbage collector ``hw/signals.py``'s;
   - the control loop (:class:`ArmSession`) behind ``pick_place_hw.py`` and the
-    course's helpers (``so101_utils.py``, ``hw/course.py``), with every stop
+    course's helpers (``so101_utils.py``, ``hw/course_helpers.py``), with every stop
     signal (Ctrl-C, SIGTERM, SIGHUP) turned into a stop at a cycle boundary
     (:func:`stop_on_signals`) and the garbage collector frozen during motion
     (:func:`gc_frozen`).
@@ -45,11 +45,11 @@ from so101_kinematics.hw.bus import (
     read_pose,
     recover_port,
 )
-from so101_kinematics.hw.checks import check_status, check_torque, check_tracking
+from so101_kinematics.hw.cycle_checks import check_status, check_torque, check_tracking
 from so101_kinematics.hw.feedforward import tracking_allowance
 from so101_kinematics.hw.goals import goal_for, guard, send_goal
 from so101_kinematics.hw.lead import VelocityLead
-from so101_kinematics.hw.readings import ReadingCheck
+from so101_kinematics.hw.misreads import ReadingCheck
 from so101_kinematics.hw.signals import (  # noqa: F401 - stopping the loop, with the loop
     STOP_SIGNALS,
     gc_frozen,
@@ -99,7 +99,7 @@ class ArmSession:
     """A connected arm plus the state of its control loop.
 
     The course's ``move_to_pose(bus, cfg, duration)`` and ``hold_position(bus,
-    duration)`` on the real arm are ``so101_utils.py``'s (``hw/course.py``):
+    duration)`` on the real arm are ``so101_utils.py``'s (``hw/course_helpers.py``):
     this loop with the fault policy's endings around each call.
 
     Args:

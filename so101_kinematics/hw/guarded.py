@@ -41,13 +41,13 @@ import logging
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from so101_kinematics.checks import START_MISMATCH, check_configuration, is_finite_number
 from so101_kinematics.errors import BusError, PlanError
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.control import ArmSession
 from so101_kinematics.hw.feedforward import tracking_allowance
 from so101_kinematics.hw.servo_settings import COURSE, course_value
 from so101_kinematics.hw.timing import capped_duration
+from so101_kinematics.inputs import START_MISMATCH, check_configuration, is_finite_number
 
 logger = logging.getLogger("so101_utils")
 

@@ -43,7 +43,6 @@ from so101_kinematics.hw.bus import (
     silent_servos,
     with_retries,
 )
-from so101_kinematics.hw.checks import read_torque
 from so101_kinematics.hw.control import (
     DEFAULT_RATE_HZ,
     MAX_JOINT_SPEED_DEG_S,
@@ -60,6 +59,7 @@ from so101_kinematics.hw.control import (
     stop_on_signals,
     tracking_tolerances,
 )
+from so101_kinematics.hw.cycle_checks import read_torque
 from so101_kinematics.hw.feedforward import read_feedforward, torque_on_in_place
 from so101_kinematics.hw.lead import VelocityLead
 from so101_kinematics.hw.preflight import (  # noqa: F401 - the run's checks, re-exported

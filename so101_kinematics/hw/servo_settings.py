@@ -33,7 +33,7 @@ from so101_kinematics import servo
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.gravity import holding_torques
 from so101_kinematics.hw.bus import configure, discard_stale_input, recover_port, with_retries
-from so101_kinematics.hw.checks import GRIPPER_OVERLOAD, STATUS_BITS
+from so101_kinematics.hw.cycle_checks import GRIPPER_OVERLOAD, STATUS_BITS
 from so101_kinematics.hw.timing import TRACKING_TOLERANCE_DEG
 
 logger = logging.getLogger(__name__)
@@ -221,7 +221,7 @@ def read_back(bus, pose: Mapping[str, float] | None, torque: dict[str, bool] | N
     Args:
         bus: the raw lerobot bus.
         pose: where the arm is (the model's angles), or None if unread.
-        torque: Torque_Enable as read just before (``hw/checks.py``), or None: then this
+        torque: Torque_Enable as read just before (``hw/cycle_checks.py``), or None: then this
             read's, if it got one.
     """
     state = read_registers(bus, HOLD_REGISTERS)

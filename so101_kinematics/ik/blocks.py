@@ -22,9 +22,9 @@ Example::
 
 from __future__ import annotations
 
-from so101_kinematics.checks import Configuration, check_duration
-from so101_kinematics.ik.course import get_inverse_kinematics
+from so101_kinematics.ik.call_shapes import get_inverse_kinematics
 from so101_kinematics.ik.solver import as_position
+from so101_kinematics.inputs import Configuration, check_duration
 
 BLOCK_CLEARANCE = 0.03  # [m] above the block (or the target) before going down and after
 BLOCK_GRIPPER_OPEN = 50.0  # [0, 100] the opening that clears a 26-28 mm block

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from so101_kinematics.checks import format_limit
 from so101_kinematics.errors import UnreachableError
 from so101_kinematics.frames import (
     ARM_JOINTS,
@@ -29,6 +28,7 @@ from so101_kinematics.ik.geometry import (
     _Z0,
     _wrap,
 )
+from so101_kinematics.inputs import format_limit
 
 
 # ---------------------------------------------------------------------------

@@ -4,7 +4,7 @@ For the write-up of assignment 9 ("tracking performance, smoothness of motion", 
 against linear, in simulation and on hardware): a student runs the arm once per
 profile with a log (``pick_place_hw.py --profile cubic --log cubic.csv``) and gives the
 logs to ``pick_place_sim.py --compare``. Each log is replayed in the simulator
-(``lab/compare.py``: the run's own commands, which are its profile's samples, from its
+(``lab/sim_vs_arm.py``: the run's own commands, which are its profile's samples, from its
 measured start, on its servo settings), and :func:`compare_profiles` puts, per log,
 the arm's figures and the replay's side by side (``motion_metrics.metrics`` on the
 arm's five joints, the gripper left out: it is in [%]).
@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from so101_kinematics.frames import ARM_JOINTS
-from so101_kinematics.lab.compare import Comparison, compare_run, read_log
+from so101_kinematics.lab.sim_vs_arm import Comparison, compare_run, read_log
 from so101_kinematics.markers import png_metadata
 from so101_kinematics.outputs import atomic_output
 from so101_kinematics.planning import motion_metrics

@@ -18,7 +18,7 @@ import numpy as np
 from so101_kinematics.cli import number, range_help
 from so101_kinematics.errors import UnreachableError
 from so101_kinematics.fast_fk import forward_kinematics
-from so101_kinematics.ik.course import get_inverse_kinematics
+from so101_kinematics.ik.call_shapes import get_inverse_kinematics
 from so101_kinematics.ik.geometry import GRIPPER_OPEN, MIN_HEIGHT, POSITION_LIMIT
 from so101_kinematics.ik.solver import as_position
 from so101_kinematics.planning.motion import Plan, PlanError, check_number
@@ -109,7 +109,7 @@ def cartesian_plan(
         UnreachableError: a waypoint cannot be reached (the message names it).
         PlanError: a height, slide, yaw or duration outside its
             range (``LIFT_HEIGHT_RANGE``, ``APPROACH_HEIGHT_RANGE``,
-            ``SLIDE_RANGE``, ``CUBE_YAW_RANGE``, ``so101_kinematics.checks.MAX_DURATION``).
+            ``SLIDE_RANGE``, ``CUBE_YAW_RANGE``, ``so101_kinematics.inputs.MAX_DURATION``).
         so101_forward_kinematics.KinematicsInputError: a malformed position.
 
     Example (the FK positions of the course's configurations give its grasps back)::

@@ -5,7 +5,7 @@ two configurations (:class:`Trajectory`, with one of ``profiles.py``'s time
 scalings: direct, linear, cubic, quintic, minimum-jerk), the plan's shape
 (:class:`Step`, :class:`Plan`) and the runner that executes a plan through a
 backend's ``move_to_pose`` / ``hold_position`` (:func:`run_plan`). The plans
-themselves are ``plans.py``'s; the checks ``checks.py``'s. The backends
+themselves are ``plans.py``'s; the checks ``inputs.py``'s. The backends
 (``sim/stepping.py`` for MuJoCo, ``hw/control.py`` for a lerobot bus) only
 decide how time passes and how a command reaches the arm.
 """
@@ -18,7 +18,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from so101_kinematics.checks import (  # noqa: F401 - motion's vocabulary, re-exported
+from so101_kinematics.errors import JointLimitError as JointLimitError
+from so101_kinematics.errors import PlanError as PlanError
+from so101_kinematics.inputs import (  # noqa: F401 - motion's vocabulary, re-exported
     MAX_DURATION,
     Configuration,
     Limits,
@@ -30,8 +32,6 @@ from so101_kinematics.checks import (  # noqa: F401 - motion's vocabulary, re-ex
     is_finite_number,
     unit,
 )
-from so101_kinematics.errors import JointLimitError as JointLimitError
-from so101_kinematics.errors import PlanError as PlanError
 from so101_kinematics.planning.profiles import (  # noqa: F401 - the profiles, re-exported
     PROFILES,
     SPEED_CAPPED_PROFILES,

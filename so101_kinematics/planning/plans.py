@@ -17,7 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from so101_kinematics.checks import (
+from so101_kinematics.clearance import check_plan_clearance
+from so101_kinematics.errors import JointLimitError as JointLimitError
+from so101_kinematics.errors import PlanError as PlanError
+from so101_kinematics.frames import JOINTS
+from so101_kinematics.inputs import (
     RADIANS_BOUND,
     Limits,
     check_configuration,
@@ -25,10 +29,6 @@ from so101_kinematics.checks import (
     describe_value,
     looks_like_radians,
 )
-from so101_kinematics.clearance import check_plan_clearance
-from so101_kinematics.errors import JointLimitError as JointLimitError
-from so101_kinematics.errors import PlanError as PlanError
-from so101_kinematics.frames import JOINTS
 from so101_kinematics.planning.motion import Plan, Step
 
 # The course's pick-and-place. The six configurations of the assignment are

@@ -42,7 +42,7 @@ from so101_kinematics.constants import CUBE_HALF_SIZE, CUBE_SIZE, HOME_POSE
 from so101_kinematics.errors import UnreachableError
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS
-from so101_kinematics.ik.course import get_inverse_kinematics
+from so101_kinematics.ik.call_shapes import get_inverse_kinematics
 from so101_kinematics.ik.geometry import MIN_HEIGHT, POSITION_LIMIT
 from so101_kinematics.planning.cartesian_plan import (
     APPROACH_HEIGHT,

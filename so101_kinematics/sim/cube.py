@@ -19,7 +19,7 @@ import numpy as np
 from so101_kinematics.constants import CUBE_SIZE
 from so101_kinematics.fast_fk import forward_kinematics as get_forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINT_LIMITS, TOOL_SITE
-from so101_kinematics.ik.course import get_inverse_kinematics
+from so101_kinematics.ik.call_shapes import get_inverse_kinematics
 from so101_kinematics.planning.cartesian_plan import (
     CUBE_YAW_RANGE,
 )

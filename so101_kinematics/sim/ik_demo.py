@@ -35,7 +35,7 @@ from so101_kinematics import display
 from so101_kinematics.constants import CUBE_HALF_SIZE
 from so101_kinematics.errors import KinematicsInputError, PlanError, UnreachableError
 from so101_kinematics.frames import TOOL_SITE, Rz, check_angle
-from so101_kinematics.ik.course import get_inverse_kinematics
+from so101_kinematics.ik.call_shapes import get_inverse_kinematics
 from so101_kinematics.ik.solver import sample_top_down_targets
 from so101_kinematics.sim import actuation
 from so101_kinematics.sim.cube import build_model

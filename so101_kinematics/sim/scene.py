@@ -23,7 +23,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from so101_kinematics.checks import (
+from so101_kinematics.frames import GRIPPER_RANGE, JOINT_RANGES_RAD, JOINTS, TOOL_SITE
+from so101_kinematics.inputs import (
     LIMIT_TOLERANCE,
     PlanError,
     describe_value,
@@ -31,7 +32,6 @@ from so101_kinematics.checks import (
     limit_excess,
     unit,
 )
-from so101_kinematics.frames import GRIPPER_RANGE, JOINT_RANGES_RAD, JOINTS, TOOL_SITE
 from so101_kinematics.paths import MODEL_DIR, SCENE_PATH  # noqa: F401 - the scene's files
 from so101_kinematics.planning.motion import Configuration, check_configuration
 from so101_kinematics.sim import actuation

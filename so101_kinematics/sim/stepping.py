@@ -35,7 +35,8 @@ import mujoco
 import numpy as np
 
 from so101_kinematics import display
-from so101_kinematics.checks import (
+from so101_kinematics.errors import CallShapeError, ViewerClosed
+from so101_kinematics.inputs import (
     MISSING,
     describe_value,
     is_finite_number,
@@ -43,7 +44,6 @@ from so101_kinematics.checks import (
     radians_warning,
     start_mismatch,
 )
-from so101_kinematics.errors import CallShapeError, ViewerClosed
 from so101_kinematics.planning.motion import Trajectory, check_duration
 from so101_kinematics.sim import actuation
 from so101_kinematics.sim.scene import (

@@ -13,7 +13,7 @@ import numpy as np
 
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, TOOL_SITE
-from so101_kinematics.ik.course import get_inverse_kinematics
+from so101_kinematics.ik.call_shapes import get_inverse_kinematics
 from so101_kinematics.planning.straight_line import (  # noqa: F401 - the line's vocabulary, re-exported
     CONTROL_DT,
     METHODS,

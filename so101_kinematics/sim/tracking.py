@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from so101_kinematics.frames import JOINTS
-from so101_kinematics.ik.course import get_inverse_kinematics
+from so101_kinematics.ik.call_shapes import get_inverse_kinematics
 from so101_kinematics.markers import png_metadata
 from so101_kinematics.planning import motion_metrics, trajectory_log
 from so101_kinematics.planning.motion_metrics import METRIC_KEYS

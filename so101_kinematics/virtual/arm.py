@@ -42,11 +42,10 @@ Design
   uses the same rate.
 
 Where it lives: :mod:`so101_kinematics.virtual.emulator` (the emulator process and what
-the registers do), :mod:`so101_kinematics.virtual.servo` (one servo's register memory),
+the registers do), :mod:`so101_kinematics.virtual.servo_memory` (one servo's register memory),
 :mod:`so101_kinematics.virtual.protocol` (packets, the control table, wire time) and
-:mod:`so101_kinematics.virtual.calibration` (the shipped calibration, ticks <-> joint angles;
-loading
-and checking are :mod:`so101_kinematics.calibration`'s, shared with the real arm).
+:mod:`so101_kinematics.virtual.shipped_calibration` (the shipped calibration, ticks <-> joint
+angles; loading and checking are :mod:`so101_kinematics.calibration`'s, shared with the real arm).
 
 Deviations from a real arm (deliberate, for testing):
 - At power-up torque is ON, holding the initial pose (``torque_on_start``);
@@ -107,10 +106,6 @@ from so101_kinematics.errors import (  # noqa: F401
 )
 from so101_kinematics.paths import REPO
 from so101_kinematics.servo import KIT_SUPPLY_V
-from so101_kinematics.virtual.calibration import (
-    DEFAULT_CALIBRATION_PATH,
-    load_calibration,
-)
 from so101_kinematics.virtual.cubes import (  # noqa: F401 - re-exported
     CUBE_REACH_M,
     check_base_height,
@@ -120,6 +115,10 @@ from so101_kinematics.virtual.cubes import (  # noqa: F401 - re-exported
 from so101_kinematics.virtual.electrical import SUPPLY_V, THERMAL_TIME_S
 from so101_kinematics.virtual.faults import FAULT_KINDS, MAX_FAULT_MS, parse_faults  # noqa: F401
 from so101_kinematics.virtual.rules import check_rules
+from so101_kinematics.virtual.shipped_calibration import (
+    DEFAULT_CALIBRATION_PATH,
+    load_calibration,
+)
 
 logger = logging.getLogger("virtual_so101")
 

@@ -9,7 +9,7 @@ import time
 
 from so101_kinematics import cube_sensor
 from so101_kinematics.virtual.protocol import ADDR, EEPROM_END, ERROR_BITS, FIRMWARE
-from so101_kinematics.virtual.servo import FACTORY_ID, factory_eeprom
+from so101_kinematics.virtual.servo_memory import FACTORY_ID, factory_eeprom
 
 logger = logging.getLogger("virtual_so101")
 

@@ -27,7 +27,7 @@ from so101_kinematics.virtual.instructions import BusInstructions
 from so101_kinematics.virtual.protocol import take_packets
 from so101_kinematics.virtual.registers import GOAL_LOG_LENGTH, ServoRegisters  # noqa: F401
 from so101_kinematics.virtual.rules import check_rules
-from so101_kinematics.virtual.servo import VirtualServo
+from so101_kinematics.virtual.servo_memory import VirtualServo
 
 logger = logging.getLogger("virtual_so101")
 

@@ -20,7 +20,7 @@ with every position (``WritePosEx``: acceleration, position, time 0, speed); onl
 SCS series' driver passes a time (``SCSCL::WritePos``). Present_Velocity [counts/s],
 Present_Load [0.1 % duty, sign bit 10], Present_Current, Present_Temperature,
 Present_Voltage and the overheat/voltage/overload status bits follow the servo model
-and ``virtual/electrical.py`` (read by ``virtual/readings.py``); a limp servo's
+and ``virtual/electrical.py`` (read by ``virtual/sensor_registers.py``); a limp servo's
 Present_Load is 0. Overload protection (Unloading_Condition bit 5): after
 Protection_Time above Overload_Torque the duty is capped at Protective_Torque until a
 new goal or a Torque_Enable write (:meth:`ServoRegisters.protect`). An ID above 253 is
@@ -49,8 +49,8 @@ from so101_kinematics.virtual.protocol import (
     RESOLUTION,
     decode_sign_magnitude,
 )
-from so101_kinematics.virtual.readings import PWM_DIRECTION, SensorReadings
-from so101_kinematics.virtual.servo import VirtualServo
+from so101_kinematics.virtual.sensor_registers import PWM_DIRECTION, SensorReadings
+from so101_kinematics.virtual.servo_memory import VirtualServo
 
 STALL_LOAD_RATE = 2000.0  # [0.1 % per s] Present_Load rise of a stalled servo
 HAND_GAINS = IDEAL_GAINS  # a hand guiding a limp joint: the upstream model's stiff spring

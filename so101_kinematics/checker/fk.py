@@ -12,7 +12,7 @@ import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from so101_kinematics.checker import compare, report, sandbox
+from so101_kinematics.checker import fk_compare, report, sandbox
 from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number, range_help
 from so101_kinematics.errors import OutputPathError
 from so101_kinematics.outputs import (
@@ -29,7 +29,7 @@ EXIT_PASS, EXIT_OUTSIDE, EXIT_UNCHECKED = 0, 1, 2
 
 
 def check_file(path: str | Path, tolerance=(1.0, 1.0), timeout: float = sandbox.DEFAULT_TIMEOUT_S,
-               count: int = compare.RANDOM_COUNT) -> dict:
+               count: int = fk_compare.RANDOM_COUNT) -> dict:
     """Check one FK module; the student's code runs in a child process.
 
     Args:
@@ -40,15 +40,15 @@ def check_file(path: str | Path, tolerance=(1.0, 1.0), timeout: float = sandbox.
 
     Returns:
         A JSON-ready dict: file, student, verdict ("pass", "fail", "error"), reason,
-        tests (see :func:`compare.compare_all`), note, the module's output, seconds.
+        tests (see :func:`fk_compare.compare_all`), note, the module's output, seconds.
     """
-    check, run = run_check(path, compare.build_request(count), tolerance, timeout)
+    check, run = run_check(path, fk_compare.build_request(count), tolerance, timeout)
     if run is None:
         return check
     if run.status in ("import_error", "timeout") or not run.results.get("names"):
         check["reason"] = run.reason or "the module could not be imported"
         return check
-    check.update(compare.compare_all(run.results, tolerance, count))
+    check.update(fk_compare.compare_all(run.results, tolerance, count))
     if run.status != "ok":
         check["note"] = (check["note"] + " " if check["note"] else "") + \
             f"Not every call finished: {run.reason}."
@@ -171,7 +171,7 @@ def build_parser() -> ArgumentParser:
                         help="one or more so101_forward_kinematics.py files")
     add_tolerance_options(parser)
     parser.add_argument("--random", type=number(1, 100000, integer=True),
-                        default=compare.RANDOM_COUNT, help="random configurations (1000)")
+                        default=fk_compare.RANDOM_COUNT, help="random configurations (1000)")
     parser.add_argument("--json", type=Path, help="write the full comparison (JSON)")
     parser.add_argument("--gradescope", type=Path, metavar="RESULTS_JSON",
                         help="write Gradescope's results.json (one file only)")

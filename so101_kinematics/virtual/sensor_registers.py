@@ -19,7 +19,6 @@ from __future__ import annotations
 import math
 
 from so101_kinematics import servo as servo_facts
-from so101_kinematics.virtual.calibration import TICKS_PER_RAD
 from so101_kinematics.virtual.electrical import (
     CURRENT_FLICKER,
     VOLTAGE_FLICKER,
@@ -28,7 +27,8 @@ from so101_kinematics.virtual.electrical import (
     status_bits,
 )
 from so101_kinematics.virtual.protocol import RESOLUTION
-from so101_kinematics.virtual.servo import VirtualServo
+from so101_kinematics.virtual.servo_memory import VirtualServo
+from so101_kinematics.virtual.shipped_calibration import TICKS_PER_RAD
 
 ENCODER_NOISE = 0.3
 """How often a Present_Position reading is a count off (either way, seeded): a real STS3215 at

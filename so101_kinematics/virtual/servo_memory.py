@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from so101_kinematics.virtual.calibration import radians_to_present
 from so101_kinematics.virtual.electrical import AMBIENT_C
 from so101_kinematics.virtual.protocol import (
     ADDR,
@@ -23,6 +22,7 @@ from so101_kinematics.virtual.protocol import (
     decode_sign_magnitude,
     encode_sign_magnitude,
 )
+from so101_kinematics.virtual.shipped_calibration import radians_to_present
 
 # Factory values. Source: Feetech's STS3215 memory table (the spreadsheet lerobot's tables.py
 # links to, "Initial value" column; the same values where ftservo/ftservo-wiki's

@@ -45,15 +45,6 @@ from pathlib import Path
 from typing import Any
 
 from so101_kinematics.calibration import load_calibration
-from so101_kinematics.checks import (
-    MISSING,
-    START_MISMATCH,  # noqa: F401 - so101_utils's setting
-    check_number,
-    is_finite_number,
-    move_arguments,
-    radians_warning,
-    start_mismatch,
-)
 from so101_kinematics.errors import CalibrationError, PlanError, SO101Error
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.bus import (
@@ -85,6 +76,15 @@ from so101_kinematics.hw.run import (
     starting_pose,
 )
 from so101_kinematics.hw.servo_settings import configure_as_course
+from so101_kinematics.inputs import (
+    MISSING,
+    START_MISMATCH,  # noqa: F401 - so101_utils's setting
+    check_number,
+    is_finite_number,
+    move_arguments,
+    radians_warning,
+    start_mismatch,
+)
 from so101_kinematics.planning.motion import Configuration
 from so101_kinematics.trims import Trims, as_trims
 
