@@ -23,13 +23,14 @@ copyright = "2026, so101-kinematics contributors"  # noqa: A001 (Sphinx's name)
 
 extensions = ["myst_parser", "sphinx.ext.autodoc", "sphinx.ext.napoleon"]
 source_suffix = {".md": "markdown"}
-exclude_patterns = ["_build", "_generated_*", "Thumbs.db", ".DS_Store"]
+exclude_patterns = ["_build", "_generated_*", "fk_table.md", "Thumbs.db", ".DS_Store"]
 myst_heading_anchors = 3
 myst_enable_extensions = ["colon_fence"]
 html_theme = "alabaster"
 html_title = "so101-kinematics"
-# The README and pages link to files of the repository (scripts, tests): those are not pages.
-suppress_warnings = ["myst.xref_missing"]
+# fk_table.md is written by `python test_fk_mujoco.py --table` and included by fk.md.
+
+suppress_warnings: list[str] = []
 
 # Not in the docs environment: the hardware extra (lerobot, PyTorch), Feetech's SDK, pandas.
 autodoc_mock_imports = ["lerobot", "torch", "scservo_sdk", "pandas", "serial"]
