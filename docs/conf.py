@@ -80,9 +80,11 @@ FIGURES = {
     'fk_batch_ns_per_config': 'batch FK, 1e6 configurations [ns per configuration]',
     'ik_solve_us': 'IK, top-down with yaw, per target [us]',
     'ik_success_rate': 'IK success on reachable samples',
-    'sim_realtime_factor': 'headless pick-and-place with the cube, the default servo (STS3215 + feed-forward) [x real time]',
+    'sim_realtime_factor': 'headless pick-and-place with the cube, the default servo '
+                           '(STS3215 + feed-forward) [x real time]',
     'sim_realtime_factor_half_step': 'the same with a 2 ms step, reference [x real time]',
-    'sim_realtime_factor_ideal_servo': 'the same on the ideal servo (`--servo ideal`), reference [x real time]',
+    'sim_realtime_factor_ideal_servo': 'the same on the ideal servo (`--servo ideal`), '
+                                       'reference [x real time]',
     'servo_model_cost': "the servo model's cost: ideal / default",
     'mujoco_arm_step_us': 'reference: one `mj_step` of the arm alone [us]',
     'record_fps': 'recording 640x480 @ 30 fps: frames per wall second',

@@ -20,7 +20,8 @@ except ModuleNotFoundError:  # Python 3.10
 
 REPO = Path(__file__).resolve().parent.parent
 PROJECT = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
-# "| 3.10 | 3.17.0 | ..." rows of the "Supported versions" table (docs/install.md, once the README's).
+# "| 3.10 | 3.17.0 | ..." rows of the "Supported versions" table (docs/install.md;
+# the README's before issue 35).
 README_ROWS = dict(re.findall(r"^\| (3\.\d+) \| (\d+\.\d+\.\d+) \|",
                               (REPO / "docs" / "install.md").read_text(), re.MULTILINE))
 
