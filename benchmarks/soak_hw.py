@@ -1,9 +1,9 @@
-"""Soak: the README's hardware command against the virtual arm, N times in a row, both cores busy.
+"""Soak: docs/virtual_arm.md's hardware command, N times in a row, both cores busy.
 
 Usage:
     python benchmarks/soak_hw.py [--runs 20] [--busy 2] [--json PATH]
 
-Starts a virtual SO-101 with wire timing (as the README does), keeps
+Starts a virtual SO-101 with wire timing (as docs/virtual_arm.md does), keeps
 ``--busy`` other processes spinning (a loaded lab PC), and runs
 ``pick_place_hw.py --port PTY --calibration calibration/virtual_so101.json --yes``
 ``--runs`` times. Prints a table (exit code, last line, outages ridden through,
@@ -37,7 +37,7 @@ def _spin(stop_at: float) -> None:
 
 
 def soak(runs: int = 20, busy: int = 2) -> list[dict]:
-    """Run the README's hardware command ``runs`` times with ``busy`` spinning processes."""
+    """Run that hardware command ``runs`` times with ``busy`` spinning processes."""
     from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
 
     results = []

@@ -9,7 +9,8 @@ applied to the copy, its tests run with a timeout, and the copy restored. Your
 worktree is never modified.
 
 Not part of CI (every mutant in ``MUTANTS`` below, a baseline run first; ``--list``
-counts them). Run it after changing tests or the code they guard (see README, "Development")::
+counts them). Run it after changing tests or the code they guard (docs/development.md, "The
+mutation check")::
 
     python scripts/mutation_check.py                 # every mutant
     python scripts/mutation_check.py -k return_speed # mutants whose name contains it
@@ -529,6 +530,15 @@ MUTANTS: list[Mutant] = [
       "if volts else servo.DEFAULT_SUPPLY_V", "if volts else servo.KIT_SUPPLY_V",
       "tests/test_velocity_ff.py::"
       "test_nothing_read_the_feedforward_and_lead_assume_the_courses_12_v_c018"),
+    # --- the docs (issue 35): every block runs or says why not -----------------------------
+    m("docs_block_unmarked", "a README block that needs an arm loses its not-run marker",
+      "README.md", None,
+      "<!-- not run: starts a virtual arm that runs until stopped, then drives it for about "
+      "30 s -->\n", "",
+      "tests/docs/test_code_blocks.py::test_every_block_is_run_or_says_why_not"),
+    m("docs_example_drifts", "a docs page's IK example calls an approach the IK does not have",
+      "docs/ik.md", None, 'get_inverse_kinematics(p, approach=None)',
+      'get_inverse_kinematics(p, approach="sideways")', "tests/docs/test_code_blocks.py"),
 ]
 
 

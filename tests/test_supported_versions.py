@@ -20,9 +20,10 @@ except ModuleNotFoundError:  # Python 3.10
 
 REPO = Path(__file__).resolve().parent.parent
 PROJECT = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
-# "| 3.10 | 3.17.0 | ..." rows of the README's "Supported versions" table.
+# "| 3.10 | 3.17.0 | ..." rows of the "Supported versions" table (docs/install.md;
+# the README's before issue 35).
 README_ROWS = dict(re.findall(r"^\| (3\.\d+) \| (\d+\.\d+\.\d+) \|",
-                              (REPO / "README.md").read_text(), re.MULTILINE))
+                              (REPO / "docs" / "install.md").read_text(), re.MULTILINE))
 
 
 def requirements_for(python: str, name: str) -> list[Requirement]:
