@@ -529,6 +529,17 @@ MUTANTS: list[Mutant] = [
       "if volts else servo.DEFAULT_SUPPLY_V", "if volts else servo.KIT_SUPPLY_V",
       "tests/test_velocity_ff.py::"
       "test_nothing_read_the_feedforward_and_lead_assume_the_courses_12_v_c018"),
+    m("cube_sensor_stale", "the cube sensor keeps its first reading (the gripper is sent where "
+      "the cube was)", "so101_kinematics/sensors/cube_reader.py", "CubeSensor.read",
+      "data = self._read_block(SENSOR_ID, address(self.index), SIZE)",
+      "data = self.__dict__.setdefault(\"_last\", self._read_block(SENSOR_ID, "
+      "address(self.index), SIZE))",
+      "tests/core/test_arm_interface.py::"
+      "test_the_cube_sensor_asks_the_bus_at_every_read_never_a_stale_reading"),
+    m("two_arms_first_end_resets", "the first of two arms to end puts back the default SIGTERM "
+      "handler and unfreezes the heap under the other arm's moves",
+      "so101_kinematics/hw/course_helpers.py", "_end", "    if not _RUNS:\n", "    if True:\n",
+      "tests/hw/test_two_course_arms.py"),
 ]
 
 
