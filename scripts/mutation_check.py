@@ -540,6 +540,11 @@ MUTANTS: list[Mutant] = [
       "handler and unfreezes the heap under the other arm's moves",
       "so101_kinematics/hw/course_helpers.py", "_end", "    if not _RUNS:\n", "    if True:\n",
       "tests/hw/test_two_course_arms.py"),
+    m("bus_arm_jumps", "the arm interface on a bare bus lets a far goal through (the servos "
+      "jump there at full speed)", "so101_kinematics/hw/bus_arm.py", "BusArm._check_step",
+      "if abs(step) > most:", "if abs(step) > 10 * most:",
+      "tests/core/test_arm_interface.py::"
+      "test_a_bare_bus_takes_small_steps_and_refuses_a_jump_with_nothing_sent"),
 ]
 
 

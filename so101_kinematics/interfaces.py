@@ -54,10 +54,11 @@ class Arm(Protocol):
     def send_goal(self, goal: Mapping[str, float]) -> None:
         """Set the goal positions ([deg], gripper [0, 100]); a joint left out keeps its goal.
 
-        Refused (one line, nothing sent) outside the arm's range. It returns at once
-        (the servos move on their own; :meth:`advance` lets time pass), except on a
-        guarded bus (``so101_utils.setup_motors``), which ramps there and returns
-        when the arm arrived.
+        Refused (one line, nothing sent) outside the arm's range; on a bare bus also a
+        goal the servos would jump to (``hw/bus_arm.py``: send a path in small steps).
+        It returns at once (the servos move on their own; :meth:`advance` lets time
+        pass), except on a guarded bus (``so101_utils.setup_motors``), which ramps
+        there and returns when the arm arrived.
         """
         ...
 

@@ -12,9 +12,11 @@ What a goal does depends on the bus: on the guarded bus it is ramped at the
 speed cap and checked against the table, returning when the arm arrived; on a
 bare bus it is written as it is, after the checks every commanded path passes
 (inside the calibrated range, :func:`~so101_kinematics.hw.goals.guard`; clear of
-the table from the last goal, ``clearance.check_path``), and the servos go there
-at their own speed. Small steps each cycle (a 50 Hz loop along a planned path) are
-what a bare bus is for; a far goal there jumps.
+the table from the last goal, ``clearance.check_path``) and one more: a goal at
+most one step of the slowest control loop at the speed cap from the last one
+(:func:`max_steps`: 5 deg, gripper 5 %), since the servos go to a goal at their
+own full speed. A bare bus is for a loop that sends a planned path in small
+steps, one goal per cycle; a far goal there is refused, never jumped to.
 
 The cube sensor rides on the same bus (:meth:`BusArm.cube_sensor`): on a real
 arm it answers nothing and reads None.
@@ -27,16 +29,28 @@ from collections.abc import Mapping
 
 from so101_kinematics.calibration import calibrated_limits
 from so101_kinematics.clearance import check_path
+from so101_kinematics.errors import PlanError
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.bus import disconnect, read_block, read_pose
 from so101_kinematics.hw.goals import guard
+from so101_kinematics.hw.timing import MIN_RATE_HZ, speed_caps
 from so101_kinematics.inputs import check_configuration, check_number
 from so101_kinematics.sensors.cube_reader import CubeSensor
 
-__all__ = ["BusArm"]
+__all__ = ["BusArm", "max_steps"]
 
 MAX_ADVANCE_S = 3600.0
 """The longest :meth:`BusArm.advance` in one call [s] (the course's longest hold, an hour)."""
+
+
+def max_steps() -> dict[str, float]:
+    """Joint -> the largest step between two goals on a bare bus ([deg], gripper [%]).
+
+    One cycle of the slowest control loop (``timing.MIN_RATE_HZ``) at the speed cap
+    (``timing.speed_caps``): a loop at that rate or faster, along a path within the
+    cap, never takes a larger step.
+    """
+    return {joint: cap / MIN_RATE_HZ for joint, cap in speed_caps().items()}
 
 
 class BusArm:
@@ -65,8 +79,9 @@ class BusArm:
 
         Raises:
             PlanError: a joint unknown or not a number; JointLimitError: outside the range;
-                ClearanceError: the way there from the last goal goes into the table. Nothing
-                is sent then.
+                ClearanceError: the way there from the last goal goes into the table;
+                PlanError: on a bare bus, a step from the last goal beyond :func:`max_steps`.
+                Nothing is sent then.
         """
         partial = {j: self._limits[j] for j in goal if j in self._limits}
         checked = check_configuration(goal, partial, f"{self.name}: goal")
@@ -74,8 +89,24 @@ class BusArm:
             self._goal = read_pose(self.bus, retries=1)  # the goals left out: where it stands
         merged = guard({**self._goal, **checked}, self._limits)
         check_path([self._goal, merged], [f"{self.name}: goal"], base_height=self.base_height)
+        if getattr(self.bus, "raw", None) is None:  # a bare bus: the servos jump there
+            self._check_step(merged)
         self.bus.sync_write("Goal_Position", {j: merged[j] for j in JOINTS})
         self._goal = merged
+
+    def _check_step(self, goal: Mapping[str, float]) -> None:
+        """Refuse a goal farther from the last one than one step of the slowest loop."""
+        for joint, most in max_steps().items():
+            step = goal[joint] - self._goal[joint]
+            if abs(step) > most:
+                unit = "%" if joint == "gripper" else "deg"
+                raise PlanError(
+                    f"{self.name}: goal {joint} {goal[joint]:.1f} {unit} is {abs(step):.1f} "
+                    f"{unit} from the last goal ({self._goal[joint]:.1f}): more than "
+                    f"{most:g} {unit} in one goal jumps the arm at the servos' full speed; "
+                    "nothing sent. Fix: send the path in small steps, one goal per cycle "
+                    "(a 50 Hz loop along a planned trajectory), or move with the helpers' "
+                    "move_to_pose, which ramps.")
 
     def torque_enabled(self) -> dict[str, bool]:
         """Torque_Enable of every servo, read back."""

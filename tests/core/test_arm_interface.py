@@ -9,10 +9,13 @@ The virtual arm is reached through lerobot's bus, as the real one is (hw).
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import mujoco
 import pytest
+from hw_fakes import HOME, FakeBus
 
+from so101_kinematics.calibration import load_calibration
 from so101_kinematics.errors import InputError, JointLimitError, PlanError
 from so101_kinematics.hw.bus_arm import BusArm
 from so101_kinematics.interfaces import Arm, Camera, Sensor
@@ -26,9 +29,14 @@ FOLDED = {"shoulder_pan": 0.0, "shoulder_lift": -90.0, "elbow_flex": 90.0, "wris
 """The arm folded at rest (the model's ``home`` keyframe, rounded): a start clear of the table."""
 PAN_GOAL = 20.0
 """A pan of 20 deg from the folded pose: the pan axis is vertical, so gravity does not pull it."""
+CALIBRATION = load_calibration(Path(__file__).resolve().parents[2] / "calibration"
+                               / "virtual_so101.json")
+BARE_STEP_DEG = 100.0 / 20.0
+"""The largest step between two goals on a bare bus [deg]: one cycle of the slowest loop the
+hardware path runs (20 Hz) at its speed cap (100 deg/s), by hand (docs/hardware_safety.md)."""
 
 
-class FakeBus:
+class FakeSensorBus:
     """A bus whose cube sensor answers what the test sets (``block``: the cubes' replies)."""
 
     def __init__(self, cubes=()):
@@ -47,9 +55,10 @@ class FakeBus:
 def test_each_backend_and_sensor_has_the_protocols_operations():
     sim = SimArm(name="left", pose=FOLDED)
     assert isinstance(sim, Arm) and not isinstance(sim, Sensor)
-    assert isinstance(CubeSensor(FakeBus()), Sensor) and not isinstance(CubeSensor(FakeBus()), Arm)
+    cube = CubeSensor(FakeSensorBus())
+    assert isinstance(cube, Sensor) and not isinstance(cube, Arm)
     assert isinstance(SimCubeSensor(sim), Sensor)
-    assert not isinstance(CubeSensor(FakeBus()), Camera)  # a camera also has intrinsics, a size
+    assert not isinstance(cube, Camera)  # a camera also has intrinsics and a size
     assert all(hasattr(BusArm, op) for op in ("read_positions", "send_goal", "torque_enabled",
                                               "advance", "close"))
 
@@ -126,9 +135,46 @@ def test_the_simulated_cube_sensor_reads_the_cube_where_it_is_now():
     assert SimArm(pose=FOLDED).cube_sensors() == {}
 
 
+# --- the bus (a fake lerobot bus here; the virtual arm's below) ----------------------------
+def test_a_bare_bus_takes_small_steps_and_refuses_a_jump_with_nothing_sent():
+    bus = FakeBus(CALIBRATION, HOME)
+    arm = BusArm(bus, "left")
+    assert isinstance(arm, Arm) and arm.name == "left"
+    with pytest.raises(PlanError, match="shoulder_pan .* full speed.*nothing sent"):
+        arm.send_goal({"shoulder_pan": PAN_GOAL})  # at once: the servos would jump there
+    assert bus.goals == []
+    for k in range(1, 5):  # 20 deg in four steps of 5: a 20 Hz loop at the speed cap
+        arm.send_goal({"shoulder_pan": k * BARE_STEP_DEG})
+    assert [g["shoulder_pan"] for g in bus.goals] == [5.0, 10.0, 15.0, 20.0]
+    assert bus.goals[-1]["elbow_flex"] == pytest.approx(HOME["elbow_flex"])  # kept its goal
+    with pytest.raises(PlanError, match="gripper"):
+        arm.send_goal({"gripper": HOME["gripper"] + BARE_STEP_DEG + 0.5})
+    with pytest.raises(JointLimitError):
+        arm.send_goal({"shoulder_pan": 400.0})
+    assert len(bus.goals) == 4 and arm.read_positions()["shoulder_pan"] == 20.0
+    bus.torque["wrist_roll"] = False
+    assert arm.torque_enabled() == {**dict.fromkeys(HOME, True), "wrist_roll": False}
+
+
+def test_the_guarded_bus_ramps_a_far_goal_itself_so_it_is_passed_on():
+    bus = FakeBus(CALIBRATION, HOME)
+    bus.raw = bus  # as setup_motors' GuardedBus: its goal writes are ramped moves
+    arm = BusArm(bus)
+    arm.send_goal({"shoulder_pan": PAN_GOAL})
+    assert bus.goals[-1]["shoulder_pan"] == PAN_GOAL
+    closed = []
+    bus.is_connected, bus.disconnect = True, lambda **kwargs: closed.append(kwargs)
+    arm.close()  # the guarded bus stays open: it ends with the course's ending
+    assert closed == []
+    bare = FakeBus(CALIBRATION, HOME)
+    bare.is_connected, bare.disconnect = True, lambda **kwargs: closed.append(kwargs)
+    BusArm(bare).close()  # a bare one is closed, the torque left as it is (holding)
+    assert closed == [{"disable_torque": False}]
+
+
 # --- the cube sensor over a bus --------------------------------------------------------------
 def test_the_cube_sensor_asks_the_bus_at_every_read_never_a_stale_reading():
-    bus = FakeBus([(0.2, 0.1, 0.013)])
+    bus = FakeSensorBus([(0.2, 0.1, 0.013)])
     sensor = CubeSensor(bus)
     assert sensor.name == "cube" and sensor.read().position_m == (0.2, 0.1, 0.013)
     bus.cubes[0] = (0.25, -0.05, 0.013)  # the cube moved: the next read says so
@@ -142,7 +188,7 @@ def test_every_cube_is_read_at_its_own_address_and_the_list_ends_at_the_first_ab
 
     def bus(device_id, address_, size):
         asked.append(address_)
-        return FakeBus([(0.2, 0.0, 0.013), (0.25, 0.05, 0.039)])(device_id, address_, size)
+        return FakeSensorBus([(0.2, 0.0, 0.013), (0.25, 0.05, 0.039)])(device_id, address_, size)
 
     cubes = read_cubes(bus)
     assert [c.position_m for c in cubes] == [(0.2, 0.0, 0.013), (0.25, 0.05, 0.039)]
@@ -172,10 +218,14 @@ def test_the_virtual_arm_through_the_bus_is_an_arm_that_reaches_its_goal():
             goal = start["shoulder_pan"] + PAN_GOAL
             with pytest.raises(JointLimitError):
                 arm.send_goal({"shoulder_pan": 400.0})  # refused: nothing sent
+            with pytest.raises(PlanError, match="full speed"):
+                arm.send_goal({"shoulder_pan": goal})  # a jump: refused too
             assert virtual.commanded_positions()["shoulder_pan"] == pytest.approx(
                 start["shoulder_pan"], abs=0.5)
-            arm.send_goal({"shoulder_pan": goal})
-            arm.advance(2.0)
+            for k in range(1, 21):  # the course's loop: 1 deg per 20 ms cycle (50 deg/s)
+                arm.send_goal({"shoulder_pan": start["shoulder_pan"] + k})
+                arm.advance(0.02)
+            arm.advance(1.0)
             assert arm.read_positions()["shoulder_pan"] == pytest.approx(goal, abs=1.5)
             reading = arm.cube_sensor().read()
             assert reading.position_m[:2] == pytest.approx((0.22, -0.05), abs=2e-4)
