@@ -120,6 +120,16 @@ def test_two_simulated_arms_in_one_program_share_no_state(shared_model):
     assert left.read_positions()["shoulder_pan"] > PAN_GOAL - 2.0
 
 
+def test_the_courses_move_to_pose_drives_one_simulated_arm_of_two():
+    import so101_mujoco_utils
+
+    left, right = SimArm(name="left", pose=FOLDED), SimArm(name="right", pose=FOLDED)
+    so101_mujoco_utils.move_to_pose(left.model, left.data, None,
+                                    dict(FOLDED, shoulder_pan=PAN_GOAL), 1.5)
+    assert left.read_positions()["shoulder_pan"] == pytest.approx(PAN_GOAL, abs=1.0)
+    assert right.read_positions() == pytest.approx(FOLDED, abs=1e-6) and right.data.time == 0.0
+
+
 def test_the_simulated_cube_sensor_reads_the_cube_where_it_is_now():
     arm = SimArm(build_model(cube_at=(0.22, -0.05, 0.0), physics_only=True), pose=FOLDED)
     sensors = arm.cube_sensors()
