@@ -539,6 +539,22 @@ MUTANTS: list[Mutant] = [
     m("docs_example_drifts", "a docs page's IK example calls an approach the IK does not have",
       "docs/ik.md", None, 'get_inverse_kinematics(p, approach=None)',
       'get_inverse_kinematics(p, approach="sideways")', "tests/docs/test_code_blocks.py"),
+    m("cube_sensor_stale", "the cube sensor keeps its first reading (the gripper is sent where "
+      "the cube was)", "so101_kinematics/sensors/cube_reader.py", "CubeSensor.read",
+      "data = self._read_block(SENSOR_ID, address(self.index), SIZE)",
+      "data = self.__dict__.setdefault(\"_last\", self._read_block(SENSOR_ID, "
+      "address(self.index), SIZE))",
+      "tests/core/test_arm_interface.py::"
+      "test_the_cube_sensor_asks_the_bus_at_every_read_never_a_stale_reading"),
+    m("two_arms_first_end_resets", "the first of two arms to end puts back the default SIGTERM "
+      "handler and unfreezes the heap under the other arm's moves",
+      "so101_kinematics/hw/course_helpers.py", "_end", "    if not _RUNS:\n", "    if True:\n",
+      "tests/hw/test_two_course_arms.py"),
+    m("bus_arm_jumps", "the arm interface on a bare bus lets a far goal through (the servos "
+      "jump there at full speed)", "so101_kinematics/hw/bus_arm.py", "BusArm._check_step",
+      "if abs(step) > most:", "if abs(step) > 10 * most:",
+      "tests/core/test_arm_interface.py::"
+      "test_a_bare_bus_takes_small_steps_and_refuses_a_jump_with_nothing_sent"),
 ]
 
 

@@ -14,13 +14,16 @@ COURSE_FILES = {"so101_forward_kinematics", "so101_mujoco_utils", "so101_inverse
 MAY_IMPORT = {
     "core": {"core", "ik"},
     "ik": {"core", "ik"},
-    "sim": {"core", "ik", "sim"},
-    "hw": {"core", "ik", "hw"},
-    "virtual": {"core", "sim", "virtual"},
-    "lab": {"core", "ik", "sim", "hw", "virtual", "lab"},
+    "sensors": {"core", "sensors"},
+    "sim": {"core", "ik", "sensors", "sim"},
+    "hw": {"core", "ik", "sensors", "hw"},
+    "virtual": {"core", "sensors", "sim", "virtual"},
+    "lab": {"core", "ik", "sensors", "sim", "hw", "virtual", "lab"},
 }
 """Layer -> the layers it may import. hw and virtual are interchangeable backends: neither
-imports the other; the core imports no backend; nothing imports the course's files."""
+imports the other; the core imports no backend; sensors sit beside the core, under every
+backend (a sensor rides on a backend's transport, passed in); nothing imports the course's
+files."""
 
 
 def layer(module: str) -> str:

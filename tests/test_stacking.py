@@ -177,7 +177,7 @@ def test_pick_and_place_on_a_lower_table_with_ik_targets_below_the_base(capsys):
 
 
 def test_the_virtual_arm_shell_lists_every_cube_on_one_line():
-    from so101_kinematics.cube_sensor import CubeReading
+    from so101_kinematics.sensors.cube_wire import CubeReading
     from so101_kinematics.virtual import shell
 
     class TwoCubes:

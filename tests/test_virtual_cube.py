@@ -2,7 +2,7 @@
 
 The cube is the simulator's (one definition, so101_kinematics.sim.cube), resting on
 the virtual arm's table; the hardware path (lerobot's bus, run_on_arm) does the
-course's pick-and-place, and the bus's cube sensor (so101_kinematics.cube_sensor)
+course's pick-and-place, and the bus's cube sensor (so101_kinematics.sensors)
 tells where the cube ended.
 """
 
@@ -18,9 +18,10 @@ pytestmark = pytest.mark.hw
 from so101_forward_kinematics import ARM_JOINTS, get_forward_kinematics  # noqa: E402
 from so101_kinematics.calibration import load_calibration  # noqa: E402
 from so101_kinematics.hw import run as hw  # noqa: E402
-from so101_kinematics.hw.bus import connect, disconnect, read_cube_sensor  # noqa: E402
+from so101_kinematics.hw.bus import connect, disconnect, read_block  # noqa: E402
 from so101_kinematics.hw.teach import cube_outcome, grasp_outcome  # noqa: E402
 from so101_kinematics.planning.plans import GRIPPER_CLOSED, default_plan, pick_and_place_steps  # noqa: E402
+from so101_kinematics.sensors.cube_reader import CubeSensor  # noqa: E402
 from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
 
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
@@ -73,16 +74,17 @@ def test_a_cube_3_cm_off_is_not_picked_and_the_script_says_so():
 def test_the_cube_sensor_reads_the_cube_and_a_silent_bus_has_none():
     with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, cube=(0.25, -0.05, 30.0)) as arm:
         bus = connect(arm.port, CALIBRATION)
+        sensor = CubeSensor(lambda *block: read_block(bus, *block))
         try:
-            reading = read_cube_sensor(bus)
+            reading = sensor.read()
             assert reading.position_m[:2] == pytest.approx((0.25, -0.05), abs=2e-4)
             assert not reading.held
             arm.remove_cube()
-            assert read_cube_sensor(bus) is None and arm.cube() is None
+            assert sensor.read() is None and arm.cube() is None
             arm.place_cube(0.2, 0.1)
-            assert read_cube_sensor(bus).position_m[:2] == pytest.approx((0.2, 0.1), abs=2e-4)
+            assert sensor.read().position_m[:2] == pytest.approx((0.2, 0.1), abs=2e-4)
             arm.inject("outage:300")  # nothing answers: as on a real arm, which has no sensor
-            assert read_cube_sensor(bus) is None
+            assert sensor.read() is None
         finally:
             disconnect(bus)
 

@@ -14,13 +14,14 @@ import pytest
 pytest.importorskip("lerobot")
 pytestmark = pytest.mark.hw
 
-from so101_kinematics import cube_sensor  # noqa: E402
 from so101_kinematics.calibration import load_calibration  # noqa: E402
 from so101_kinematics.errors import CubePositionError  # noqa: E402
 from so101_kinematics.hw import run as hw  # noqa: E402
-from so101_kinematics.hw.bus import connect, disconnect, read_cube_sensors  # noqa: E402
+from so101_kinematics.hw.bus import connect, disconnect, read_block  # noqa: E402
 from so101_kinematics.planning.stack_report import stack_outcome  # noqa: E402
 from so101_kinematics.planning.stacking import stack_plan  # noqa: E402
+from so101_kinematics.sensors import cube_wire as cube_sensor  # noqa: E402
+from so101_kinematics.sensors.cube_reader import read_cubes  # noqa: E402
 from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
 
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
@@ -53,9 +54,9 @@ def test_the_sensor_reports_each_cube_and_the_table_below_the_base():
                       base_height=0.015) as arm:
         bus = connect(arm.port, CALIBRATION)
         try:
-            readings = read_cube_sensors(bus)
+            readings = read_cubes(lambda *block: read_block(bus, *block))
             arm.remove_cube(1)
-            after = read_cube_sensors(bus)
+            after = read_cubes(lambda *block: read_block(bus, *block))
         finally:
             disconnect(bus)
     assert [r.position_m[:2] for r in readings] == [pytest.approx((0.25, -0.05), abs=2e-4),

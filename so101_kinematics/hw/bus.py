@@ -11,7 +11,9 @@ The bus side of the hardware backend (the control loop that drives it is
     (:func:`discard_stale_input`, :func:`recover_port`), finding the servos
     that stopped answering (:func:`silent_servos`), telling a vanished port
     (:func:`port_lost`) from a silent arm, and lerobot's exceptions turned into
-    errors with a fix (:func:`bus_errors`).
+    errors with a fix (:func:`bus_errors`);
+  - a block read from another device on the bus (:func:`read_block`: the
+    virtual lab's cube sensor, ``so101_kinematics/sensors/``).
 """
 
 from __future__ import annotations
@@ -23,7 +25,6 @@ from collections.abc import Mapping
 from contextlib import contextmanager
 from typing import Any
 
-from so101_kinematics import cube_sensor
 from so101_kinematics.calibration import (
     CALIBRATE_HINT,
     MOTOR_IDS,
@@ -216,34 +217,24 @@ def read_pose(bus, retries: int = 0) -> dict[str, float]:
     return {joint: float(raw[joint]) for joint in JOINTS}
 
 
-def read_cube_sensor(bus, index: int = 0) -> cube_sensor.CubeReading | None:
-    """The virtual lab's cube sensor (``so101_kinematics.cube_sensor``); None on a real arm.
+def read_block(bus, device_id: int, address: int, size: int) -> bytes | None:
+    """One protocol-0 READ of ``size`` bytes at ``address`` of a device on the bus; None if silent.
 
-    One READ to the sensor's bus ID: a real arm has no device there, so the read
-    times out (50 ms) and the answer is None. ``index``: which cube (0 = the first).
+    For a device that is not one of the arm's servos (the virtual lab's cube
+    sensor: ``so101_kinematics/sensors/``): the port flushed before and freed after,
+    so a timed-out read (50 ms: a real arm has no such device) leaves the next
+    servo transaction clean. A failed read, or a reply of another size, is None.
     """
     try:
         discard_stale_input(bus)
-        data, comm, _ = bus.packet_handler.readTxRx(bus.port_handler, cube_sensor.SENSOR_ID,
-                                                    cube_sensor.address(index), cube_sensor.SIZE)
-    except Exception:  # noqa: BLE001 - no sensor, or a failing port: nothing to report
+        data, comm, _ = bus.packet_handler.readTxRx(bus.port_handler, device_id, address, size)
+    except Exception:  # noqa: BLE001 - no device, or a failing port: nothing to report
         return None
     finally:
         recover_port(bus, settle=False)
-    if comm != 0 or len(data) != cube_sensor.SIZE:
+    if comm != 0 or len(data) != size:
         return None
-    return cube_sensor.decode(bytes(data))
-
-
-def read_cube_sensors(bus) -> list[cube_sensor.CubeReading]:
-    """Every cube the virtual lab's sensor reports, in order; empty on a real arm (one read)."""
-    cubes: list[cube_sensor.CubeReading] = []
-    while len(cubes) < cube_sensor.MAX_CUBES:
-        reading = read_cube_sensor(bus, len(cubes))
-        if reading is None:
-            break
-        cubes.append(reading)
-    return cubes
+    return bytes(data)
 
 
 def configure(bus) -> None:

@@ -109,6 +109,7 @@ class CourseRun:
 
 
 _RUNS: dict[int, CourseRun] = {}  # id(bus handed out) -> its run, while set up and not ended
+_PROCESS = ExitStack()  # signal handlers and the frozen heap, undone when the last run ends
 
 
 def setup_motors(calibration: Mapping[str, Any], port: str,
@@ -174,10 +175,6 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
     run.session.command = dict(start)
     run.session.rest_pose = dict(start)  # moves may come as low as where the arm stood
     run.restore.callback(_unlock_port, bus)  # a run that ended leaves the port to other programs
-    run.restore.enter_context(signals_as_interrupt())  # SIGTERM/SIGHUP between calls: as Ctrl-C
-    gc.collect()
-    gc.freeze()  # no 0.2 s full garbage collection in the middle of a move (hw/signals.py)
-    run.restore.callback(gc.unfreeze)
     original = bus.disable_torque
 
     def disable_torque(motors=None, num_retry: int = 0) -> None:
@@ -194,6 +191,11 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
         guarded, values, what, normalize), disable_torque,
         lambda line: course_refuse_write(guarded, line))
     run.key = id(guarded)
+    if not _RUNS:  # the process's settings, while any arm is set up (two arms: until both end)
+        _PROCESS.enter_context(signals_as_interrupt())  # SIGTERM/SIGHUP between calls: Ctrl-C
+        gc.collect()
+        gc.freeze()  # no 0.2 s full garbage collection in the middle of a move (hw/signals.py)
+        _PROCESS.callback(gc.unfreeze)
     _RUNS[run.key] = run
     logger.info("Torque on, holding where the arm stands (%s); trims: %s.", format_pose(start),
                 trims.describe())
@@ -354,6 +356,8 @@ def _end(run: CourseRun, result: RunResult) -> str:
     """Close the run and print its last line (where the arm is, whether it is torqued)."""
     _RUNS.pop(run.key, None)
     run.restore.close()
+    if not _RUNS:
+        _PROCESS.close()
     run.ended = ending(result, run.release)
     released = result.returned_to_start and result.torque_released
     print(run.ended, file=sys.stdout if released and result.aborted is None else sys.stderr,

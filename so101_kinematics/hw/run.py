@@ -24,7 +24,6 @@ from so101_kinematics.calibration import (
     HardwareError,
     calibrated_limits,
 )
-from so101_kinematics.cube_sensor import CubeReading
 from so101_kinematics.errors import NotConfirmed as NotConfirmed
 from so101_kinematics.errors import TorqueLost
 from so101_kinematics.frames import JOINT_LIMITS, JOINTS
@@ -36,7 +35,7 @@ from so101_kinematics.hw.bus import (
     connect,
     disconnect,
     format_pose,
-    read_cube_sensors,
+    read_block,
     read_pose,
     recover_port,
     release_torque,
@@ -69,6 +68,8 @@ from so101_kinematics.hw.preflight import (  # noqa: F401 - the run's checks, re
 from so101_kinematics.hw.putdown import held_grip, put_down
 from so101_kinematics.hw.servo_settings import configure_as_course, describe_unable, read_back
 from so101_kinematics.planning.motion import Configuration, Plan, Step, run_plan, unit
+from so101_kinematics.sensors.cube_reader import read_cubes
+from so101_kinematics.sensors.cube_wire import CubeReading
 from so101_kinematics.trims import Trims, as_trims
 
 logger = logging.getLogger("pick_place_hw")
@@ -214,7 +215,7 @@ def finish(session: ArmSession, result: RunResult) -> None:
             result.final_pose = session.read_pose()  # where it holds, or is released
         except (Exception, KeyboardInterrupt):
             result.final_pose = None
-        result.cubes = read_cube_sensors(session.bus)
+        result.cubes = read_cubes(lambda *block: read_block(session.bus, *block))
         result.cube = result.cubes[0] if result.cubes else None
         if result.returned_to_start:
             result.unreleased = release_torque(session.bus)

@@ -61,7 +61,7 @@ def stack_outcome(stack: StackPlan, cubes) -> str | None:
 
     Args:
         stack: the plan that ran.
-        cubes: ``so101_kinematics.cube_sensor.CubeReading`` of every cube, any order;
+        cubes: ``so101_kinematics.sensors.cube_wire.CubeReading`` of every cube, any order;
             the lowest ``len(stack.blocks)`` of those near the stack are its blocks.
 
     Returns:

@@ -97,7 +97,6 @@ from collections.abc import Mapping
 from multiprocessing.connection import Connection
 from pathlib import Path
 
-from so101_kinematics.cube_sensor import CubeReading
 from so101_kinematics.display import has_display
 from so101_kinematics.errors import (  # noqa: F401
     CubePositionError,
@@ -105,6 +104,7 @@ from so101_kinematics.errors import (  # noqa: F401
     VirtualSO101Error,
 )
 from so101_kinematics.paths import REPO
+from so101_kinematics.sensors.cube_wire import CubeReading
 from so101_kinematics.servo import KIT_SUPPLY_V
 from so101_kinematics.virtual.cubes import (  # noqa: F401 - re-exported
     CUBE_REACH_M,
@@ -145,7 +145,7 @@ class VirtualSO101:
         log_level: logging level of the emulator process.
         cube: (x [m], y [m][, yaw [deg]]): the simulator's free cube resting on the
             table there, in the base frame, or a list of them (stacking); each pose is
-            readable through the bus's cube sensor (``so101_kinematics.cube_sensor``)
+            readable through the bus's cube sensor (``so101_kinematics.sensors.cube_wire``)
             and :meth:`cube`.
         base_height: the table is this far below the base frame [m] (the lab's
             15 mm mount), in [0, 0.05].

@@ -7,7 +7,7 @@ import os
 import statistics
 import time
 
-from so101_kinematics import cube_sensor
+from so101_kinematics.sensors import cube_wire as cube_sensor
 from so101_kinematics.virtual.protocol import ADDR, EEPROM_END, ERROR_BITS, FIRMWARE
 from so101_kinematics.virtual.servo_memory import FACTORY_ID, factory_eeprom
 
@@ -127,7 +127,7 @@ class ParentCommands:
 
     # --- the cubes (when the arm was started with them) -----------------------------------
     def cube_reading(self, index: int = 0) -> bytes:
-        """The cube sensor's reply data for cube ``index`` (``so101_kinematics.cube_sensor``)."""
+        """The cube sensor's reply data for cube ``index`` (``sensors/cube_wire.py``)."""
         if not self._has_cube(index):
             return cube_sensor.encode_absent()
         from so101_kinematics.sim.cube import cube_name, cube_state

@@ -32,7 +32,7 @@ import os
 import random
 import time
 
-from so101_kinematics import cube_sensor
+from so101_kinematics.sensors import cube_wire as cube_sensor
 from so101_kinematics.virtual.protocol import (
     BITS_PER_BYTE,
     BROADCAST_ID,

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 from typing import TextIO
 
 from so101_kinematics.calibration import ServoCalibration, ticks_to_user
-from so101_kinematics.cube_sensor import MAX_CUBES
 from so101_kinematics.frames import JOINT_LIMITS, JOINTS
+from so101_kinematics.sensors.cube_wire import MAX_CUBES
 
 QUIT = "quit"
 REACHED = 1.0  # [deg, gripper %] a hand move that ends further off has failed

@@ -1,4 +1,4 @@
-"""The virtual lab's cube sensor: a read-only device on the bus that only the virtual arm has.
+"""The virtual lab's cube sensor on the wire: a read-only device only the virtual arm has.
 
 A real SO-101 cannot tell where the cube is; the virtual arm can. It answers a
 protocol-0 READ addressed to :data:`SENSOR_ID` (never a PING, so lerobot's
@@ -8,8 +8,9 @@ upright [0.1 deg], and flags (bit 0: there is a cube, bit 1: it is in the
 jaws). A virtual arm with several cubes answers for its cube ``k`` (0, 1, ...,
 in the order they were given) at address :func:`address` ``(k)`` = ``k * SIZE``,
 and with "no cube" past the last one. On a real arm nothing answers, and the
-hardware script says nothing about the cube. The layout lives here, in the
-core, because both backends speak it.
+hardware script says nothing about the cube. The layout lives here, in
+``sensors/`` (which every backend may import), because both backends speak it;
+the sensor a program reads is ``sensors/cube_reader.py``.
 
 Example:
     >>> decode(encode((0.2291, -0.1912, 0.013), 1.5, held=False))
