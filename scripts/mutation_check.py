@@ -531,6 +531,21 @@ MUTANTS: list[Mutant] = [
       "if volts else servo.DEFAULT_SUPPLY_V", "if volts else servo.KIT_SUPPLY_V",
       "tests/test_velocity_ff.py::"
       "test_nothing_read_the_feedforward_and_lead_assume_the_courses_12_v_c018"),
+    # --- one home per fact (issue 35): the arm's facts read from model/so101.xml -------------
+    m("facts_com_from_body_pos", "the links' centres of mass read from each body's pos (where "
+      "it sits in its parent), not its <inertial>", "so101_kinematics/model_facts.py",
+      "centre_of_mass", '_find("body", body).find("inertial").get("pos")',
+      '_find("body", body).get("pos")', "tests/core/test_facts.py"),
+    m("facts_jaw_pads_dropped", "the clearance check reads only class collision, not the jaw "
+      "pads' class: the jaws' lowest boxes go unwatched", "so101_kinematics/model_facts.py",
+      "collision_boxes", 'if geom.get("class") in BOX_CLASSES',
+      'if geom.get("class") == "collision"',
+      "tests/core/test_facts.py",
+      "tests/test_clearance.py::test_the_check_places_every_collision_box_as_the_model_does"),
+    m("encoder_resolution_copied", "the encoder's resolution written a second time (lerobot's "
+      "max_res back as a literal in calibration.py)", CAL, None,
+      "TICKS_PER_TURN = COUNTS_PER_TURN - 1", "TICKS_PER_TURN = 4095",
+      "tests/core/test_facts.py::test_each_fact_is_written_once"),
 ]
 
 
