@@ -31,6 +31,7 @@ VARIANT_DIR = PACKAGE / "servo_variants"
 SCALAR_FACTS = {
     4096.0: ("the encoder's positions per turn", "so101_kinematics/servo.py"),
     4095.0: ("the encoder's last position (4096 - 1)", "so101_kinematics/servo.py"),
+    2048.0: ("the encoder's middle (4096 / 2)", "so101_kinematics/servo.py"),
     0.026: ("the cube's edge [m]", "so101_kinematics/constants.py"),
     0.013: ("half the cube's edge [m]", "so101_kinematics/constants.py"),
 }
