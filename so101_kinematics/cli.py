@@ -218,17 +218,13 @@ def add_gravity_ff_argument(parser: argparse.ArgumentParser) -> None:
                         "does'); --no-gravity-ff shows the raw sag (default on)")
 
 
-SERVO_CHOICES = ("sts3215", "ideal")
-"""``--servo``: the measured STS3215, or the upstream model's stiff ideal servo."""
-
-
 def add_servo_arguments(parser: argparse.ArgumentParser) -> None:
     """The simulated servo's options: --servo, --supply, --variant, --p-coefficient, --gravity-ff.
 
     :func:`servo_from_arguments` turns them into ``use_servo``'s keywords.
     """
     group = parser.add_argument_group("servo (README, 'What the real arm does')")
-    group.add_argument("--servo", choices=SERVO_CHOICES, default="sts3215",
+    group.add_argument("--servo", choices=servo.SIMULATED_SERVOS, default="sts3215",
                        help="sts3215: the measured servo at lerobot's settings (P 16, D 32, "
                        "Acceleration 254); ideal: the upstream model's kp = 998 servo, about "
                        "110x stiffer than the real one (default %(default)s)")

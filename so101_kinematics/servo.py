@@ -186,6 +186,10 @@ DEFAULT_SUPPLY_V = 12.0
 use the 12V power supply with the follower arm"); its servos are 12 V C018s. The two real
 arms' recordings are reproduced best by this servo (docs/servo_model.md)."""
 
+SIMULATED_SERVOS = ("sts3215", "ideal")
+"""The servos the simulator offers (``--servo``): this module's measured STS3215, or the
+upstream model's stiff ideal position servo (``sim/actuation.py``)."""
+
 DEFAULT_VARIANT = "C018"
 """The variant by default: the 12 V SO-101 follower's (docs/servo_model.md)."""
 

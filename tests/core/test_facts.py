@@ -263,6 +263,8 @@ def test_the_command_lines_variants_are_the_registrys():
     add_servo_arguments(parser)
     variant = next(action for action in parser._actions if action.dest == "variant")
     assert tuple(variant.choices) == tuple(servo.VARIANTS)
+    model = next(action for action in parser._actions if action.dest == "servo")
+    assert tuple(model.choices) == servo.SIMULATED_SERVOS == ("sts3215", "ideal")
     assert parser.parse_args(["--supply", "14"]).supply == 14.0
     with pytest.raises(SystemExit):
         parser.parse_args(["--supply", "14.5"])
