@@ -3,8 +3,9 @@
 The frame convention is written once, at the top of ``so101_forward_kinematics.py``:
 ``g_ab`` is the pose of frame ``b`` in frame ``a``; frames ``w``, ``1`` ... ``5``, ``t``.
 
-Each joint's transform is a fixed displacement and rotation taken from the
-upstream SO-101 model (``so101_new_calib``, :data:`FIXED_TRANSFORMS`),
+Each joint's transform is a fixed displacement and rotation read from the arm's
+model, ``model/so101.xml`` (upstream ``so101_new_calib``; :data:`FIXED_TRANSFORMS`,
+via :mod:`so101_kinematics.model_facts`),
 followed by the joint rotation ``Rz(theta)``: :func:`joint_transform`. The
 course's factors ``get_gw1`` ... ``get_g5t`` (``so101_forward_kinematics.py``)
 are these; :mod:`so101_kinematics.fast_fk` evaluates their product in closed form.
