@@ -118,10 +118,12 @@ MUTANTS: list[Mutant] = [
     m("gripper_tilt_dropped", "the gripper mount's -2.79 deg tilt left out of g45",
       FRAMES, None, '("z", GRIPPER_MOUNT_TILT_DEG)))', '("z", 0.0)))', T_FK),
     m("object_frame_2mm", "the object frame moved 2 mm along x of frame 5",
-      FRAMES, None, '"5t": ((0.0051,', '"5t": ((0.0071,', T_FK),
+      FRAMES, None, '"5t": (model_facts.site_position("object_frame"), ()),',
+      '"5t": (tuple(np.add(model_facts.site_position("object_frame"), (0.002, 0, 0))), ()),',
+      T_FK),
     m("object_frame_half_turned", "the object frame half a turn about y (z down, before the "
-      "course's IK assignment redrew it)", FRAMES, None, '-0.1075), ()),',
-      '-0.1075), (("y", 180.0),)),', T_FK, "tests/test_ik_course_shapes.py",
+      "course's IK assignment redrew it)", FRAMES, None, 'site_position("object_frame"), ()),',
+      'site_position("object_frame"), (("y", 180.0),)),', T_FK, "tests/test_ik_course_shapes.py",
       more=(Edit("so101_kinematics/fast_fk.py", "_closed_form_assumptions", '"5t": np.eye(3),',
                  '"5t": Ry(180.0),'),
             Edit("so101_kinematics/fast_fk.py", None, "    Rx,\n", "    Rx,\n    Ry,\n"))),
@@ -555,6 +557,21 @@ MUTANTS: list[Mutant] = [
       "if abs(step) > most:", "if abs(step) > 10 * most:",
       "tests/core/test_arm_interface.py::"
       "test_a_bare_bus_takes_small_steps_and_refuses_a_jump_with_nothing_sent"),
+    # --- one home per fact (issue 35): the arm's facts read from model/so101.xml -------------
+    m("facts_com_from_body_pos", "the links' centres of mass read from each body's pos (where "
+      "it sits in its parent), not its <inertial>", "so101_kinematics/model_facts.py",
+      "centre_of_mass", '_find("body", body).find("inertial").get("pos")',
+      '_find("body", body).get("pos")', "tests/core/test_facts.py"),
+    m("facts_jaw_pads_dropped", "the clearance check reads only class collision, not the jaw "
+      "pads' class: the jaws' lowest boxes go unwatched", "so101_kinematics/model_facts.py",
+      "collision_boxes", 'if geom.get("class") in BOX_CLASSES',
+      'if geom.get("class") == "collision"',
+      "tests/core/test_facts.py",
+      "tests/test_clearance.py::test_the_check_places_every_collision_box_as_the_model_does"),
+    m("encoder_resolution_copied", "the encoder's resolution written a second time (lerobot's "
+      "max_res back as a literal in calibration.py)", CAL, None,
+      "TICKS_PER_TURN = COUNTS_PER_TURN - 1", "TICKS_PER_TURN = 4095",
+      "tests/core/test_facts.py::test_each_fact_is_written_once"),
 ]
 
 

@@ -26,6 +26,7 @@ from typing import Any
 
 from so101_kinematics.errors import CalibrationError, HardwareError  # noqa: F401
 from so101_kinematics.frames import JOINTS
+from so101_kinematics.servo import COUNTS_PER_TURN
 
 # --- Settings ---------------------------------------------------------------
 ROBOT_TYPE = "so101_follower"
@@ -35,7 +36,7 @@ CALIBRATION_SUBDIRS = ("so_follower", "so101_follower")
 MOTOR_IDS = {"shoulder_pan": 1, "shoulder_lift": 2, "elbow_flex": 3, "wrist_flex": 4,
              "wrist_roll": 5, "gripper": 6}
 """Servo id of each joint on the SO-101 follower (lerobot's SOFollower)."""
-TICKS_PER_TURN = 4095  # lerobot's max_res for the sts3215: 4096 positions - 1
+TICKS_PER_TURN = COUNTS_PER_TURN - 1  # lerobot's max_res for the sts3215: its positions - 1
 CALIBRATE_HINT = (f"lerobot-calibrate --robot.type={ROBOT_TYPE} --robot.port={{port}} "
                   "--robot.id={robot_id}")
 

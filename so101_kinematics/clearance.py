@@ -28,8 +28,16 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
+from so101_kinematics import model_facts
 from so101_kinematics.errors import ClearanceError
-from so101_kinematics.frames import ARM_JOINTS, FIXED_ROTATION, FIXED_TRANSFORMS, JOINT_RANGES_RAD
+from so101_kinematics.frames import (
+    ARM_JOINTS,
+    BODY_OF_FRAME,
+    FIXED_ROTATION,
+    FIXED_TRANSFORMS,
+    JOINT_RANGES_RAD,
+    MOVING_JAW_BODY,
+)
 
 CLEARANCE_MARGIN_M = 0.005
 """[m] every collision box and the object frame stay this far above the table. The course's
@@ -46,24 +54,11 @@ START_TOLERANCE_M = 0.0005
 """[m] a path that starts lower than the margin may go this much lower than its start
 (sampling and rounding), no more."""
 
-# The collision boxes of model/so101.xml: body frame -> (geom name, centre [m], half sizes [m]),
-# axis-aligned in the body frame (tests/test_clearance.py checks them against the model).
-LINK_BOXES = {
-    "1": (("shoulder_box", (-0.0192, 0.0012, -0.0091), (0.0314, 0.0276, 0.0553)),),
-    "2": (("upper_arm_box", (-0.0591, -0.0003, 0.0202), (0.0711, 0.0122, 0.0337)),
-          ("elbow_servo_box", (-0.1126, -0.0155, 0.0183), (0.0124, 0.0227, 0.0198))),
-    "3": (("lower_arm_box", (-0.0534, 0.0, 0.0202), (0.0654, 0.012, 0.0322)),
-          ("wrist_servo_box", (-0.1179, 0.0035, 0.02), (0.0272, 0.0185, 0.0282))),
-    "4": (("wrist_box", (-0.0022, -0.0269, 0.0222), (0.0179, 0.0389, 0.0311)),),
-    "5": (("gripper_servo_box", (0.0077, 0.0005, -0.0234), (0.0227, 0.0198, 0.0124)),
-          ("gripper_body_box", (-0.0026, -0.002, -0.0475), (0.0326, 0.022, 0.012)),
-          ("fixed_jaw_pad", (-0.0121, -0.0002, -0.0982), (0.0042, 0.006, 0.0062)),
-          ("fixed_jaw_upper", (-0.0177, -0.0002, -0.0771), (0.0078, 0.0078, 0.0149))),
-    "jaw": (("moving_jaw_pad", (-0.00865, -0.0735, 0.019), (0.00365, 0.0085, 0.0065)),
-            ("moving_jaw_finger", (-0.00215, -0.0475, 0.019), (0.00615, 0.0175, 0.0075)),
-            ("moving_jaw_root", (0.0, -0.01, 0.019), (0.01, 0.02, 0.024))),
-}
-MOVING_JAW_MOUNT = (0.0202, 0.0188, -0.0234)
+LINK_BOXES = {frame: model_facts.collision_boxes(body)
+              for frame, body in {**BODY_OF_FRAME, "jaw": MOVING_JAW_BODY}.items()}
+"""The collision boxes of ``model/so101.xml`` (classes ``collision`` and ``jaw_pad``): body
+frame -> ((geom name, centre [m], half sizes [m]), ...), axis-aligned in the body frame."""
+MOVING_JAW_MOUNT = model_facts.body_position(MOVING_JAW_BODY)
 """[m] the moving jaw's body in the gripper frame; its rotation is Rx(90) (quat 0.707 0.707 0 0)."""
 _JAW_ROTATION = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # Rx(90)
 

@@ -218,25 +218,23 @@ def add_gravity_ff_argument(parser: argparse.ArgumentParser) -> None:
                         "does'); --no-gravity-ff shows the raw sag (default on)")
 
 
-SERVO_CHOICES = ("sts3215", "ideal")
-"""``--servo``: the measured STS3215, or the upstream model's stiff ideal servo."""
-
-
 def add_servo_arguments(parser: argparse.ArgumentParser) -> None:
     """The simulated servo's options: --servo, --supply, --variant, --p-coefficient, --gravity-ff.
 
     :func:`servo_from_arguments` turns them into ``use_servo``'s keywords.
     """
     group = parser.add_argument_group("servo (README, 'What the real arm does')")
-    group.add_argument("--servo", choices=SERVO_CHOICES, default="sts3215",
+    group.add_argument("--servo", choices=servo.SIMULATED_SERVOS, default="sts3215",
                        help="sts3215: the measured servo at lerobot's settings (P 16, D 32, "
                        "Acceleration 254); ideal: the upstream model's kp = 998 servo, about "
                        "110x stiffer than the real one (default %(default)s)")
-    group.add_argument("--supply", type=number(0.0, 14.0, "V", low_open=True), default=None,
-                       metavar="VOLTS", help="the servos' supply [V], in (0, 14] (default "
-                       f"{servo.DEFAULT_SUPPLY_V:g}: the course's follower; 5 for the standard "
-                       "kit's C001s, 7.4 for a C001 on a 7.4 V pack; at most 8 V for a C001)")
-    group.add_argument("--variant", choices=("C001", "C001-datasheet", "C018"), default=None,
+    highest = max(variant.max_volts for variant in servo.VARIANTS.values())
+    group.add_argument("--supply", type=number(0.0, highest, "V", low_open=True), default=None,
+                       metavar="VOLTS", help=f"the servos' supply [V], in (0, {highest:g}] "
+                       f"(default {servo.DEFAULT_SUPPLY_V:g}: the course's follower; 5 for the "
+                       "standard kit's C001s, 7.4 for a C001 on a 7.4 V pack; at most "
+                       f"{servo.VARIANTS['C001'].max_volts:g} V for a C001)")
+    group.add_argument("--variant", choices=tuple(servo.VARIANTS), default=None,
                        help="STS3215 variant (default: C018 above 9 V, else C001 with Rhoban "
                        "BAM's identified motor; C001-datasheet: the datasheet's, 1.75x weaker)")
     group.add_argument("--p-coefficient", type=number(1, 255, integer=True), default=None,

@@ -1,7 +1,9 @@
 """Facts of the course's scene, each written once: the cube, the arm's home pose."""
 
 CUBE_SIZE = 0.026
-"""Edge of the course's cubes [m] (the ``cube`` body of ``model/scene.xml``)."""
+"""Edge of the course's cubes [m]: its one home (``sim/cube.py`` builds the simulator's cubes
+from it; the ``object_frame`` site of ``model/so101.xml`` draws a held one, half sizes 0.013,
+and ``tests/core/test_facts.py`` checks the two agree)."""
 
 CUBE_HALF_SIZE = CUBE_SIZE / 2
 """Half the cube's edge [m]: the height of its centre resting on the table."""

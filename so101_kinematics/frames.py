@@ -3,8 +3,9 @@
 The frame convention is written once, at the top of ``so101_forward_kinematics.py``:
 ``g_ab`` is the pose of frame ``b`` in frame ``a``; frames ``w``, ``1`` ... ``5``, ``t``.
 
-Each joint's transform is a fixed displacement and rotation taken from the
-upstream SO-101 model (``so101_new_calib``, :data:`FIXED_TRANSFORMS`),
+Each joint's transform is a fixed displacement and rotation read from the arm's
+model, ``model/so101.xml`` (upstream ``so101_new_calib``; :data:`FIXED_TRANSFORMS`,
+via :mod:`so101_kinematics.model_facts`),
 followed by the joint rotation ``Rz(theta)``: :func:`joint_transform`. The
 course's factors ``get_gw1`` ... ``get_g5t`` (``so101_forward_kinematics.py``)
 are these; :mod:`so101_kinematics.fast_fk` evaluates their product in closed form.
@@ -17,6 +18,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from so101_kinematics import model_facts
 from so101_kinematics.errors import KinematicsInputError, KinematicsTypeError
 
 ARM_JOINTS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
@@ -37,6 +39,9 @@ BODY_OF_FRAME = {
 }
 """The MuJoCo body carrying each joint frame (the tool frame is a site)."""
 
+MOVING_JAW_BODY = "moving_jaw_so101_v1"
+"""The MuJoCo body of the moving jaw (turned by the gripper joint, carried by frame 5)."""
+
 TOOL_SITE = "object_frame"
 
 ANGLE_RANGE_DEG = (-360.0, 360.0)
@@ -48,17 +53,9 @@ Every pose is reached within it; a larger angle is almost surely a mistake
 narrower (:data:`JOINT_LIMITS`).
 """
 
-JOINT_RANGES_RAD = {
-    "shoulder_pan": (-1.9198621771937616, 1.9198621771937634),
-    "shoulder_lift": (-1.7453292519943224, 1.7453292519943366),
-    "elbow_flex": (-1.69, 1.69),
-    "wrist_flex": (-1.6580628494556928, 1.6580627293335335),
-    "wrist_roll": (-2.7438472969992493, 2.841206309382605),
-    "gripper": (-0.17453297762778586, 1.7453291995659765),
-}
+JOINT_RANGES_RAD = {joint: model_facts.joint_range(joint) for joint in JOINTS}
 """Joint ranges [rad]: the ``range`` attributes of ``model/so101.xml`` (upstream
-``so101_new_calib``), so that the IK and the real-arm path need no MuJoCo to know them;
-``tests/test_model.py`` checks they are the model's."""
+``so101_new_calib``), read without MuJoCo so that the IK and the real-arm path know them."""
 
 GRIPPER_RANGE = (0.0, 100.0)
 """The gripper's user range [%]: 0 at its lower joint limit (closed), 100 at the upper (open)."""
@@ -68,22 +65,27 @@ JOINT_LIMITS = {joint: (math.degrees(lower), math.degrees(upper))
 JOINT_LIMITS["gripper"] = GRIPPER_RANGE
 """Joint limits in user units: [deg] for the arm joints, [0, 100] for the gripper."""
 
-# The gripper mount's small tilt about the wrist_roll axis, exactly as the
-# upstream quaternion (0.0172091, -0.0172091, 0.706897, 0.706897) encodes it:
-# that quaternion is Rz(180) Rx(90) Rz(phi) with phi = 2 atan2(-0.0172091, 0.706897).
-GRIPPER_MOUNT_TILT_DEG = math.degrees(2.0 * math.atan2(-0.0172091, 0.706897))  # about -2.789
+# The gripper mount's small tilt about the wrist_roll axis, exactly as the upstream
+# quaternion of the ``gripper`` body in model/so101.xml, (0.0172091, -0.0172091, 0.706897,
+# 0.706897), encodes it: that quaternion is Rz(180) Rx(90) Rz(phi) with
+# phi = 2 atan2(q_x, q_y) (quat = w x y z).
+_GRIPPER_QUAT = model_facts.body_quaternion("gripper")
+GRIPPER_MOUNT_TILT_DEG = math.degrees(2.0 * math.atan2(_GRIPPER_QUAT[1], _GRIPPER_QUAT[2]))
+"""[deg] about -2.789."""
 
-# Fixed part of each transform: displacement [m] and rotation as a sequence of
-# (axis, angle [deg]) applied left to right. Numbers from so101_new_calib.
+# Fixed part of each transform: displacement [m] (the child body's ``pos`` in
+# model/so101.xml) and rotation as a sequence of (axis, angle [deg]) applied left to right:
+# the body's ``quat`` in the course's factors (tests/core/test_facts.py checks they agree).
 FIXED_TRANSFORMS = {
-    "w1": ((0.0388353, -8.97657e-09, 0.0624), (("z", 180.0), ("x", 180.0))),
-    "12": ((-0.0303992, -0.0182778, -0.0542), (("x", -90.0), ("z", -90.0))),
-    "23": ((-0.11257, -0.028, 0.0), (("z", 90.0),)),
-    "34": ((-0.1349, 0.0052, 0.0), (("z", -90.0),)),
-    "45": ((0.0, -0.0611, 0.0181), (("z", 180.0), ("x", 90.0), ("z", GRIPPER_MOUNT_TILT_DEG))),
-    # Tool: centre of the held cube (derivation in model/so101.xml), axes those of
-    # frame 5: at a top-down grasp z points up and the frame is Rz(yaw) (the course's).
-    "5t": ((0.0051, -0.000218, -0.1075), ()),
+    "w1": (model_facts.body_position("shoulder"), (("z", 180.0), ("x", 180.0))),
+    "12": (model_facts.body_position("upper_arm"), (("x", -90.0), ("z", -90.0))),
+    "23": (model_facts.body_position("lower_arm"), (("z", 90.0),)),
+    "34": (model_facts.body_position("wrist"), (("z", -90.0),)),
+    "45": (model_facts.body_position("gripper"),
+           (("z", 180.0), ("x", 90.0), ("z", GRIPPER_MOUNT_TILT_DEG))),
+    # Tool: centre of the held cube (the object_frame site; derivation in model/so101.xml),
+    # axes those of frame 5: at a top-down grasp z points up and the frame is Rz(yaw).
+    "5t": (model_facts.site_position("object_frame"), ()),
 }
 
 

@@ -23,13 +23,15 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from so101_kinematics import servo
+from so101_kinematics import model_facts, servo
 from so101_kinematics.frames import (
     ARM_JOINTS,
+    BODY_OF_FRAME,
     FIXED_ROTATION,
     FIXED_TRANSFORMS,
     GRIPPER_RANGE,
     JOINT_RANGES_RAD,
+    MOVING_JAW_BODY,
     Rx,
     pose,
     read_angles,
@@ -38,17 +40,13 @@ from so101_kinematics.frames import (
 GRAVITY = 9.81
 """[m/s^2], MuJoCo's default (the model sets none)."""
 
-LINKS = {
-    # frame: (mass [kg], centre of mass in the body's frame [m]), model/so101.xml <inertial>
-    "1": (0.100006, (-0.0307604, -1.66727e-05, -0.0252713)),  # shoulder
-    "2": (0.103, (-0.0898471, -0.00838224, 0.0184089)),  # upper_arm
-    "3": (0.104, (-0.0980701, 0.00324376, 0.0182831)),  # lower_arm
-    "4": (0.079, (-0.000103312, -0.0386143, 0.0281156)),  # wrist
-    "5": (0.087, (0.000213627, 0.000245138, -0.025187)),  # gripper
-}
-"""The moving links carried by each joint frame (the base does not move)."""
+LINKS = {frame: (model_facts.link_mass(body), model_facts.centre_of_mass(body))
+         for frame, body in BODY_OF_FRAME.items()}
+"""The moving links carried by each joint frame (the base does not move): mass [kg] and
+centre of mass in the body's frame [m], ``model/so101.xml`` ``<inertial>``."""
 
-JAW = (0.012, (-0.00157495, -0.0300244, 0.0192755), (0.0202, 0.0188, -0.0234))
+JAW = (model_facts.link_mass(MOVING_JAW_BODY), model_facts.centre_of_mass(MOVING_JAW_BODY),
+       model_facts.body_position(MOVING_JAW_BODY))
 """The moving jaw: mass [kg], centre of mass in its body [m], its body's position in the
 gripper body [m] (rotated Rx(90 deg), then by the gripper joint), ``model/so101.xml``."""
 

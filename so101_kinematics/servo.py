@@ -36,11 +36,17 @@ Example (the shoulder's stiffness at lerobot's P = 16)::
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, replace
+from pathlib import Path
 
-COUNTS_PER_RAD = 4096 / (2 * math.pi)
-"""Encoder counts per radian: 4096 counts a turn [MEM]."""
+COUNTS_PER_TURN = 4096
+"""The encoder's positions in one turn [MEM] (lerobot's ``max_res`` 4095 is this less one):
+the one home of the STS3215's resolution."""
+
+COUNTS_PER_RAD = COUNTS_PER_TURN / (2 * math.pi)
+"""Encoder counts per radian [MEM]."""
 
 DUTY_MAX = 970
 """Largest duty the firmware applies [0.1 %]: BAM's 0.97, measured with an oscilloscope."""
@@ -80,6 +86,29 @@ Modelled as play the motor's push crosses before it reaches the joint: the push 
 on the error less half the play (``sim/sts3215.py``); Present_Load is the firmware's duty."""
 
 
+VARIANTS_DIR = Path(__file__).resolve().parent / "servo_variants"
+"""The variants' data files, one JSON per variant, each naming its sources: a motor
+identified (``motor``: kt, R) or a datasheet's stall torque, no-load speed and stall current
+(``datasheet``); the gearbox's friction and inertia (``gearbox``, or ``gearbox_from`` another
+variant). :data:`VARIANTS` is read from them, and the command line's ``--variant`` choices."""
+
+
+def _read_variant_files() -> dict[str, dict]:
+    """Each variant file's contents by its ``name``, in name order."""
+    found = {}
+    for path in sorted(VARIANTS_DIR.glob("*.json")):
+        data = json.loads(path.read_text(encoding="utf-8"))
+        if data.get("name") != path.stem or not data.get("source"):
+            raise ValueError(f"{path}: a variant file names itself (name {path.stem!r}) and "
+                             "its source. Fix: add the missing name or source.")
+        found[data["name"]] = data
+    return dict(sorted(found.items()))
+
+
+_VARIANT_FILES = _read_variant_files()
+_GEARBOX = _VARIANT_FILES["C001"]["gearbox"]  # BAM's, identified (C001.json)
+
+
 @dataclass(frozen=True)
 class Variant:
     """An STS3215 variant's motor, reflected to the output shaft.
@@ -91,7 +120,8 @@ class Variant:
         emf_damping: the back-EMF's damping kt^2 / R [N m s/rad].
         kt: torque constant [N m/A] (Present_Current).
         coulomb: Coulomb friction [N m]; viscous: viscous friction [N m s/rad];
-            armature: reflected rotor inertia [kg m^2] (BAM, the same 1/345 gearbox).
+            armature: reflected rotor inertia [kg m^2] (by default BAM's, the same 1/345
+            gearbox: ``servo_variants/C001.json``).
         source: where the numbers come from.
         max_volts: the highest supply it takes [V]: its Max_Voltage_Limit as shipped [MEM].
     """
@@ -101,9 +131,9 @@ class Variant:
     torque_per_volt: float
     emf_damping: float
     kt: float
-    coulomb: float = 0.0524
-    viscous: float = 0.0591
-    armature: float = 0.0284
+    coulomb: float = _GEARBOX["coulomb_nm"]
+    viscous: float = _GEARBOX["viscous_nm_s_per_rad"]
+    armature: float = _GEARBOX["armature_kg_m2"]
     source: str = ""
     max_volts: float = 14.0
 
@@ -117,39 +147,36 @@ class Variant:
         return self.torque_per_volt * volts * DUTY_MAX / 1000.0
 
 
-def _from_datasheet(name: str, volts: float, stall: float, rpm: float, stall_amps: float,
-                    source: str, max_volts: float) -> Variant:
-    """A variant from a datasheet's stall torque, no-load speed and stall current.
+def _variant(data: dict) -> Variant:
+    """A :class:`Variant` from its file's ``data``.
 
-    kt / R = stall / volts; the damping is what leaves the no-load speed at ``rpm``
-    with BAM's friction; kt = stall / stall current.
+    Identified (``motor``): kt / R and kt^2 / R. From a datasheet: kt / R = stall / volts;
+    the damping is what leaves the no-load speed at the datasheet's rpm with the gearbox's
+    friction; kt = stall / stall current (or ``kt_from`` another variant's motor).
     """
+    gearbox = _VARIANT_FILES[data.get("gearbox_from", data["name"])]["gearbox"]
+    friction = {"coulomb": gearbox["coulomb_nm"], "viscous": gearbox["viscous_nm_s_per_rad"],
+                "armature": gearbox["armature_kg_m2"]}
+    volts, about = data["nominal_volts"], {"source": data["source"],
+                                           "max_volts": data["max_volts"]}
+    if "motor" in data:
+        kt, resistance = data["motor"]["kt_nm_per_a"], data["motor"]["resistance_ohm"]
+        return Variant(data["name"], volts, kt / resistance, kt ** 2 / resistance, kt,
+                       **friction, **about)
+    sheet = data["datasheet"]
+    stall = sheet["stall_torque_nm"]
+    kt = (stall / sheet["stall_current_a"] if "stall_current_a" in sheet
+          else _VARIANT_FILES[data["kt_from"]]["motor"]["kt_nm_per_a"])
     per_volt = stall / volts
-    speed = rpm * 2 * math.pi / 60
-    base = Variant("", volts, per_volt, 0.0, 1.0)
-    drive = per_volt * volts * DUTY_MAX / 1000.0 - base.coulomb
-    return Variant(name, volts, per_volt, drive / speed - base.viscous, stall / stall_amps,
-                   source=source, max_volts=max_volts)
+    drive = per_volt * volts * DUTY_MAX / 1000.0 - friction["coulomb"]
+    damping = drive / (sheet["no_load_rpm"] * 2 * math.pi / 60) - friction["viscous"]
+    return Variant(data["name"], volts, per_volt, damping, kt, **friction, **about)
 
 
-C001_MAX_VOLTS = 8.0
-"""The 7.4 V C001's Max_Voltage_Limit as shipped (80, in 0.1 V) [MEM]: above it the servo
-reports a voltage error and drops its torque. The 12 V C018's is 14.0 V."""
-
-VARIANTS = {
-    # BAM identified this one (the standard SO-101 kit's 7.4 V servo).
-    "C001": Variant("C001", 7.4, 1.2116 / 2.676, 1.2116 ** 2 / 2.676, 1.2116,
-                    source="BAM, identified at 7.4 V (stall 3.35 N m at full duty)",
-                    max_volts=C001_MAX_VOLTS),
-    # The same servo by its datasheet: 1.75x weaker than BAM identified. Tested both ways.
-    "C001-datasheet": _from_datasheet("C001-datasheet", 7.4, 1.91, 52.0, 1.91 / 1.2116 * 1.0,
-                                      "Feetech C001 datasheet: 19.5 kg cm, 52 rpm at 7.4 V",
-                                      C001_MAX_VOLTS),
-    # The 12 V follower's (the course's lab, docs/servo_model.md): the project's default.
-    "C018": _from_datasheet("C018", 12.0, 2.94, 45.0, 2.7,
-                            "Feetech C018 datasheet: 30 kg cm, 45 rpm, 2.7 A at 12 V", 14.0),
-}
-"""The variants: the kit's C001 (BAM's numbers, or its datasheet's) and the 12 V C018."""
+VARIANTS = {name: _variant(data) for name, data in _VARIANT_FILES.items()}
+"""The variants, by name (the registry: ``servo_variants/*.json``): the kit's C001 (BAM's
+numbers, or its datasheet's, 1.75x weaker; tested both ways) and the 12 V C018, the
+project's default."""
 
 KIT_SUPPLY_V = 5.0
 """The standard SO-101 kit's supply [V] for its C001 servos (SO-ARM100 README, issue #36)."""
@@ -158,6 +185,10 @@ DEFAULT_SUPPLY_V = 12.0
 """The follower's supply by default [V]: the course's (ECE4560 assignment 3: "You will need to
 use the 12V power supply with the follower arm"); its servos are 12 V C018s. The two real
 arms' recordings are reproduced best by this servo (docs/servo_model.md)."""
+
+SIMULATED_SERVOS = ("sts3215", "ideal")
+"""The servos the simulator offers (``--servo``): this module's measured STS3215, or the
+upstream model's stiff ideal position servo (``sim/actuation.py``)."""
 
 DEFAULT_VARIANT = "C018"
 """The variant by default: the 12 V SO-101 follower's (docs/servo_model.md)."""

@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from so101_kinematics import model_facts
 from so101_kinematics.frames import FIXED_TRANSFORMS, GRIPPER_MOUNT_TILT_DEG, Rx, Ry, Rz
 
 MATCH_MM = 0.05
@@ -51,7 +52,7 @@ TOOL_POINTS = {
         FIXED_TRANSFORMS["5t"][0],
     "the course diagram's tool point (0, 0, -0.1034)": (0.0, 0.0, -0.1034),
     "the upstream model's gripperframe site (the fixed jaw's tip)":
-        (-0.0079, -0.000218121, -0.0981274),
+        model_facts.site_position("gripperframe"),
 }
 """Tool-frame origins in frame 5 [m] that are conventions, not mistakes."""
 

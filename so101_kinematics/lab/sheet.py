@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from so101_kinematics.constants import CUBE_SIZE
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, FIXED_TRANSFORMS
 from so101_kinematics.markers import pdf_metadata
@@ -41,7 +42,7 @@ from so101_kinematics.planning.plans import pick_and_place_steps
 PAPER_MM = {"a4": (210.0, 297.0), "letter": (215.9, 279.4)}
 """Paper sizes, portrait (width, height) [mm]."""
 MM_PER_INCH = 25.4
-CUBE_EDGE_MM = 26.0      # the course's cube [mm]
+CUBE_EDGE_MM = CUBE_SIZE * 1000.0  # the course's cube [mm]
 SCALE_BAR_MM = 100.0     # the scale bar to check with a ruler [mm]
 MARGIN_MM = 10.0         # blank border of each page (printers do not print there) [mm]
 HEADER_MM = 17.0         # title and instructions above the drawing [mm]

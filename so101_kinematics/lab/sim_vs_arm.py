@@ -43,9 +43,10 @@ from so101_kinematics.markers import png_metadata
 from so101_kinematics.outputs import atomic_output
 from so101_kinematics.planning.motion import Plan, Step
 from so101_kinematics.planning.plans import pick_and_place_steps
+from so101_kinematics.servo import COUNTS_PER_TURN, TARGET_RATE_MAX
 
 SETTLE_WINDOW_S = 0.2  # the pick/place pose: mean measured pose over the step's last [s]
-MAX_SPEED_DEG_S = 3400 * 360.0 / 4096.0  # [deg/s] the STS3215's fastest ([BAM], servo.py)
+MAX_SPEED_DEG_S = TARGET_RATE_MAX * 360.0 / COUNTS_PER_TURN  # [deg/s] the STS3215's fastest
 MISREAD_MARGIN_DEG = 1.0  # [deg] beyond twice that speed's travel: no servo moved so (see below)
 COLUMNS = ("t_s", "step", *(f"{kind}_{j}" for kind in ("cmd", "meas") for j in JOINTS))
 """The columns a replay needs (``hw/log.py``'s HEADER has them all)."""

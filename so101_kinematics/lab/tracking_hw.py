@@ -36,7 +36,7 @@ from so101_kinematics.planning.profiles import PROFILES
 MODES = ("plain", "lead", "registers")
 """The ways of getting the velocity to the arm, compared (the module's docstring)."""
 
-COUNTS_PER_DEG = 4096 / 360.0
+COUNTS_PER_DEG = servo.COUNTS_PER_TURN / 360.0
 """Encoder counts per degree [MEM] (``servo.COUNTS_PER_RAD`` in degrees)."""
 
 ACCELERATION_MAX = 254

@@ -39,12 +39,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from so101_kinematics.servo import COUNTS_PER_TURN
+
 METRIC_KEYS = ("tracking_rms_deg", "tracking_max_deg", "peak_velocity_deg_s",
                "peak_acceleration_deg_s2", "peak_jerk_deg_s3")
 """The figures of :func:`metrics`, in their units."""
 DERIVATIVE_WINDOW_S = 0.4  # [s] the fit's window for positions-only data (see the module)
 MIN_WINDOW_SAMPLES = 5  # a cubic (4 coefficients) fitted to at least one sample more
-ENCODER_COUNT_DEG = 360.0 / 4096.0  # [deg] one STS3215 count ([MEM], servo.py)
+ENCODER_COUNT_DEG = 360.0 / COUNTS_PER_TURN  # [deg] one STS3215 count ([MEM], servo.py)
 
 
 def fitted_derivatives(time: Sequence[float], positions,

@@ -35,9 +35,6 @@ from so101_kinematics.errors import PlanError
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.sim.sts3215 import ServoBank
 
-SERVO_MODES = ("sts3215", "ideal")
-"""The servos the simulator offers."""
-
 IDEAL_GAINS = (998.22, 2.731, 3.35, 0.60)
 """The upstream ideal servo: kp [N m/rad], kv [N m s/rad], force range [N m], joint damping
 [N m s/rad]."""
@@ -94,7 +91,7 @@ def use_servo(m: mujoco.MjModel, mode: str = "sts3215", volts: float = DEFAULT_V
 
     Args:
         m: the model (its position actuators are adjusted in place).
-        mode: one of :data:`SERVO_MODES`.
+        mode: one of ``servo.SIMULATED_SERVOS``.
         volts: the supply [V], in (0, 14].
         variant: a key of ``servo.VARIANTS`` (default: what ``volts`` implies).
         p: P_Coefficient (default lerobot's 16), 1-255.
@@ -109,8 +106,8 @@ def use_servo(m: mujoco.MjModel, mode: str = "sts3215", volts: float = DEFAULT_V
         raise PlanError("a velocity model (position and <joint>_vel actuators) runs on the "
                         "course's own gains; the STS3215 model drives position actuators only. "
                         "Fix: load model/scene.xml for the servo model.")
-    if mode not in SERVO_MODES:
-        raise PlanError(f"servo {mode!r} is not one of {', '.join(SERVO_MODES)}. "
+    if mode not in servo.SIMULATED_SERVOS:
+        raise PlanError(f"servo {mode!r} is not one of {', '.join(servo.SIMULATED_SERVOS)}. "
                         "Fix: use --servo sts3215 (the measured servo) or --servo ideal.")
     if not 0.0 < float(volts) <= 14.0:
         raise PlanError(f"supply {volts} V is outside (0, 14] V (the STS3215's rated range). "

@@ -35,7 +35,6 @@ from so101_kinematics.sim.render import (
 # The free cube: a 26 mm hardwood cube (17.6 cm^3 at ~0.7 g/cm^3 = 12 g).
 # Sliding friction 0.5 is wood on wood or on PLA; where it touches a jaw pad,
 # the pad's own contact parameters apply (model/so101.xml, class jaw_pad).
-CUBE_EDGE = CUBE_SIZE  # [m]
 CUBE_MASS = 0.012  # [kg]
 CUBE_FRICTION = (0.5, 0.005, 0.0001)  # sliding [-], torsional [m], rolling [m]
 CUBE_RGBA = (0.25, 0.45, 0.85, 1.0)
@@ -67,7 +66,7 @@ class CubeStart:
         """
         position, rotation = get_forward_kinematics({j: pick[j] for j in ARM_JOINTS})
         centre = np.array([position[0] + self.offset[0], position[1] + self.offset[1],
-                           0.5 * CUBE_EDGE])
+                           0.5 * CUBE_SIZE])
         angle = math.atan2(rotation[1, 0], rotation[0, 0]) + math.radians(self.yaw)
         return centre, np.array([math.cos(angle / 2), 0.0, 0.0, math.sin(angle / 2)])
 
@@ -149,7 +148,7 @@ def add_cube(spec: mujoco.MjSpec, centre, quat, name: str = "cube") -> None:
     """
     body = spec.worldbody.add_body(name=name, pos=list(centre), quat=list(quat))
     body.add_freejoint(name=name)
-    body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.5 * CUBE_EDGE] * 3,
+    body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.5 * CUBE_SIZE] * 3,
                   mass=CUBE_MASS, friction=list(CUBE_FRICTION), condim=3, rgba=list(CUBE_RGBA))
     spec.option.enableflags |= mujoco.mjtEnableBit.mjENBL_SLEEP  # a cube at rest costs nothing
 
@@ -159,10 +158,10 @@ def cube_on_table(x: float, y: float, yaw_deg: float = 0.0,
     """Centre [m] and quaternion (w, x, y, z) of a cube resting on the table at (x, y), turned.
 
     The table is ``base_height`` [m] below the base frame: the centre is at
-    ``-base_height + CUBE_EDGE / 2``.
+    ``-base_height + CUBE_SIZE / 2``.
     """
     half = math.radians(yaw_deg) / 2
-    return (np.array([x, y, 0.5 * CUBE_EDGE - base_height]),
+    return (np.array([x, y, 0.5 * CUBE_SIZE - base_height]),
             np.array([math.cos(half), 0.0, 0.0, math.sin(half)]))
 
 
@@ -176,7 +175,7 @@ def cube_state(m: mujoco.MjModel, d: mujoco.MjData,
     up = d.body(name).xmat.reshape(3, 3)[:, 2]
     tilt = math.degrees(math.acos(min(1.0, max(-1.0, float(up[2])))))
     held = (math.dist(centre, d.site(TOOL_SITE).xpos) <= HELD_DISTANCE
-            and centre[2] > m.geom("table").pos[2] + 0.5 * CUBE_EDGE + 0.002)
+            and centre[2] > m.geom("table").pos[2] + 0.5 * CUBE_SIZE + 0.002)
     return centre, tilt, held
 
 
@@ -231,7 +230,7 @@ def check_cube_start(plan: Plan, cube: CubeStart) -> np.ndarray:
     pick, _ = pick_and_place_steps(plan)
     centre, _ = cube.pose(pick.configuration)
     (x_low, x_high), (y_low, y_high) = table_extent()
-    half = 0.5 * CUBE_EDGE
+    half = 0.5 * CUBE_SIZE
     where = (f"The cube would start at ({centre[0]:.3f}, {centre[1]:.3f}) m (waypoint "
              f"'{pick.name}' plus the offset ({cube.offset[0] * 1e3:g}, "
              f"{cube.offset[1] * 1e3:g}) mm)")

@@ -40,6 +40,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from so101_kinematics.constants import CUBE_HALF_SIZE
 from so101_kinematics.errors import RenderError, RenderSettingError  # noqa: F401
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.sim.meshes import ensure_render_meshes
@@ -54,7 +55,7 @@ MIN_FPS = 1.0  # [frames/s]; the most is one frame per physics step (see max_fps
 # a CPU renderer; 10000 x 10000 would be 800 MB. 4096 px also stays within
 # the renderbuffer size of the OpenGL drivers we target (llvmpipe 16384).
 FRAME_EDGE_RANGE = (16, 4096)  # [px] width and height of a video frame or picture
-CUBE_HALFWIDTH = 0.013  # [m] the course's 26 mm cubes
+CUBE_HALFWIDTH = CUBE_HALF_SIZE  # [m] the course's cubes (constants.py)
 START_RGBA = (1.0, 0.0, 0.0, 0.2)  # translucent red: where the cube is picked
 FINAL_RGBA = (0.0, 1.0, 0.0, 0.2)  # translucent green: where it is placed
 VIDEO_CODEC = "libx264"

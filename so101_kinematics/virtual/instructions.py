@@ -50,6 +50,7 @@ from so101_kinematics.virtual.protocol import (
     INST_SYNC_WRITE,
     INST_WRITE,
     REGISTERED,
+    RESOLUTION,
     collide,
     status_packet,
 )
@@ -153,7 +154,7 @@ class BusInstructions:
         if inst == INST_RESET_TURNS and not params:
             return lambda servo: None
         if inst == INST_CALIBRATE and len(params) in (0, 2):
-            value = 2048 if not params else params[0] | params[1] << 8
+            value = RESOLUTION // 2 if not params else params[0] | params[1] << 8
             return lambda servo: self.set_present(servo, value)
         return None
 

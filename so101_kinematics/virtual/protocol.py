@@ -22,10 +22,12 @@ Example (PING servo 1)::
 
 from __future__ import annotations
 
+from so101_kinematics.servo import COUNTS_PER_TURN
+
 # --- STS3215 facts -------------------------------------------------------------------------------
 MODEL_NUMBER = 777
 FIRMWARE = (3, 10)
-RESOLUTION = 4096  # encoder ticks per turn
+RESOLUTION = COUNTS_PER_TURN  # encoder ticks per turn (servo.py)
 # Baud_Rate register value -> [bit/s], as Feetech's memory table (ftservo/ftservo-wiki,
 # docs/en/reference/parameter/memory-sts.md, address 6) and its SDK headers (SMS_STS.h) give them.
 # lerobot's STS_SMS_SERIES_BAUDRATE_TABLE says 57 600 / 38 400 / 19 200 for codes 5-7: a servo

@@ -263,7 +263,7 @@ class ServoRegisters(SensorReadings):
             touched.add(48)
         if 40 in touched and regs[40] == 128:  # "calibrate the present position to 2048"
             regs[40] = int(was_on)  # reads back 0/1: torque stays as it was
-            self.set_present(servo, 2048)
+            self.set_present(servo, RESOLUTION // 2)
             touched |= {31, 32}
         if addr < EEPROM_END and regs[55] == 0:
             servo.saved = bytes(regs[:EEPROM_END])

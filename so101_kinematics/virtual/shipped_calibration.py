@@ -70,7 +70,8 @@ def make_default_calibration(m) -> dict[str, dict[str, int]]:
             range_min, range_max = 0, RESOLUTION - 1
         elif name == "gripper":
             span = round((upper - lower) * TICKS_PER_RAD)
-            range_min, range_max = 2048 - (span + 1) // 2, 2048 - (span + 1) // 2 + span
+            range_min = RESOLUTION // 2 - (span + 1) // 2  # about the encoder's middle
+            range_max = range_min + span
         else:
             half = math.ceil(max(abs(lower), abs(upper)) * TICKS_PER_RAD - 1e-9)
             range_min, range_max = 2047 - half, 2047 + half
