@@ -31,6 +31,8 @@ import numpy as np
 from so101_kinematics.errors import ClearanceError
 from so101_kinematics.frames import ARM_JOINTS, FIXED_ROTATION, FIXED_TRANSFORMS, JOINT_RANGES_RAD
 
+__all__ = ["CLEARANCE_MARGIN_M", "check_path", "check_plan_clearance", "lowest_point"]
+
 CLEARANCE_MARGIN_M = 0.005
 """[m] every collision box and the object frame stay this far above the table. The course's
 grasp puts the object frame (the cube's centre) 13 mm up and the fingertips 16 mm up; 5 mm is

@@ -39,6 +39,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
+__all__ = [
+    "ACCELERATION_UNIT", "BACKLASH_DEG", "COUNTS_PER_RAD", "CURRENT_UNIT_A",
+    "DEFAULT_SUPPLY_V", "DEFAULT_VARIANT", "DUTY_MAX", "D_SCALE_S", "FACTORY", "I_RATE",
+    "KIT_SUPPLY_V", "LEROBOT", "LEROBOT_GRIPPER", "LOOP_PERIOD_S", "Settings",
+    "TARGET_RATE_MAX", "VARIANTS", "VELOCITY_STEP", "default_variant", "duty", "holding_error",
+    "lag", "stiffness", "supply_problem",
+]
+
 COUNTS_PER_RAD = 4096 / (2 * math.pi)
 """Encoder counts per radian: 4096 counts a turn [MEM]."""
 

@@ -21,7 +21,8 @@ from so101_kinematics.hw import run as hw  # noqa: E402
 from so101_kinematics.hw.bus import connect, disconnect, read_cube_sensors  # noqa: E402
 from so101_kinematics.planning.stack_report import stack_outcome  # noqa: E402
 from so101_kinematics.planning.stacking import stack_plan  # noqa: E402
-from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
+from so101_kinematics.virtual.arm import VirtualSO101  # noqa: E402
+from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH  # noqa: E402
 
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
 STACK = (0.15, 0.10)  # [m]

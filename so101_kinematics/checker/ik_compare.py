@@ -31,6 +31,8 @@ from so101_kinematics.frames import (
 )
 from so101_kinematics.ik.geometry import PAN_AXIS_POINT
 
+__all__ = ["_branches", "build_request", "compare_ik", "count_targets"]
+
 LIMIT_SLACK_DEG = 0.01
 """How far past a joint limit an answer may go before it counts as beyond it [deg]."""
 

@@ -21,6 +21,8 @@ from so101_kinematics.checker.traj_fallback import FALLBACK_UTILS
 from so101_kinematics.frames import ARM_JOINTS, JOINT_RANGES_RAD, JOINTS
 from so101_kinematics.planning.profiles import cubic_coefficients
 
+__all__ = ["MOVES", "TOLERANCE_DEG", "build_request", "judge", "reference", "summary"]
+
 TIMESTEP_S = 0.004
 """The stand-in's ``m.opt.timestep`` [s]: the project's model (``model/so101.xml``, ``<option
 timestep>``)."""

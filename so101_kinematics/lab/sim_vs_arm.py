@@ -44,6 +44,8 @@ from so101_kinematics.outputs import atomic_output
 from so101_kinematics.planning.motion import Plan, Step
 from so101_kinematics.planning.plans import pick_and_place_steps
 
+__all__ = ["Comparison", "LogError", "_plan", "compare_run", "draw_report", "read_log", "replay"]
+
 SETTLE_WINDOW_S = 0.2  # the pick/place pose: mean measured pose over the step's last [s]
 MAX_SPEED_DEG_S = 3400 * 360.0 / 4096.0  # [deg/s] the STS3215's fastest ([BAM], servo.py)
 MISREAD_MARGIN_DEG = 1.0  # [deg] beyond twice that speed's travel: no servo moved so (see below)

@@ -35,6 +35,11 @@ from so101_kinematics.errors import PlanError
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.sim.sts3215 import ServoBank
 
+__all__ = [
+    "IDEAL_GAINS", "VELOCITY_SUFFIX", "expected_sag", "forget", "has_velocity_actuators",
+    "lerobot_settings", "servo_spec", "step", "use_servo", "velocity_actuators",
+]
+
 SERVO_MODES = ("sts3215", "ideal")
 """The servos the simulator offers."""
 

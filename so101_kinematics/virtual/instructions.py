@@ -54,6 +54,8 @@ from so101_kinematics.virtual.protocol import (
     status_packet,
 )
 
+__all__ = ["BusInstructions"]
+
 logger = logging.getLogger("virtual_so101")
 
 LATE_REPLY = 0.045  # [s] after this, lerobot (50 ms timeout) may have given up

@@ -52,6 +52,8 @@ from so101_kinematics.virtual.protocol import (
 from so101_kinematics.virtual.sensor_registers import PWM_DIRECTION, SensorReadings
 from so101_kinematics.virtual.servo_memory import VirtualServo
 
+__all__ = ["GOAL_LOG_LENGTH", "ServoRegisters"]
+
 STALL_LOAD_RATE = 2000.0  # [0.1 % per s] Present_Load rise of a stalled servo
 HAND_GAINS = IDEAL_GAINS  # a hand guiding a limp joint: the upstream model's stiff spring
 STEP_MODE = 3

@@ -30,6 +30,8 @@ from so101_kinematics.virtual.protocol import RESOLUTION
 from so101_kinematics.virtual.servo_memory import VirtualServo
 from so101_kinematics.virtual.shipped_calibration import TICKS_PER_RAD
 
+__all__ = ["PWM_DIRECTION", "SensorReadings"]
+
 ENCODER_NOISE = 0.3
 """How often a Present_Position reading is a count off (either way, seeded): a real STS3215 at
 rest reads a count or two apart from one read to the next (issue 26, clients on real arms)."""

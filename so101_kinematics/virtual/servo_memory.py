@@ -24,6 +24,8 @@ from so101_kinematics.virtual.protocol import (
 )
 from so101_kinematics.virtual.shipped_calibration import radians_to_present
 
+__all__ = ["FACTORY_ID", "VirtualServo", "factory_eeprom"]
+
 # Factory values. Source: Feetech's STS3215 memory table (the spreadsheet lerobot's tables.py
 # links to, "Initial value" column; the same values where ftservo/ftservo-wiki's
 # docs/en/reference/parameter/memory-sts.md gives one), except: Return_Delay_Time as lerobot leaves

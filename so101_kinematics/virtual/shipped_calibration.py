@@ -30,15 +30,20 @@ from pathlib import Path
 
 from so101_kinematics.calibration import (
     MOTOR_IDS,
-    CalibrationError,
     ServoCalibration,
     calibration_source_name,
     ticks_to_user,
     user_to_ticks,
 )
 from so101_kinematics.calibration import load_calibration as load_lerobot_calibration
+from so101_kinematics.errors import CalibrationError
 from so101_kinematics.paths import CALIBRATION_DIR
 from so101_kinematics.virtual.protocol import RESOLUTION
+
+__all__ = [
+    "DEFAULT_CALIBRATION_PATH", "TICKS_PER_RAD", "load_calibration",
+    "make_default_calibration", "present_to_radians", "radians_to_present",
+]
 
 DEFAULT_CALIBRATION_PATH = CALIBRATION_DIR / "virtual_so101.json"
 
@@ -116,8 +121,8 @@ def present_to_radians(m, cal: Mapping[str, int], joint: str, present: float) ->
         present: position in the calibration's frame [ticks] (the gripper's is
             clamped to its calibrated range, as lerobot reads it).
     """
-    from so101_kinematics.sim.scene import (
-        to_radians,  # imports mujoco: only where a model is at hand
+    from so101_kinematics.sim.scene import (  # imports mujoco: only where a model is at hand
+        to_radians,
     )
 
     user = ticks_to_user(joint, present, ServoCalibration(**cal))
