@@ -85,8 +85,6 @@ LONG_FUNCTIONS = {
     "the simulator's hot path (benchmarks/bench_pick_place.py)",
     "fast_fk.py:forward_kinematics_batch": "the closed-form FK unrolled on preallocated buffers "
     "(benchmarks/bench_fk.py measures it)",
-    "checker/traj_compare.py:move_causes": "to split: one check per cause of a wrong move",
-    "checker/ik_compare.py:compare_ik": "to split: judging, locating, explaining the failures",
 }
 """Functions allowed past FUNCTION_LINES, each with its reason; the list only shrinks."""
 
