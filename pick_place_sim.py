@@ -13,9 +13,7 @@ from collections.abc import Sequence
 from dataclasses import asdict
 from pathlib import Path
 
-from so101_forward_kinematics import (
-    KinematicsInputError,
-)
+from so101_forward_kinematics import KinematicsInputError
 from so101_kinematics.cli import (
     EXIT_BAD_INPUT,
     ArgumentParser,
@@ -29,12 +27,14 @@ from so101_kinematics.cli import (
     servo_from_arguments,
     zero_duration_warning,
 )
+from so101_kinematics.errors import OutputPathError, PlanError, RenderError, RenderSettingError
+from so101_kinematics.hw.log import sidecar_path
+from so101_kinematics.inputs import MAX_DURATION
 from so101_kinematics.lab.profile_compare import compare_profiles, draw_profiles
-from so101_kinematics.lab.sim_vs_arm import LogError, draw_report, sidecar_path
+from so101_kinematics.lab.sim_vs_arm import LogError, draw_report
 from so101_kinematics.outputs import (
     MP4,
     PNG,
-    OutputPathError,
     add_overwrite_argument,
     check_output_path,
     report_of,
@@ -47,7 +47,6 @@ from so101_kinematics.planning.cartesian_plan import (
     add_cartesian_arguments,
     plan_from_arguments,
 )
-from so101_kinematics.planning.motion import MAX_DURATION, PlanError
 from so101_kinematics.planning.plans import default_plan, load_plan
 from so101_kinematics.planning.stacking import add_stack_arguments, stack_from_arguments
 from so101_kinematics.planning.straight_line import add_approach_arguments, plan_for_approach
@@ -76,8 +75,6 @@ from so101_kinematics.sim.render import (
     FRAME_EDGE_RANGE,
     MIN_FPS,
     QUALITY,
-    RenderError,
-    RenderSettingError,
     check_fps,
     check_frame_size,
     max_fps,

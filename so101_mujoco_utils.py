@@ -45,12 +45,11 @@ from so101_kinematics.display import has_display  # noqa: F401 - the scripts' di
 from so101_kinematics.errors import CallShapeError, ViewerClosed  # noqa: F401
 from so101_kinematics.frames import GRIPPER_RANGE, JOINTS, TOOL_SITE  # noqa: F401
 from so101_kinematics.ik.blocks import pick_up_moves, place_moves
+from so101_kinematics.paths import MODEL_DIR, SCENE_PATH  # noqa: F401 - the course's names
 from so101_kinematics.planning import trajectory_log
 from so101_kinematics.planning.trajectory_log import plot_data  # noqa: F401 - week 8's plot
 from so101_kinematics.sim import scene, tracking
 from so101_kinematics.sim.scene import (  # noqa: F401 - the course's names
-    MODEL_DIR,
-    SCENE_PATH,
     convert_to_dictionary,
     convert_to_list,
     from_radians,

@@ -60,21 +60,25 @@ from __future__ import annotations
 
 import math
 
+from so101_kinematics.hw.course_calibration import (  # noqa: F401 - the course's helpers and their settings
+    ScriptEnded,
+    course_load_calibration,
+)
 from so101_kinematics.hw.course_helpers import (  # noqa: F401 - the course's helpers and their settings
     AT_START_TOLERANCE_DEG,
-    MISSING,
-    START_MISMATCH,
-    ScriptEnded,
     course_guarded_call,
     course_hold_position,
-    course_load_calibration,
     course_logged_move,
     course_move_to_pose,
     course_trims,
 )
 from so101_kinematics.hw.course_helpers import setup_motors as _setup_motors
 from so101_kinematics.ik.blocks import pick_up_moves, place_moves
-from so101_kinematics.planning.motion import check_configuration
+from so101_kinematics.inputs import (  # noqa: F401 - the course's helpers and their settings
+    MISSING,
+    START_MISMATCH,
+    check_configuration,
+)
 from so101_kinematics.planning.trajectory_log import (  # noqa: F401 - week 8's plot
     logging_frame,
     plot_data,

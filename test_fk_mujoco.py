@@ -12,25 +12,17 @@ import so101_kinematics.display as so101_display  # first: EGL when there is no 
 import mujoco
 import numpy as np
 
-from so101_forward_kinematics import (
-    TOOL_SITE,
-    get_forward_kinematics,
-)
-from so101_kinematics.cli import (
-    ArgumentParser,
-    number,
-    range_help,
-    run_script,
-)
+from so101_forward_kinematics import TOOL_SITE, get_forward_kinematics
+from so101_kinematics.cli import ArgumentParser, number, range_help, run_script
+from so101_kinematics.errors import OutputPathError, PlanError
+from so101_kinematics.inputs import MAX_DURATION
 from so101_kinematics.outputs import (
     PNG,
-    OutputPathError,
     add_overwrite_argument,
     check_output_path,
     text_kind,
     write_text_atomic,
 )
-from so101_kinematics.planning.motion import MAX_DURATION, PlanError
 from so101_kinematics.sim.fk_pictures import (  # noqa: F401 - the pictures, for the tests
     DEFAULT_SCREENSHOT,
     FRAMES_PATH,

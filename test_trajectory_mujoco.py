@@ -20,11 +20,10 @@ from so101_kinematics.cli import (
     run_script,
     servo_from_arguments,
 )
-from so101_kinematics.errors import KinematicsInputError, RenderError
+from so101_kinematics.errors import KinematicsInputError, OutputPathError, PlanError, RenderError
 from so101_kinematics.outputs import (
     MP4,
     PNG,
-    OutputPathError,
     add_overwrite_argument,
     check_output_path,
     report_of,
@@ -32,7 +31,8 @@ from so101_kinematics.outputs import (
     write_text_atomic,
 )
 from so101_kinematics.outputs import atomic_output as _atomic_output
-from so101_kinematics.planning.motion import PROFILES, PlanError
+from so101_kinematics.planning.profiles import PROFILES
+from so101_kinematics.planning.straight_line import METHODS
 from so101_kinematics.servo import DEFAULT_SUPPLY_V
 from so101_kinematics.sim import actuation, straight, tracking
 from so101_kinematics.sim.ik_demo import open_scene
@@ -146,7 +146,7 @@ def run(args: argparse.Namespace) -> int:
             for name in profiles:
                 log.info("profile %s", name)
                 logs[name] = tracking.run_week9(m, d, viewer, name, velocity=bool(args.velocity))
-            for method in straight.METHODS if args.straight else ():
+            for method in METHODS if args.straight else ():
                 log.info("straight line: %s", method)
                 lines[method] = straight.figures(straight.run_straight(m, d, method, viewer))
         except ViewerClosed:

@@ -36,14 +36,14 @@ from so101_kinematics.outputs import check_output_path, write_text_atomic
 from so101_kinematics.servo import KIT_SUPPLY_V, VARIANTS
 from so101_kinematics.sim.scene import load_model
 from so101_kinematics.virtual import shell
-from so101_kinematics.virtual.arm import (  # noqa: F401 - the virtual arm's API, re-exported
-    CUBE_REACH_M,
-    DEFAULT_CALIBRATION_PATH,
-    VirtualSO101,
-    parse_faults,
-)
+from so101_kinematics.virtual.arm import VirtualSO101  # noqa: F401 - the virtual arm's API, re-exported
+from so101_kinematics.virtual.cubes import CUBE_REACH_M  # noqa: F401 - the virtual arm's API, re-exported
 from so101_kinematics.virtual.electrical import SUPPLY_V
-from so101_kinematics.virtual.shipped_calibration import make_default_calibration
+from so101_kinematics.virtual.faults import parse_faults  # noqa: F401 - the virtual arm's API, re-exported
+from so101_kinematics.virtual.shipped_calibration import (  # noqa: F401 - the virtual arm's API, re-exported
+    DEFAULT_CALIBRATION_PATH,
+    make_default_calibration,
+)
 
 logger = logging.getLogger("virtual_so101")
 

@@ -59,16 +59,12 @@ def measure_loop_timing(rates_hz=(100.0, 200.0), seconds: float = 3.0, wire_timi
         ``period_max_error_ms``, ``cycles``, ``overruns``, ``skipped``.
     """
     from so101_kinematics.calibration import load_calibration
-    from so101_kinematics.hw.bus import (
-        configure,
-        connect,
-        disconnect,
-        read_pose,
-        release_torque,
-    )
-    from so101_kinematics.hw.control import ArmSession, gc_frozen
+    from so101_kinematics.hw.bus import configure, connect, disconnect, read_pose, release_torque
+    from so101_kinematics.hw.control import ArmSession
     from so101_kinematics.hw.feedforward import read_feedforward, torque_on_in_place
-    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+    from so101_kinematics.hw.signals import gc_frozen
+    from so101_kinematics.virtual.arm import VirtualSO101
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
     results = {}
     with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, wire_timing=wire_timing) as arm:

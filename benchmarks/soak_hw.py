@@ -27,6 +27,7 @@ REPO = _HERE.parent
 sys.path.insert(0, str(REPO))
 
 from so101_kinematics import outputs  # noqa: E402
+from so101_kinematics.errors import OutputPathError  # noqa: E402
 
 DONE = "Done: back at the starting pose, torque off."
 
@@ -38,7 +39,8 @@ def _spin(stop_at: float) -> None:
 
 def soak(runs: int = 20, busy: int = 2) -> list[dict]:
     """Run that hardware command ``runs`` times with ``busy`` spinning processes."""
-    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+    from so101_kinematics.virtual.arm import VirtualSO101
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
     results = []
     spinners = [multiprocessing.Process(target=_spin, args=(time.time() + 3600,), daemon=True)
@@ -86,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
             report = outputs.report_of("benchmarks/soak_hw.py")
             args.json = outputs.check_output_path(args.json, "--json", kind=report,
                                                   overwrite=args.overwrite)
-        except outputs.OutputPathError as error:
+        except OutputPathError as error:
             print(f"error: {error}", file=sys.stderr)
             return 2
     results = soak(args.runs, args.busy)

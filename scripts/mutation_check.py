@@ -574,6 +574,15 @@ MUTANTS: list[Mutant] = [
       "max_res back as a literal in calibration.py)", CAL, None,
       "TICKS_PER_TURN = COUNTS_PER_TURN - 1", "TICKS_PER_TURN = 4095",
       "tests/core/test_facts.py::test_each_fact_is_written_once"),
+    # --- one address per name (issue 35) --------------------------------------------------------
+    m("fetched_through_a_facade", "check_number fetched through planning.motion, not its home",
+      "so101_kinematics/hw/preflight.py", None, "from so101_kinematics.inputs import check_number",
+      "from so101_kinematics.planning.motion import check_number",
+      "tests/core/test_public_names.py::test_every_file_fetches_each_package_name_from_its_home"),
+    m("facade_all_back", "planning.motion declares check_number (from inputs) as its own again",
+      "so101_kinematics/planning/motion.py", None, '__all__ = ["Plan", ',
+      '__all__ = ["check_number", "Plan", ',
+      "tests/core/test_public_names.py::test_each_module_declares_only_names_it_defines"),
 ]
 
 

@@ -22,13 +22,9 @@ sys.path.insert(0, str(REPO))
 
 import so101_inverse_kinematics as ik  # noqa: E402
 from so101_forward_kinematics import get_forward_kinematics  # noqa: E402
+from so101_kinematics.errors import OutputPathError  # noqa: E402
 from so101_kinematics.markers import png_metadata  # noqa: E402
-from so101_kinematics.outputs import (  # noqa: E402
-    PNG,
-    OutputPathError,
-    add_overwrite_argument,
-    check_output_path,
-)
+from so101_kinematics.outputs import PNG, add_overwrite_argument, check_output_path  # noqa: E402
 from so101_kinematics.planning.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION  # noqa: E402
 from so101_kinematics.planning.stacking import (  # noqa: E402
     COURSE_BLOCK_HEIGHTS,

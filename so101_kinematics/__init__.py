@@ -6,3 +6,5 @@ display, outputs, command-line helpers); ``sim/`` simulates the arm in MuJoCo,
 behind a serial port. ``hw`` and ``virtual`` never import each other.
 Importing this package is cheap: nothing here imports MuJoCo or lerobot.
 """
+
+__all__: list[str] = []

@@ -24,9 +24,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from so101_kinematics.errors import CalibrationError, HardwareError  # noqa: F401
+from so101_kinematics.errors import CalibrationError
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.servo import COUNTS_PER_TURN
+
+__all__ = [
+    "CALIBRATE_HINT", "MOTOR_IDS", "ServoCalibration", "calibrated_limits",
+    "calibration_source_name", "find_calibration", "lerobot_calibration_root",
+    "load_calibration", "ticks_to_user", "user_to_ticks",
+]
 
 # --- Settings ---------------------------------------------------------------
 ROBOT_TYPE = "so101_follower"

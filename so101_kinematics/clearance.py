@@ -39,6 +39,8 @@ from so101_kinematics.frames import (
     MOVING_JAW_BODY,
 )
 
+__all__ = ["CLEARANCE_MARGIN_M", "check_path", "check_plan_clearance", "lowest_point"]
+
 CLEARANCE_MARGIN_M = 0.005
 """[m] every collision box and the object frame stay this far above the table. The course's
 grasp puts the object frame (the cube's centre) 13 mm up and the fingertips 16 mm up; 5 mm is

@@ -18,7 +18,13 @@ from collections.abc import Callable, Sequence
 
 from so101_kinematics import servo
 from so101_kinematics.errors import PlanError
-from so101_kinematics.planning.motion import format_range
+from so101_kinematics.inputs import format_range
+
+__all__ = [
+    "ArgumentParser", "EXIT_BAD_INPUT", "EXIT_FAILED", "StoreGiven", "add_gravity_ff_argument",
+    "add_servo_arguments", "ignored_with_plan", "number", "range_help", "requires",
+    "run_script", "servo_from_arguments", "zero_duration_warning",
+]
 
 EXIT_BAD_INPUT = 2
 """Exit status for input the script refuses (nothing ran)."""

@@ -1,5 +1,7 @@
 """Facts of the course's scene, each written once: the cube, the arm's home pose."""
 
+__all__ = ["CUBE_HALF_SIZE", "CUBE_SIZE", "HOME_POSE"]
+
 CUBE_SIZE = 0.026
 """Edge of the course's cubes [m]: its one home (``sim/cube.py`` builds the simulator's cubes
 from it; the ``object_frame`` site of ``model/so101.xml`` draws a held one, half sizes 0.013,

@@ -31,6 +31,11 @@ import os
 import threading
 from collections.abc import Callable, Iterator, MutableMapping
 
+__all__ = [
+    "close_viewer", "frame_camera", "guard_viewer_exit", "has_display", "launch_viewer",
+    "open_viewer",
+]
+
 log = logging.getLogger(__name__)
 
 VIEWER_CAMERA = "pick_place"  # model/scene.xml's camera: the arm and both cube positions

@@ -11,6 +11,16 @@ with "Fix: ...".
 
 from __future__ import annotations
 
+__all__ = [
+    "BusError", "CalibrationError", "CallShapeError", "ClearanceError", "ConnectionFailed",
+    "CubePositionError", "FaultSpecError", "FreezeRequested", "HardwareError", "InputError",
+    "JointLimitError", "KinematicsInputError", "KinematicsTypeError", "LerobotMissing",
+    "MeshError", "NotConfirmed", "OutputPathError", "PlanError", "PortInUse", "PortLost",
+    "RenderError", "RenderSettingError", "SO101Error", "ServoFault", "StopRequested",
+    "TorqueLost", "TrackingError", "TrimError", "UnreachableError", "ViewerClosed",
+    "VirtualSO101Error",
+]
+
 
 class SO101Error(Exception):
     """Base of every error raised by this project."""

@@ -29,6 +29,8 @@ from so101_kinematics.frames import (
     read_angles,
 )
 
+__all__ = ["_closed_form_assumptions", "forward_kinematics", "forward_kinematics_batch"]
+
 # ---------------------------------------------------------------------------
 # Closed form of g_wt, used by get_forward_kinematics and the batch form.
 #

@@ -37,6 +37,8 @@ from so101_kinematics.frames import (
     read_angles,
 )
 
+__all__ = ["Feedforward", "MAX_OFFSET_DEG", "feedforward", "holding_torques"]
+
 GRAVITY = 9.81
 """[m/s^2], MuJoCo's default (the model sets none)."""
 

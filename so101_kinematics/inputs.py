@@ -14,10 +14,16 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from so101_kinematics.errors import CallShapeError
-from so101_kinematics.errors import JointLimitError as JointLimitError
-from so101_kinematics.errors import PlanError as PlanError
+from so101_kinematics.errors import CallShapeError, JointLimitError, PlanError
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
+
+__all__ = [
+    "Configuration", "LIMIT_TOLERANCE", "Limits", "MAX_DURATION", "MISSING", "RADIANS_BOUND",
+    "START_MISMATCH", "check_configuration", "check_duration", "check_number",
+    "describe_value", "format_limit", "format_range", "is_finite_number", "limit_excess",
+    "limit_message", "looks_like_radians", "move_arguments", "radians_warning",
+    "start_mismatch", "unit",
+]
 
 Configuration = dict[str, float]
 Limits = Mapping[str, tuple[float, float]]

@@ -20,6 +20,11 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+__all__ = [
+    "GENERATOR", "head_bytes", "mp4_ours", "mp4_params", "pdf_metadata", "pdf_ours",
+    "png_metadata", "png_ours",
+]
+
 GENERATOR = "so101-kinematics"
 """Every file this project writes carries this: a JSON report's ``generator`` key begins so, a
 PNG's ``Software`` chunk, an MP4's ``comment``, a PDF's ``Creator``."""

@@ -32,14 +32,14 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-from so101_kinematics.errors import OutputPathError as OutputPathError
-from so101_kinematics.markers import (
-    GENERATOR,
-    head_bytes,
-    mp4_ours,
-    pdf_ours,
-    png_ours,
-)
+from so101_kinematics.errors import OutputPathError
+from so101_kinematics.markers import GENERATOR, head_bytes, mp4_ours, pdf_ours, png_ours
+
+__all__ = [
+    "JSON_REPORT", "MP4", "OutputKind", "PDF", "PNG", "add_overwrite_argument",
+    "atomic_output", "check_output_path", "csv_kind", "forget_temporary", "report_of", "stamp",
+    "temporary_beside", "text_kind", "write_text_atomic",
+]
 
 MAX_RECOGNISED_JSON_BYTES = 64 * 1024 * 1024  # a larger .json is not one of our reports
 

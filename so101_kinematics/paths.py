@@ -2,6 +2,8 @@
 
 from pathlib import Path
 
+__all__ = ["CALIBRATION_DIR", "DOCS_DIR", "MODEL_DIR", "REPO", "SCENE_PATH"]
+
 REPO = Path(__file__).resolve().parent.parent
 """The project folder (the package lives in it, beside the course's files)."""
 MODEL_DIR = REPO / "model"

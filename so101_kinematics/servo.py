@@ -41,6 +41,14 @@ import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+__all__ = [
+    "ACCELERATION_UNIT", "BACKLASH_DEG", "COUNTS_PER_RAD", "COUNTS_PER_TURN", "CURRENT_UNIT_A",
+    "DEFAULT_SUPPLY_V", "DEFAULT_VARIANT", "DUTY_MAX", "D_SCALE_S", "FACTORY", "I_RATE",
+    "KIT_SUPPLY_V", "LEROBOT", "LEROBOT_GRIPPER", "LOOP_PERIOD_S", "Settings",
+    "TARGET_RATE_MAX", "VARIANTS", "VELOCITY_STEP", "default_variant", "duty", "holding_error",
+    "lag", "stiffness", "supply_problem",
+]
+
 COUNTS_PER_TURN = 4096
 """The encoder's positions in one turn [MEM] (lerobot's ``max_res`` 4095 is this less one):
 the one home of the STS3215's resolution."""

@@ -34,6 +34,8 @@ from so101_kinematics.frames import JOINTS
 from so101_kinematics.inputs import Configuration, Limits, describe_value, is_finite_number, unit
 from so101_kinematics.planning.plans import data_kind, parse_data, read_text_file
 
+__all__ = ["TRIM_LIMIT_DEG", "Trims", "as_trims", "load_trims"]
+
 TRIM_LIMIT_DEG = 5.0  # the largest trim accepted [deg] (gripper [%]); beyond it, recalibrate
 RECALIBRATE_FIX = ("Fix: an error this big is a calibration problem: recalibrate with "
                    "lerobot-calibrate, moving each joint slowly to both of its limits, then "

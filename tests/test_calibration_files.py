@@ -12,7 +12,6 @@ from hw_fakes import HOME, FakeBus, FakeClock, make_session  # noqa: F401
 from so101_forward_kinematics import JOINTS
 from so101_kinematics.calibration import (
     MOTOR_IDS,
-    CalibrationError,
     ServoCalibration,
     calibrated_limits,
     find_calibration,
@@ -21,6 +20,7 @@ from so101_kinematics.calibration import (
     ticks_to_user,
     user_to_ticks,
 )
+from so101_kinematics.errors import CalibrationError
 from so101_kinematics.hw.bus import make_bus
 
 REPO = Path(__file__).resolve().parent.parent

@@ -16,6 +16,7 @@ from so101_kinematics import clearance
 from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.errors import ClearanceError
 from so101_kinematics.frames import JOINTS
+from so101_kinematics.hw.course_calibration import ScriptEnded
 from so101_kinematics.planning.plans import STARTING_CONFIGURATION, default_plan, load_plan
 from so101_kinematics.planning.stacking import LAB_BASE_HEIGHT, stack_plan
 
@@ -137,13 +138,12 @@ def sent_lift(arm, count):
 
 @pytest.mark.hw
 def test_move_to_pose_into_the_table_is_refused_before_anything_moves(course_arm, capsys):
-    import so101_kinematics.hw.course_helpers as course
     from so101_utils import load_calibration, move_to_pose, setup_motors
 
     bus = setup_motors(load_calibration("calibration/virtual_so101.json"), course_arm.port)
     move_to_pose(bus, STARTING_CONFIGURATION, 1.5)
     sent = len(course_arm.goal_log())
-    with pytest.raises(course.ScriptEnded) as ended:
+    with pytest.raises(ScriptEnded) as ended:
         move_to_pose(bus, INTO_TABLE, 2.0)
     err = capsys.readouterr().err
     assert ended.value.code == 1

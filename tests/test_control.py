@@ -11,20 +11,17 @@ from hw_fakes import HOME, FakeBus, FakeClock, make_session  # noqa: F401
 
 import so101_kinematics.hw.run as hw
 from so101_forward_kinematics import JOINTS
-from so101_kinematics.hw.control import (
+from so101_kinematics.errors import BusError, JointLimitError, ServoFault, TrackingError
+from so101_kinematics.hw.control import TRACKING_TIMEOUT_S, ArmSession
+from so101_kinematics.hw.preflight import validate_plan_for_arm
+from so101_kinematics.hw.timing import (
     SPEED_CAP_LIMIT_DEG_S,
-    TRACKING_TIMEOUT_S,
-    ArmSession,
-    BusError,
     RateLoop,
-    ServoFault,
-    TrackingError,
     capped_duration,
     loop_timing_stats,
     peak_speed_factor,
     speed_caps,
 )
-from so101_kinematics.planning.motion import JointLimitError
 from so101_kinematics.planning.plans import default_plan
 
 REPO = Path(__file__).resolve().parent.parent
@@ -34,7 +31,7 @@ VIRTUAL_CALIBRATION = REPO / "calibration" / "virtual_so101.json"
 # --- speed cap ---------------------------------------------------------------------------
 @pytest.mark.parametrize("profile", ["linear", "minimum_jerk"])
 def test_peak_speed_factors_are_the_profiles_steepest_slope(profile):
-    from so101_kinematics.planning.motion import PROFILES
+    from so101_kinematics.planning.profiles import PROFILES
 
     s = np.linspace(0.0, 1.0, 200_001)
     slope = np.diff([PROFILES[profile](x) for x in s]) / np.diff(s)
@@ -317,7 +314,7 @@ def test_garbage_collector_is_frozen_during_the_motion(calibration, clock):
     frozen = []
     session, _ = make_session(calibration, clock,
                               on_cycle=lambda s, c: frozen.append(gc.get_freeze_count()))
-    plan = hw.validate_plan_for_arm(default_plan(0.2, 0.0), calibration)
+    plan = validate_plan_for_arm(default_plan(0.2, 0.0), calibration)
     hw.execute(session, plan, dict(HOME))
     assert min(frozen) > 1000  # everything alive before the run is skipped by collections
     assert gc.get_freeze_count() == 0

@@ -25,6 +25,7 @@ from so101_forward_kinematics import (
 )
 from so101_kinematics.errors import JointLimitError, PlanError, UnreachableError
 from so101_kinematics.frames import JOINT_LIMITS
+from so101_kinematics.hw.course_calibration import ScriptEnded
 from so101_kinematics.inputs import (
     LIMIT_TOLERANCE,
     check_configuration,
@@ -235,13 +236,12 @@ def test_offset_config_reads_the_trims_given_to_setup_motors(course_arm):
 
 @pytest.mark.hw
 def test_an_unreachable_block_on_the_arm_ends_the_script_before_it_moves(course_arm, capsys):
-    import so101_kinematics.hw.course_helpers as course
     import so101_utils
 
     calibration = so101_utils.load_calibration(str(REPO / "calibration" / "virtual_so101.json"))
     bus = so101_utils.setup_motors(calibration, course_arm.port)
     before = course_arm.joint_positions()
-    with pytest.raises(course.ScriptEnded) as ended:
+    with pytest.raises(ScriptEnded) as ended:
         so101_utils.place_block(bus, [0.25, -0.1, 0.043], 2.0)  # 3 cm above it: out of reach
     assert ended.value.code == 1
     err = capsys.readouterr().err

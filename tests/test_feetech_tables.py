@@ -9,11 +9,11 @@ from __future__ import annotations
 
 import pytest
 
+from so101_kinematics.servo import COUNTS_PER_TURN
 from so101_kinematics.virtual.protocol import (
     ADDR,
     BAUD_RATES,
     MODEL_NUMBER,
-    RESOLUTION,
     SIGN_BITS,
     decode_sign_magnitude,
     encode_sign_magnitude,
@@ -56,7 +56,7 @@ def test_sign_magnitude_round_trips_with_lerobots_own_encoder():
 
 def test_model_number_and_resolution_match():
     assert tables.MODEL_NUMBER_TABLE[MODEL] == MODEL_NUMBER
-    assert tables.MODEL_RESOLUTION[MODEL] == RESOLUTION
+    assert tables.MODEL_RESOLUTION[MODEL] == COUNTS_PER_TURN
 
 
 # Baud_Rate codes 5-7 of the STS3215 per Feetech (its memory table, address 6, and its SDK's

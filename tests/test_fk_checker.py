@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from so101_kinematics.checker import check_file, diagnose, fk_compare, report
-from so101_kinematics.checker.fk import main
-from so101_kinematics.frames import joint_transform
+from so101_kinematics.checker import diagnose, fk_compare, report
+from so101_kinematics.checker.fk import check_file, main
+from so101_kinematics.frames import GRIPPER_MOUNT_TILT_DEG, joint_transform
 
 SUBMISSIONS = Path(__file__).resolve().parent / "fk_submissions"
 REPO = SUBMISSIONS.parent.parent
@@ -130,7 +130,7 @@ def test_the_diagrams_numbers_are_recognised_and_the_chain_judged_apart_from_g5t
     # The figure: 5.2 mm at the course's configurations (the 5.2 mm wrist offset
     # lies along the pan axis there; the 18.3 and 18.1 mm offsets cancel).
     assert [round(row["error_mm"], 1) for row in fk["course"][:2]] == [5.2, 5.2]
-    assert fk["max_error_deg"] == pytest.approx(abs(diagnose.GRIPPER_MOUNT_TILT_DEG), abs=1e-6)
+    assert fk["max_error_deg"] == pytest.approx(abs(GRIPPER_MOUNT_TILT_DEG), abs=1e-6)
 
 
 def test_a_misnamed_function_is_missing_with_a_suggestion_and_the_gripper_key_is_noted(checks):

@@ -11,6 +11,7 @@ import pytest
 from conftest import assert_transforms_close
 
 import so101_forward_kinematics as fk
+from so101_kinematics.frames import FIXED_ROTATION
 from so101_mujoco_utils import joint_limits
 
 N_CONFIGURATIONS = 1000
@@ -351,7 +352,7 @@ def test_module_docstring_example_runs():
 def test_closed_form_guard_notices_a_changed_fixed_rotation(monkeypatch):
     from so101_kinematics import fast_fk
 
-    changed = dict(fast_fk.FIXED_ROTATION, **{"34": fk.Rz(-90.0) @ fk.Rx(1.0)})
+    changed = dict(FIXED_ROTATION, **{"34": fk.Rz(-90.0) @ fk.Rx(1.0)})
     monkeypatch.setattr(fast_fk, "FIXED_ROTATION", changed)
     with pytest.raises(RuntimeError, match="g_34"):
         fast_fk._closed_form_assumptions()

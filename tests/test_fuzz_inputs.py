@@ -24,7 +24,8 @@ import so101_forward_kinematics as fk
 import so101_inverse_kinematics as ik
 import test_fk_mujoco
 from so101_forward_kinematics import ARM_JOINTS, JOINTS
-from so101_kinematics.planning.motion import MAX_DURATION, PlanError
+from so101_kinematics.errors import OutputPathError, PlanError
+from so101_kinematics.inputs import MAX_DURATION
 from so101_kinematics.planning.plans import STARTING_CONFIGURATION, load_plan
 
 FUZZ = settings(derandomize=True, deadline=None, database=None,
@@ -500,7 +501,7 @@ def test_an_existing_output_is_replaced_only_when_ours_or_overwritten(kind, ours
         try:
             outputs.check_output_path(target, "--out", kind=kinds[kind], overwrite=overwrite)
             allowed = True
-        except outputs.OutputPathError as error:
+        except OutputPathError as error:
             allowed = False
             assert "Fix:" in str(error) and "--overwrite" in str(error)
         assert target.read_bytes() == data  # checking never touches the file

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import pytest
 
-import so101_kinematics.hw.course_helpers as course
 from so101_kinematics.calibration import load_calibration
 from so101_kinematics.constants import HOME_POSE
+from so101_kinematics.hw.course_calibration import ScriptEnded
 from so101_kinematics.hw.timing import MAX_JOINT_SPEED_DEG_S
 from so101_kinematics.planning.plans import STARTING_CONFIGURATION
 
@@ -64,7 +64,7 @@ def test_a_goal_write_into_the_table_is_refused_and_ends_at_the_start(course_arm
 
     bus = setup(course_arm)
     move_to_pose(bus, STARTING_CONFIGURATION, 1.5)
-    with pytest.raises(course.ScriptEnded) as ended:
+    with pytest.raises(ScriptEnded) as ended:
         bus.sync_write("Goal_Position", dict(STARTING_CONFIGURATION, shoulder_lift=53.0))
     err = capsys.readouterr().err
     assert ended.value.code == 1 and "into the table" in err
@@ -75,7 +75,7 @@ def test_a_goal_outside_the_calibration_is_refused(course_arm, capsys):
     bus = setup(course_arm)
     from so101_kinematics.calibration import calibrated_limits
     upper = calibrated_limits(load_calibration(CALIBRATION_PATH))["elbow_flex"][1]
-    with pytest.raises(course.ScriptEnded):
+    with pytest.raises(ScriptEnded):
         bus.write("Goal_Position", "elbow_flex", upper + 10.0)
     err = capsys.readouterr().err
     assert f"elbow_flex = {upper + 10.0:.5f} deg is outside" in err and "calibrated range" in err
@@ -87,7 +87,7 @@ def test_raw_ticks_are_refused_in_one_line_and_raw_lerobot_is_bus_raw(course_arm
 
     bus = setup(course_arm)
     assert isinstance(bus.raw, FeetechMotorsBus)
-    with pytest.raises(course.ScriptEnded) as ended:
+    with pytest.raises(ScriptEnded) as ended:
         bus.sync_write("Goal_Position", {"shoulder_pan": 2047}, normalize=False)
     assert ended.value.code == 2
     assert "normalize=False" in capsys.readouterr().err and "bus.raw" in str(ended.value.line)

@@ -20,10 +20,10 @@ from pathlib import Path
 
 import pytest
 
-import so101_kinematics.hw.course_helpers as course
 from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.gravity import feedforward
+from so101_kinematics.hw.course_calibration import ScriptEnded
 from so101_kinematics.hw.servo_settings import unable_to_hold
 from so101_kinematics.servo import LEROBOT
 
@@ -77,7 +77,7 @@ def test_a_write_that_weakens_or_spins_the_arm_is_refused_naming_bus_raw(
     bus = stretched_out(course_arm)
     held = course_arm.joint_positions()
     method, *args = write
-    with pytest.raises(course.ScriptEnded) as ended:
+    with pytest.raises(ScriptEnded) as ended:
         getattr(bus, method)(*args)
     err = capsys.readouterr()
     line = ended.value.line
@@ -99,7 +99,7 @@ def test_the_courses_own_values_pass_and_lerobots_torque_disabled_is_refused(cou
     bus.write("Acceleration", "elbow_flex", 254)
     bus.sync_write("Torque_Enable", 1)
     assert all(course_arm.torque_enabled().values())
-    with pytest.raises(course.ScriptEnded) as ended:
+    with pytest.raises(ScriptEnded) as ended:
         with bus.torque_disabled():
             pass
     assert "bus.raw.torque_disabled(" in ended.value.line

@@ -12,10 +12,8 @@ import pytest
 from hw_fakes import HOME, FakeBus, FakeClock, make_session  # noqa: F401
 
 import pick_place_hw as cli
-from so101_kinematics.calibration import (
-    CalibrationError,
-)
-from so101_kinematics.hw.bus import ConnectionFailed, bus_errors
+from so101_kinematics.errors import CalibrationError, ConnectionFailed
+from so101_kinematics.hw.bus import bus_errors
 
 REPO = Path(__file__).resolve().parent.parent
 VIRTUAL_CALIBRATION = REPO / "calibration" / "virtual_so101.json"

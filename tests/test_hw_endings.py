@@ -25,7 +25,8 @@ from so101_kinematics.calibration import load_calibration  # noqa: E402
 from so101_kinematics.constants import HOME_POSE  # noqa: E402
 from so101_kinematics.hw.bus import connect, disconnect, silent_servos  # noqa: E402
 from so101_kinematics.planning.motion import Plan, Step  # noqa: E402
-from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
+from so101_kinematics.virtual.arm import VirtualSO101  # noqa: E402
+from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)

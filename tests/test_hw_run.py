@@ -9,11 +9,10 @@ from hw_fakes import HOME, FakeBus, FakeClock, make_session  # noqa: F401
 
 import so101_kinematics.hw.run as hw
 from so101_forward_kinematics import JOINTS
-from so101_kinematics.calibration import (
-    ServoCalibration,
-)
-from so101_kinematics.hw.control import FreezeRequested
-from so101_kinematics.planning.motion import JointLimitError, Plan, PlanError, Step
+from so101_kinematics.calibration import ServoCalibration
+from so101_kinematics.errors import FreezeRequested, JointLimitError, PlanError
+from so101_kinematics.hw.preflight import check_run_settings, validate_plan_for_arm
+from so101_kinematics.planning.motion import Plan, Step
 from so101_kinematics.planning.plans import default_plan
 
 REPO = Path(__file__).resolve().parent.parent
@@ -22,14 +21,14 @@ VIRTUAL_CALIBRATION = REPO / "calibration" / "virtual_so101.json"
 
 # --- plan validation -------------------------------------------------------------------
 def test_default_plan_passes_both_limit_checks(calibration):
-    hw.validate_plan_for_arm(default_plan(), calibration)
+    validate_plan_for_arm(default_plan(), calibration)
 
 
 def test_waypoint_beyond_the_model_limit_names_joint_value_and_limit(calibration):
     plan = default_plan()
     plan.steps[2].configuration["elbow_flex"] = -100.0
     with pytest.raises(JointLimitError) as info:
-        hw.validate_plan_for_arm(plan, calibration)
+        validate_plan_for_arm(plan, calibration)
     message = str(info.value)
     assert "elbow_flex = -100" in message and "model" in message and plan.steps[2].name in message
 
@@ -37,7 +36,7 @@ def test_waypoint_beyond_the_model_limit_names_joint_value_and_limit(calibration
 def test_waypoint_beyond_a_narrow_calibration_is_refused(calibration):
     narrow = dict(calibration, shoulder_lift=ServoCalibration(2, 0, 0, 1600, 2500))
     with pytest.raises(JointLimitError) as info:
-        hw.validate_plan_for_arm(default_plan(), narrow, "lab_arm.json")
+        validate_plan_for_arm(default_plan(), narrow, "lab_arm.json")
     message = str(info.value)
     assert "shoulder_lift" in message and "calibrated range" in message
     assert "lab_arm.json" in message
@@ -45,10 +44,10 @@ def test_waypoint_beyond_a_narrow_calibration_is_refused(calibration):
 
 def test_plan_errors_name_the_problem(calibration):
     with pytest.raises(PlanError, match="no steps"):
-        hw.validate_plan_for_arm(Plan([]), calibration)
+        validate_plan_for_arm(Plan([]), calibration)
     plan = Plan([Step("a", dict(HOME, wrist_flex="up"))])
     with pytest.raises(PlanError, match="wrist_flex.*finite number"):
-        hw.validate_plan_for_arm(plan, calibration)
+        validate_plan_for_arm(plan, calibration)
 
 
 def at_step(step, action):
@@ -68,7 +67,7 @@ def run(calibration, clock, hook=None, plan=None, **kwargs):
     Returns (result, bus, error): ``error`` is the MotionAborted, or None.
     """
     session, bus = make_session(calibration, clock, on_cycle=hook)
-    plan = hw.validate_plan_for_arm(plan or default_plan(0.6, 0.1), calibration)
+    plan = validate_plan_for_arm(plan or default_plan(0.6, 0.1), calibration)
     try:
         return hw.execute(session, plan, dict(HOME), **kwargs), bus, None
     except hw.MotionAborted as error:
@@ -215,7 +214,7 @@ def test_settings_out_of_range_are_refused_naming_the_range(setting, value):
     settings = {"--rate": 100.0, "--max-speed": 100.0, "--tracking-tolerance": 15.0}
     settings[setting] = value
     with pytest.raises(PlanError) as info:
-        hw.check_run_settings(*settings.values())
+        check_run_settings(*settings.values())
     message = str(info.value)
     assert message.startswith(f"{setting} ") and "Fix:" in message
     low, high = {"--rate": (20, 500), "--max-speed": (0, 180),
@@ -224,5 +223,5 @@ def test_settings_out_of_range_are_refused_naming_the_range(setting, value):
 
 
 def test_settings_at_their_documented_bounds_are_accepted():
-    hw.check_run_settings(20.0, 180.0, 45.0)
-    hw.check_run_settings(500.0, 1e-3, 1e-3)
+    check_run_settings(20.0, 180.0, 45.0)
+    check_run_settings(500.0, 1e-3, 1e-3)

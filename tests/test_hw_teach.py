@@ -9,9 +9,7 @@ from hw_fakes import HOME, FakeBus, FakeClock, make_session  # noqa: F401
 
 import so101_kinematics.hw.teach as teaching
 from so101_forward_kinematics import get_forward_kinematics
-from so101_kinematics.hw.control import (
-    speed_caps,
-)
+from so101_kinematics.hw.timing import speed_caps
 from so101_kinematics.planning.plans import default_plan, pick_and_place_steps
 
 REPO = Path(__file__).resolve().parent.parent

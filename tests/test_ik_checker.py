@@ -18,6 +18,7 @@ from so101_kinematics.errors import UnreachableError
 from so101_kinematics.fast_fk import forward_kinematics_batch
 from so101_kinematics.frames import ARM_JOINTS
 from so101_kinematics.ik.call_shapes import get_inverse_kinematics
+from so101_kinematics.ik.geometry import PAN_AXIS_POINT
 
 try:
     import tomllib
@@ -135,7 +136,7 @@ def test_branches_say_elbow_up_and_reaching_backwards():
     folded_back = [0.0, -80.0, -10.0, 0.0, 0.0]  # upper arm leaning back past the pan axis
     angles = np.array([start, folded_back])
     positions, _ = forward_kinematics_batch(angles)
-    assert positions[1, 0] < ik_targets.PAN_AXIS_POINT[0] < positions[0, 0]
+    assert positions[1, 0] < PAN_AXIS_POINT[0] < positions[0, 0]
     targets = np.c_[positions, np.zeros(2)]
     assert ik_compare._branches(targets, angles) == ["elbow up",
                                                      "elbow down, reaching backwards"]

@@ -20,15 +20,11 @@ import so101_inverse_kinematics as ik
 import so101_mujoco_utils as utils
 import test_fk_mujoco
 from so101_kinematics import cli
-from so101_kinematics.outputs import (
-    MP4,
-    OutputPathError,
-    atomic_output,
-    check_output_path,
-    temporary_beside,
-)
+from so101_kinematics.errors import OutputPathError, PlanError
+from so101_kinematics.inputs import check_number
+from so101_kinematics.outputs import MP4, atomic_output, check_output_path, temporary_beside
 from so101_kinematics.planning.cartesian_plan import cartesian_plan
-from so101_kinematics.planning.motion import Plan, PlanError, Step, Trajectory, check_number
+from so101_kinematics.planning.motion import Plan, Step, Trajectory
 from so101_kinematics.planning.plans import STARTING_CONFIGURATION, load_plan
 from so101_kinematics.sim import cube as cube_world
 from so101_kinematics.sim import stepping

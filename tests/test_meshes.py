@@ -11,6 +11,7 @@ import pytest
 from conftest import REPO
 
 import so101_kinematics.sim.meshes as meshes
+from so101_kinematics.errors import MeshError
 
 
 @pytest.fixture
@@ -38,7 +39,7 @@ def test_installed_meshes_verify(model):
 def test_missing_mesh_names_the_file_and_the_fix(asset_copy):
     victim = sorted(meshes.read_manifest())[3]
     (asset_copy / victim).unlink()
-    with pytest.raises(meshes.MeshError) as error:
+    with pytest.raises(MeshError) as error:
         meshes.verify_meshes(asset_copy)
     message = str(error.value)
     assert victim in message and "missing" in message
@@ -51,13 +52,13 @@ def test_corrupt_mesh_names_the_file_and_the_fix(asset_copy):
     content = bytearray(path.read_bytes())
     content[100] ^= 0xFF  # one flipped byte
     path.write_bytes(bytes(content))
-    with pytest.raises(meshes.MeshError) as error:
+    with pytest.raises(MeshError) as error:
         meshes.verify_meshes(asset_copy)
     message = str(error.value)
     assert victim in message and "corrupt" in message
     assert meshes.FIX_COMMAND in message
     # ensure_meshes does not silently accept it either; a reinstall repairs it.
-    with pytest.raises(meshes.MeshError, match=re.escape(victim)):
+    with pytest.raises(MeshError, match=re.escape(victim)):
         meshes.ensure_meshes(asset_copy)
     meshes.install_meshes(asset_copy)
     meshes.verify_meshes(asset_copy)

@@ -10,7 +10,7 @@ import pytest
 
 import so101_mujoco_utils as utils
 from so101_forward_kinematics import ARM_JOINTS, JOINTS
-from so101_kinematics.planning.motion import PlanError
+from so101_kinematics.errors import PlanError
 
 START = {"shoulder_pan": -45.0, "shoulder_lift": 45.0, "elbow_flex": -45.0, "wrist_flex": 90.0,
          "wrist_roll": 0.0, "gripper": 50.0}

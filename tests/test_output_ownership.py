@@ -20,15 +20,8 @@ from pathlib import Path
 
 import pytest
 
-from so101_kinematics.outputs import (
-    JSON_REPORT,
-    MP4,
-    PDF,
-    PNG,
-    OutputPathError,
-    check_output_path,
-    report_of,
-)
+from so101_kinematics.errors import OutputPathError
+from so101_kinematics.outputs import JSON_REPORT, MP4, PDF, PNG, check_output_path, report_of
 
 REPO = Path(__file__).resolve().parent.parent
 CALIBRATION = REPO / "calibration"
@@ -474,7 +467,8 @@ def test_a_stop_leaves_no_hidden_part_file(tmp_path):
 @pytest.fixture
 def arm():
     pytest.importorskip("lerobot")
-    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+    from so101_kinematics.virtual.arm import VirtualSO101
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
     with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as virtual:
         virtual.calibration_path = DEFAULT_CALIBRATION_PATH

@@ -26,20 +26,22 @@ import so101_kinematics.hw.run as hw  # noqa: E402
 import so101_mujoco_utils as mu  # noqa: E402
 from benchmarks.bench_hw import measure_loop_timing  # noqa: E402
 from so101_forward_kinematics import ARM_JOINTS, JOINTS  # noqa: E402
-from so101_kinematics.calibration import CalibrationError, load_calibration  # noqa: E402
+from so101_kinematics.calibration import load_calibration  # noqa: E402
 from so101_kinematics.constants import HOME_POSE  # noqa: E402
-from so101_kinematics.hw import feedforward  # noqa: E402
-from so101_kinematics.hw.bus import (  # noqa: E402
+from so101_kinematics.errors import (  # noqa: E402
+    CalibrationError,
     ConnectionFailed,
-    calibration_mismatch,
-    connect,
-    disconnect,
+    JointLimitError,
+    NotConfirmed,  # noqa: E402
 )
-from so101_kinematics.planning.motion import JointLimitError, Plan, Step  # noqa: E402
+from so101_kinematics.hw import feedforward  # noqa: E402
+from so101_kinematics.hw.bus import calibration_mismatch, connect, disconnect  # noqa: E402
+from so101_kinematics.planning.motion import Plan, Step  # noqa: E402
 from so101_kinematics.planning.plans import default_plan  # noqa: E402
 from so101_kinematics.sim import actuation  # noqa: E402
-from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
+from so101_kinematics.virtual.arm import VirtualSO101  # noqa: E402
 from so101_kinematics.virtual.electrical import SUPPLY_V  # noqa: E402
+from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH  # noqa: E402
 
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
 HOME = HOME_POSE  # the virtual arm powers up there
@@ -501,7 +503,7 @@ def test_missing_port_and_silent_arm_are_refused(arm, tmp_path):
 
 
 def test_not_confirmed_means_nothing_moves(arm):
-    with pytest.raises(hw.NotConfirmed):
+    with pytest.raises(NotConfirmed):
         hw.run_on_arm(arm.port, CALIBRATION, short_plan(), confirm=lambda q: False)
     assert arm.goal_log() == []
 

@@ -16,8 +16,9 @@ import pick_place_sim
 import so101_mujoco_utils as utils
 from pick_place_sim import CubeStart, choose_mode, run_pick_place
 from so101_forward_kinematics import get_forward_kinematics
+from so101_kinematics.errors import JointLimitError, PlanError
 from so101_kinematics.planning.cartesian_plan import cartesian_plan
-from so101_kinematics.planning.motion import JointLimitError, Plan, PlanError, Step
+from so101_kinematics.planning.motion import Plan, Step
 from so101_kinematics.planning.plans import (
     FINAL_CONFIGURATION,
     GRIPPER_CLOSED,

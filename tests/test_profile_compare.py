@@ -379,7 +379,8 @@ def test_the_sag_printed_is_the_simulators_with_the_table(tmp_path, capsys):
 def test_two_profiles_run_on_the_virtual_arm_compare(tmp_path):
     pytest.importorskip("lerobot")
     import pick_place_hw
-    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+    from so101_kinematics.virtual.arm import VirtualSO101
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
     left = dict(HOME_POSE, shoulder_pan=30.0, elbow_flex=70.0)  # test_pick_place_hw's swing
     plan = {"steps": [{"name": "swing", "configuration": left, "duration": 0.8, "hold": 0.3}],

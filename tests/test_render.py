@@ -9,13 +9,13 @@ import pytest
 import so101_kinematics.sim.meshes as so101_meshes
 from pick_place_sim import CubeStart, build_model
 from so101_forward_kinematics import get_forward_kinematics
+from so101_kinematics.errors import MeshError, RenderError
 from so101_kinematics.planning.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION
 from so101_kinematics.sim.render import (
     FINAL_RGBA,
     QUALITY,
     START_RGBA,
     FrameRenderer,
-    RenderError,
     add_overlays,
     target_cubes,
 )
@@ -49,7 +49,7 @@ def test_decimated_mesh_stays_within_one_cell_of_the_original(tmp_path):
 def test_read_stl_rejects_a_non_stl_file(tmp_path):
     path = tmp_path / "x.stl"
     path.write_text("solid ascii\nendsolid\n")
-    with pytest.raises(so101_meshes.MeshError, match="not a binary STL"):
+    with pytest.raises(MeshError, match="not a binary STL"):
         so101_meshes.read_stl(path)
 
 

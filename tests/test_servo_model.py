@@ -21,9 +21,9 @@ import pytest
 
 from so101_kinematics import gravity, servo
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
+from so101_kinematics.paths import SCENE_PATH
 from so101_kinematics.sim import actuation
 from so101_kinematics.sim.scene import (
-    SCENE_PATH,
     get_configuration,
     load_model,
     send_position_command,

@@ -24,7 +24,8 @@ OFFSET_DEG = 3.0
 
 def logged_run(folder, *options: str):
     """The course's plan, shortened, run on a fresh virtual arm with --log: the log's path."""
-    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+    from so101_kinematics.virtual.arm import VirtualSO101
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
     log = folder / "run.csv"
     # the kit's 5 V C001 arm: the figures below (friction band, the report's servo) are its
@@ -205,7 +206,8 @@ def test_a_lab_days_logs_compare_though_the_arm_slumps_past_a_limit(tmp_path, ca
     model's 96.83): that log's start and its return are replayed at the limit, with a note
     naming the joint and by how much, and the three logs compare together."""
     from so101_kinematics.sim.scene import joint_limits, load_model
-    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+    from so101_kinematics.virtual.arm import VirtualSO101
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
     logs = [tmp_path / f"run{k}.csv" for k in range(3)]
     # the slumps above were measured on the kit's 5 V C001 arm: that arm, pinned. How far a

@@ -30,6 +30,7 @@ from so101_kinematics.calibration import calibrated_limits, load_calibration
 from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.gravity import feedforward
+from so101_kinematics.hw.course_calibration import ScriptEnded
 from so101_kinematics.servo import LEROBOT
 
 REPO = Path(__file__).resolve().parent.parent
@@ -146,7 +147,7 @@ def test_assignment_8_pick_up_block_call_without_a_target_ends_at_the_start(arm,
 
     bus = setup_motors(load_calibration(str(CALIBRATION_PATH)), arm.port)
     move_to_pose(bus, dict(HOME, shoulder_pan=20.0), 1.0)
-    with pytest.raises(course.ScriptEnded) as ended:
+    with pytest.raises(ScriptEnded) as ended:
         move_to_pose(bus, 2.0)
     assert ended.value.code == 1 and ended.value.result.returned_to_start
     err = capsys.readouterr().err
@@ -183,7 +184,7 @@ def test_an_outage_inside_move_to_pose_ends_back_at_the_start_released(arm, caps
     bus = setup_motors(load_calibration(str(CALIBRATION_PATH)), arm.port)
     session = course._RUNS[id(bus)].session
     session.on_cycle = lambda s, c: (len(s.cycles) == 40 and arm.inject("outage:2500"))
-    with pytest.raises(course.ScriptEnded) as ended:
+    with pytest.raises(ScriptEnded) as ended:
         move_to_pose(bus, dict(HOME, shoulder_pan=40.0, elbow_flex=60.0), 1.5)
     result = ended.value.result
     assert ended.value.code == 1 and result.returned_to_start and result.torque_released
@@ -192,7 +193,7 @@ def test_an_outage_inside_move_to_pose_ends_back_at_the_start_released(arm, caps
     assert_near(arm.commanded_positions(), HOME_GOAL, tol_deg=2.0, label="last goal before release")
     err = capsys.readouterr().err
     assert last_line(err) == "Back at the starting pose, torque off."
-    with pytest.raises(course.ScriptEnded) as again:  # the run is over: nothing moves any more
+    with pytest.raises(ScriptEnded) as again:  # the run is over: nothing moves any more
         move_to_pose(bus, HOME, 1.0)
     assert again.value.code == 2 and "setup_motors" in again.value.line
     bus.disconnect(disable_torque=False)
@@ -222,7 +223,7 @@ def test_a_configuration_outside_the_calibration_ends_the_script_released(arm, c
 
     bus = setup_motors(load_calibration(str(CALIBRATION_PATH)), arm.port)
     upper = calibrated_limits(load_calibration(CALIBRATION_PATH))["elbow_flex"][1]
-    with pytest.raises(course.ScriptEnded) as ended:
+    with pytest.raises(ScriptEnded) as ended:
         move_to_pose(bus, dict(HOME, elbow_flex=upper + 10.0), 2.0)
     assert ended.value.code == 1
     err = capsys.readouterr().err
@@ -239,7 +240,7 @@ def test_a_second_setup_on_the_same_port_is_refused_in_one_line(arm, capsys):
 
     calibration = load_calibration(str(CALIBRATION_PATH))
     bus = setup_motors(calibration, arm.port)
-    with pytest.raises(course.ScriptEnded) as refused:
+    with pytest.raises(ScriptEnded) as refused:
         setup_motors(calibration, arm.port)
     assert refused.value.code == 2
     err = capsys.readouterr().err.strip()
@@ -252,13 +253,13 @@ def test_an_unknown_robot_is_refused_in_one_line(tmp_path, monkeypatch, capsys):
     from so101_utils import load_calibration
 
     monkeypatch.setenv("HF_LEROBOT_CALIBRATION", str(tmp_path))
-    with pytest.raises(course.ScriptEnded) as refused:
+    with pytest.raises(ScriptEnded) as refused:
         load_calibration("no-such-arm")
     err = capsys.readouterr().err.strip()
     assert refused.value.code == 2 and "\n" not in err
     assert "No calibration for robot id 'no-such-arm'" in err and "lerobot-calibrate" in err
     for bad in (None, "", 3):
-        with pytest.raises(course.ScriptEnded) as refused:
+        with pytest.raises(ScriptEnded) as refused:
             load_calibration(bad)
         assert refused.value.code == 2 and "robot id" in refused.value.line
 
@@ -266,10 +267,10 @@ def test_an_unknown_robot_is_refused_in_one_line(tmp_path, monkeypatch, capsys):
 def test_setup_motors_refuses_what_is_not_a_calibration_in_one_line(capsys):
     from so101_utils import setup_motors
 
-    with pytest.raises(course.ScriptEnded) as refused:
+    with pytest.raises(ScriptEnded) as refused:
         setup_motors(None, "/dev/ttyACM0")
     assert refused.value.code == 2 and "load_calibration(ROBOT_NAME)" in refused.value.line
-    with pytest.raises(course.ScriptEnded) as refused:
+    with pytest.raises(ScriptEnded) as refused:
         setup_motors(load_calibration(CALIBRATION_PATH), "/dev/ttyACM0",
                      offset_config={"elbow_flex": 9.0})  # refused before the port is opened
     assert "elbow_flex = 9 deg is beyond the 5 deg" in refused.value.line

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import pick_place_sim
-from so101_kinematics.planning.motion import PlanError
+from so101_kinematics.errors import PlanError
 from so101_kinematics.planning.stacking import block_height, default_starts, stack_plan
 from so101_kinematics.sim.cube import build_model
 from so101_kinematics.sim.stack import run_stack, stack_report

@@ -27,7 +27,8 @@ from so101_kinematics.calibration import load_calibration  # noqa: E402
 from so101_kinematics.hw import run as hw  # noqa: E402
 from so101_kinematics.planning.plans import default_plan, pick_and_place_steps  # noqa: E402
 from so101_kinematics.servo import KIT_SUPPLY_V  # noqa: E402
-from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
+from so101_kinematics.virtual.arm import VirtualSO101  # noqa: E402
+from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH  # noqa: E402
 
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
 PICK, PLACE = (get_forward_kinematics({j: s.configuration[j] for j in ARM_JOINTS})[0]

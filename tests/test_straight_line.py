@@ -15,11 +15,12 @@ import math
 import numpy as np
 import pytest
 
+from so101_kinematics.errors import PlanError
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINT_RANGES_RAD
 from so101_kinematics.ik.call_shapes import get_inverse_kinematics
 from so101_kinematics.planning.cartesian_plan import cartesian_plan
-from so101_kinematics.planning.motion import Plan, PlanError, Step
+from so101_kinematics.planning.motion import Plan, Step
 from so101_kinematics.planning.straight_line import (
     SEGMENTS,
     max_path_deviation_mm,
@@ -168,7 +169,8 @@ def test_pick_place_hw_runs_a_straight_lift_on_the_virtual_arm(tmp_path, capsys)
     pytest.importorskip("lerobot")
     import pick_place_hw
     from so101_kinematics.hw.log import sidecar_path
-    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+    from so101_kinematics.virtual.arm import VirtualSO101
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
     grasp = dict(BELOW, gripper=5.0)
     plan = {"steps": [{"name": "start_closed", "configuration": grasp, "duration": 1.5,

@@ -15,6 +15,7 @@ from hw_fakes import HOME, make_session
 import so101_kinematics.hw.course_helpers as course
 from so101_kinematics.errors import TorqueLost
 from so101_kinematics.hw.control import STATUS_EVERY
+from so101_kinematics.hw.course_calibration import ScriptEnded
 from so101_kinematics.hw.run import RunResult, ending
 
 CALIBRATION_PATH = Path(__file__).resolve().parent.parent / "calibration" / "virtual_so101.json"
@@ -64,7 +65,7 @@ def test_a_servo_released_during_hold_position_ends_by_the_policy(course_arm, ca
     held = len(session.cycles)
     session.on_cycle = lambda s, c: (len(s.cycles) == held + 30
                                      and course_arm.set_torque(False, ["elbow_flex"]))
-    with pytest.raises(course.ScriptEnded) as ended:
+    with pytest.raises(ScriptEnded) as ended:
         hold_position(bus, 5.0)
     result = ended.value.result
     assert ended.value.code == 1

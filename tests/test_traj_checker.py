@@ -19,6 +19,7 @@ import pytest
 
 from so101_kinematics.checker import traj_compare
 from so101_kinematics.checker.traj import check_traj_file, main
+from so101_kinematics.frames import JOINTS
 
 try:
     import tomllib
@@ -239,8 +240,8 @@ def test_the_students_own_utils_file_is_checked_under_its_own_name(tmp_path):
 
 
 def test_the_reference_is_the_courses_cubic_clipped_to_the_duration():
-    one = {"start": {j: 10.0 for j in traj_compare.JOINTS},
-           "goal": {j: 50.0 for j in traj_compare.JOINTS}, "duration": 2.0}
+    one = {"start": {j: 10.0 for j in JOINTS},
+           "goal": {j: 50.0 for j in JOINTS}, "duration": 2.0}
     # 10 + 40 (3 s^2 - 2 s^3) at s = 0, 1/4, 1/2, 1 and past the end
     expected = [10.0, 10.0 + 40.0 * 0.15625, 30.0, 50.0, 50.0]
     got = traj_compare.reference(one, np.array([0.0, 0.5, 1.0, 2.0, 3.0]))

@@ -17,9 +17,11 @@ import mujoco
 import numpy as np
 import pytest
 
+from so101_kinematics.errors import PlanError
 from so101_kinematics.frames import JOINTS
-from so101_kinematics.planning.motion import PROFILES, PlanError, Trajectory
-from so101_kinematics.planning.profiles import cubic_coefficients, quintic_coefficients
+from so101_kinematics.planning.motion import Trajectory
+from so101_kinematics.planning.motion_metrics import METRIC_KEYS
+from so101_kinematics.planning.profiles import PROFILES, cubic_coefficients, quintic_coefficients
 
 REPO = Path(__file__).resolve().parent.parent
 VELOCITY_SCENE = REPO / "model" / "scene_with_velocity.xml"
@@ -216,7 +218,7 @@ def test_the_week9_sequence_figures(model, data):
     figures = {p: tracking.metrics(tracking.run_week9(model, data, None, p))
                for p in ("linear", "cubic")}
     for values in figures.values():
-        assert set(values) == set(tracking.METRIC_KEYS)
+        assert set(values) == set(METRIC_KEYS)
     # The cubic has no velocity step: its measured acceleration peaks lower than linear's.
     assert (figures["cubic"]["peak_acceleration_deg_s2"] <
             figures["linear"]["peak_acceleration_deg_s2"])
@@ -382,7 +384,7 @@ def test_the_velocity_scene_refuses_the_servo_options_in_one_line():
 def test_pick_place_hw_runs_a_cubic_plan_on_the_virtual_arm(course_arm, tmp_path, capsys):
     import pick_place_hw
     from so101_kinematics.constants import HOME_POSE
-    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
     plan = {"steps": [{"name": "nod", "configuration": dict(HOME_POSE, wrist_flex=50.0),
                        "duration": 0.5, "hold": 0.1}], "return_duration": 0.5}
@@ -409,7 +411,7 @@ def test_the_script_records_a_video_and_refuses_one_of_the_velocity_scene(tmp_pa
 
 # --- straight lines in task space ----------------------------------------------------------------
 def test_the_path_deviation_is_the_distance_to_the_segment():
-    from so101_kinematics.sim.straight import max_path_deviation_mm
+    from so101_kinematics.planning.straight_line import max_path_deviation_mm
 
     # Beside the middle: 3-4-5 mm off; before the start: the distance to the start.
     assert max_path_deviation_mm([[0.5, 0.003, 0.004]], (0, 0, 0), (1, 0, 0)) == pytest.approx(5.0)

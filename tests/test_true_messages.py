@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from so101_kinematics.errors import CallShapeError, PlanError
+from so101_kinematics.hw.course_calibration import ScriptEnded
 from so101_kinematics.planning.plans import load_plan
 
 REPO = Path(__file__).resolve().parent.parent
@@ -79,7 +80,7 @@ def test_one_number_too_many_is_a_call_shape_not_a_bad_target():
 @pytest.mark.parametrize("given", ["up", "side", "down", "pitch"])
 def test_the_approach_hint_suggests_only_an_approach_that_is_accepted(given):
     from so101_inverse_kinematics import get_inverse_kinematics
-    from so101_kinematics.ik.solver import KinematicsInputError
+    from so101_kinematics.errors import KinematicsInputError
 
     with pytest.raises(KinematicsInputError) as error:
         get_inverse_kinematics([0.2, 0.0, 0.05], given)
@@ -103,7 +104,7 @@ def test_raw_ticks_refused_after_a_move_do_not_claim_nothing_moved(course_arm, c
                        course_arm.port)
     pose = bus.sync_read("Present_Position")
     move_to_pose(bus, dict(pose, wrist_roll=pose["wrist_roll"] + 20.0), 0.5)  # a short move
-    with pytest.raises(course.ScriptEnded) as ended:
+    with pytest.raises(ScriptEnded) as ended:
         bus.sync_write("Goal_Position", {"shoulder_pan": 2047}, normalize=False)
     assert ended.value.code == 2
     assert "nothing moved" not in ended.value.line

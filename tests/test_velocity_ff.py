@@ -209,7 +209,8 @@ def test_a_stall_during_a_led_move_ends_as_the_fault_matrix_says(tmp_path):
 def test_pick_place_hw_velocity_ff_logs_its_lead(tmp_path, capsys):
     pytest.importorskip("lerobot")
     import pick_place_hw as cli
-    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+    from so101_kinematics.virtual.arm import VirtualSO101
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
     swing = dict(HOME_POSE, shoulder_pan=40.0)
     plan = tmp_path / "plan.json"
@@ -239,7 +240,7 @@ def test_pick_place_hw_velocity_ff_logs_its_lead(tmp_path, capsys):
 @pytest.mark.slow
 def test_the_course_helpers_take_velocity_ff_and_keep_their_shapes_without(course_arm):
     import so101_kinematics.hw.course_helpers as course
-    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
     from so101_utils import load_calibration, move_to_pose, move_to_pose_cubic, setup_motors
 
     bus = setup_motors(load_calibration(str(DEFAULT_CALIBRATION_PATH)), course_arm.port)

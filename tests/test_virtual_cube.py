@@ -22,7 +22,8 @@ from so101_kinematics.hw.bus import connect, disconnect, read_block  # noqa: E40
 from so101_kinematics.hw.teach import cube_outcome, grasp_outcome  # noqa: E402
 from so101_kinematics.planning.plans import GRIPPER_CLOSED, default_plan, pick_and_place_steps  # noqa: E402
 from so101_kinematics.sensors.cube_reader import CubeSensor  # noqa: E402
-from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
+from so101_kinematics.virtual.arm import VirtualSO101  # noqa: E402
+from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH  # noqa: E402
 
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
 PICK, PLACE = (get_forward_kinematics({j: s.configuration[j] for j in ARM_JOINTS})[0]

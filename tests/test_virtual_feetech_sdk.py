@@ -21,7 +21,8 @@ import pytest
 from test_virtual_so101 import HOME
 
 from so101_kinematics.servo import KIT_SUPPLY_V
-from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+from so101_kinematics.virtual.arm import VirtualSO101
+from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
 sdk = pytest.importorskip("scservo_sdk")
 MODEL_NUMBER = 777  # STS3215

@@ -16,7 +16,8 @@ from test_virtual_so101 import HOME, RawPort, split_status
 
 import so101_kinematics.virtual.protocol as fp
 from so101_kinematics.servo import KIT_SUPPLY_V
-from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+from so101_kinematics.virtual.arm import VirtualSO101
+from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
 REG_WRITE, ACTION, RESET, UNKNOWN = 0x04, 0x05, 0x06, 0x07  # Feetech's instruction codes
 REGISTERED, P_COEFFICIENT, GOAL, PRESENT = 64, 21, 42, 56  # memory table addresses

@@ -18,18 +18,19 @@ import tty
 import numpy as np
 import pytest
 
-import so101_kinematics.virtual.arm as vso
 import so101_kinematics.virtual.protocol as fp
 import so101_kinematics.virtual.shipped_calibration as vcal
 import so101_mujoco_utils as smu
 from benchmarks.bench_hw import measure_cycle, virtual_arm_bus
 from so101_forward_kinematics import JOINTS
 from so101_kinematics import servo
+from so101_kinematics.errors import CalibrationError, FaultSpecError, JointLimitError
 from so101_kinematics.gravity import feedforward
 from so101_kinematics.paths import REPO
-from so101_kinematics.planning.motion import JointLimitError
-from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+from so101_kinematics.virtual.arm import VirtualSO101
 from so101_kinematics.virtual.electrical import SUPPLY_V
+from so101_kinematics.virtual.faults import parse_faults
+from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
 TICK_DEG = 360.0 / 4095.0  # one encoder tick [deg]
 GRIPPER_TICK = 100.0 / 1251.0  # one gripper tick in [0, 100] units (shipped calibration)
@@ -204,27 +205,27 @@ def test_bad_calibration_is_refused_with_the_fix():
     calibration = vcal.load_calibration(DEFAULT_CALIBRATION_PATH)
     broken = {j: dict(e) for j, e in calibration.items()}
     broken["gripper"]["drive_mode"] = 1
-    with pytest.raises(vcal.CalibrationError, match="gripper.drive_mode.*drive_mode 0"):
+    with pytest.raises(CalibrationError, match="gripper.drive_mode.*drive_mode 0"):
         vcal.load_calibration(broken)
     del broken["elbow_flex"]
-    with pytest.raises(vcal.CalibrationError, match="elbow_flex"):
+    with pytest.raises(CalibrationError, match="elbow_flex"):
         vcal.load_calibration(broken)
-    with pytest.raises(vcal.CalibrationError, match="does not exist"):
+    with pytest.raises(CalibrationError, match="does not exist"):
         vcal.load_calibration("/nonexistent/calibration.json")
 
 
 def test_fault_grammar():
     calibration = vcal.load_calibration(DEFAULT_CALIBRATION_PATH)
-    faults = vso.parse_faults("drop:3:5, corrupt:2,remove:wrist_flex,stall:elbow_flex,"
+    faults = parse_faults("drop:3:5, corrupt:2,remove:wrist_flex,stall:elbow_flex,"
                               "firmware:3.9,firmware:6:3.8", calibration)
     assert faults == [("drop", 3, 5), ("corrupt", 2, 1), ("remove", 4, None), ("stall", 3, None),
                       ("firmware", 1, (3, 9)), ("firmware", 6, (3, 8))]
-    with pytest.raises(vso.FaultSpecError, match="unknown servo '9'"):
-        vso.parse_faults("drop:9", calibration)
-    with pytest.raises(vso.FaultSpecError, match="Grammar"):
-        vso.parse_faults("explode:1", calibration)
-    with pytest.raises(vso.FaultSpecError, match="Grammar"):
-        vso.parse_faults("drop:1:0", calibration)
+    with pytest.raises(FaultSpecError, match="unknown servo '9'"):
+        parse_faults("drop:9", calibration)
+    with pytest.raises(FaultSpecError, match="Grammar"):
+        parse_faults("explode:1", calibration)
+    with pytest.raises(FaultSpecError, match="Grammar"):
+        parse_faults("drop:1:0", calibration)
 
 
 # --- the protocol on the wire (no lerobot needed) -------------------------------------------

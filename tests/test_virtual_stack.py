@@ -22,7 +22,8 @@ from so101_kinematics.planning.stack_report import stack_outcome  # noqa: E402
 from so101_kinematics.planning.stacking import stack_plan  # noqa: E402
 from so101_kinematics.sensors import cube_wire as cube_sensor  # noqa: E402
 from so101_kinematics.sensors.cube_reader import read_cubes  # noqa: E402
-from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
+from so101_kinematics.virtual.arm import VirtualSO101  # noqa: E402
+from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH  # noqa: E402
 
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
 STACK = (0.15, 0.10)  # [m]

@@ -17,6 +17,4 @@ stand-in for MuJoCo and names what differs from the course's cubic (:mod:`.traj`
 :mod:`.traj_probe`, :mod:`.traj_compare`).
 """
 
-from so101_kinematics.checker.fk import check_file, main
-
-__all__ = ["check_file", "main"]
+__all__: list[str] = []

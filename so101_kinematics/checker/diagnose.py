@@ -18,6 +18,11 @@ import numpy as np
 from so101_kinematics import model_facts
 from so101_kinematics.frames import FIXED_TRANSFORMS, GRIPPER_MOUNT_TILT_DEG, Rx, Ry, Rz
 
+__all__ = [
+    "diagram_note", "displacement_causes", "rotation_angle_deg", "rotation_causes",
+    "tool_convention", "units_note",
+]
+
 MATCH_MM = 0.05
 """Two displacements agree when within this [mm] (for recognising a cause, not for grading)."""
 

@@ -25,6 +25,11 @@ from so101_kinematics.outputs import (
     write_text_atomic,
 )
 
+__all__ = [
+    "add_class_options", "add_tolerance_options", "check_file", "check_outputs", "exit_status",
+    "main", "run_and_print", "run_check",
+]
+
 EXIT_PASS, EXIT_OUTSIDE, EXIT_UNCHECKED = 0, 1, 2
 
 

@@ -21,6 +21,11 @@ from so101_kinematics.checker import diagnose, fk_returns
 from so101_kinematics.fast_fk import forward_kinematics_batch
 from so101_kinematics.frames import ARM_JOINTS, JOINT_LIMITS, joint_transform
 
+__all__ = [
+    "ANGLE_FRACTIONS", "FACTORS", "RANDOM_COUNT", "build_request", "compare_all",
+    "factor_angles",
+]
+
 FACTORS = {"get_gw1": ("w1", "shoulder_pan"), "get_g12": ("12", "shoulder_lift"),
            "get_g23": ("23", "elbow_flex"), "get_g34": ("34", "wrist_flex"),
            "get_g45": ("45", "wrist_roll")}

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+__all__ = ["FOUR_BY_FOUR", "changed_cause", "form_cause", "nan_cause"]
+
 FOUR_BY_FOUR = "returns one 4x4 matrix; the course's form is (position, rotation)"
 """The first words of the cause for an FK returning ``gwt`` itself (see :func:`form_cause`)."""
 

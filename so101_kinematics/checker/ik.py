@@ -34,6 +34,8 @@ from so101_kinematics.checker.fk import (
 from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number
 from so101_kinematics.outputs import JSON_REPORT, csv_kind, stamp, write_text_atomic
 
+__all__ = ["check_ik_file", "main"]
+
 
 def check_ik_file(path: str | Path, tolerance=(1.0, 1.0),
                   timeout: float = sandbox.DEFAULT_TIMEOUT_S,

@@ -31,6 +31,8 @@ from so101_kinematics.frames import (
 )
 from so101_kinematics.ik.geometry import PAN_AXIS_POINT
 
+__all__ = ["_branches", "build_request", "compare_ik", "count_targets"]
+
 LIMIT_SLACK_DEG = 0.01
 """How far past a joint limit an answer may go before it counts as beyond it [deg]."""
 
@@ -271,6 +273,32 @@ def _stats(values: np.ndarray) -> dict:
     return {"median": float(np.median(values)), "max": float(np.max(values))}
 
 
+def _limit_causes(angles, hits_by_joint, branches) -> list[str]:
+    """One cause per joint some answers put beyond its limit: how far, on which branch mostly."""
+    found = []
+    for joint_index, joint in enumerate(ARM_JOINTS):
+        hits = hits_by_joint[:, joint_index]
+        if hits.any():
+            low, high = JOINT_LIMITS[joint]
+            worst = np.nanmax(np.maximum(low - angles[hits, joint_index],
+                                         angles[hits, joint_index] - high))
+            common = max(set(b for b, h in zip(branches, hits, strict=True) if h),
+                         key=[b for b, h in zip(branches, hits, strict=True) if h].count)
+            hint = _LIMIT_HINTS.get(joint, _LIMIT_HINTS["elbow"])
+            found.append(f"{joint} is beyond its limit [{low:.1f}, {high:.1f}] deg in "
+                         f"{int(hits.sum())} answers (up to {worst:.1f} deg past it; mostly "
+                         f"{common}).{hint}")
+    return found
+
+
+def _examples(wrong, kinds, mm, example) -> list[dict]:
+    """At most four examples: the two worst wrong answers, then one of each non-answer kind."""
+    picked = list(wrong[np.argsort(-mm[wrong])][:2])
+    for kind in ("nan", "raised", "broken"):
+        picked += [i for i, k in enumerate(kinds) if k == kind][:1]
+    return [example(i) for i in picked[:4]]
+
+
 def compare_ik(results: dict, tolerance, count: int = ik_targets.TARGET_COUNT) -> dict:
     """The IK test of one submission: every answer judged, failures located and explained.
 
@@ -305,18 +333,7 @@ def compare_ik(results: dict, tolerance, count: int = ik_targets.TARGET_COUNT) -
     found = causes(targets[answered], angles[answered], yaw[answered], ok[answered], tolerance)
     note = own_fk_note(results, targets, angles, failing & answered, tolerance, MATCH_FRACTION)
     found += [note] if note else []
-    for joint_index, joint in enumerate(ARM_JOINTS):
-        hits = beyond[:, joint_index] & answered
-        if hits.any():
-            low, high = JOINT_LIMITS[joint]
-            worst = np.nanmax(np.maximum(low - angles[hits, joint_index],
-                                         angles[hits, joint_index] - high))
-            common = max(set(b for b, h in zip(branches, hits, strict=True) if h),
-                         key=[b for b, h in zip(branches, hits, strict=True) if h].count)
-            hint = _LIMIT_HINTS.get(joint, _LIMIT_HINTS["elbow"])
-            found.append(f"{joint} is beyond its limit [{low:.1f}, {high:.1f}] deg in "
-                         f"{int(hits.sum())} answers (up to {worst:.1f} deg past it; mostly "
-                         f"{common}).{hint}")
+    found += _limit_causes(angles, beyond & answered[:, None], branches)
     if (answered & ~ok).any() and not found:
         found.append("no known mistake recognised in the wrong answers: see where they fail "
                      "below, and compare one example with your own FK")
@@ -332,22 +349,15 @@ def compare_ik(results: dict, tolerance, count: int = ik_targets.TARGET_COUNT) -
         found.append(f"NaN (unreachable) returned at {counts['nan']} reachable targets ("
                      + ", ".join(f"{row['name']} {row['failing']}" for row in nan_regions
                                  if row["failing"]) + ")")
-    examples = []
-    wrong = np.flatnonzero(answered & ~ok)
-    picked = list(wrong[np.argsort(-mm[wrong])][:2])  # the worst wrong answers, then one
-    for kind in ("nan", "raised", "broken"):           # of each kind of non-answer
-        picked += [i for i, k in enumerate(kinds) if k == kind][:1]
-    for i in picked[:4]:
-        examples.append({
-            "target": [round(float(v), 4) for v in targets[i, :3]],
-            "yaw_deg": round(math.degrees(targets[i, 3]), 2), "name": names[i],
-            "kind": kinds[i], "problem": problems[i],
-            "answer_deg": {j: round(float(v), 2) for j, v in zip(ARM_JOINTS, angles[i],
-                                                                  strict=True)},
-            "error_mm": None if np.isnan(mm[i]) else round(float(mm[i]), 2),
-            "tilt_deg": None if np.isnan(tilt[i]) else round(float(tilt[i]), 2),
-            "yaw_error_deg": None if np.isnan(yaw[i]) else round(float(yaw[i]), 2),
-            "beyond": [j for j, b in zip(ARM_JOINTS, beyond[i], strict=True) if b]})
+    examples = _examples(np.flatnonzero(answered & ~ok), kinds, mm, lambda i: {
+        "target": [round(float(v), 4) for v in targets[i, :3]],
+        "yaw_deg": round(math.degrees(targets[i, 3]), 2), "name": names[i],
+        "kind": kinds[i], "problem": problems[i],
+        "answer_deg": {j: round(float(v), 2) for j, v in zip(ARM_JOINTS, angles[i], strict=True)},
+        "error_mm": None if np.isnan(mm[i]) else round(float(mm[i]), 2),
+        "tilt_deg": None if np.isnan(tilt[i]) else round(float(tilt[i]), 2),
+        "yaw_error_deg": None if np.isnan(yaw[i]) else round(float(yaw[i]), 2),
+        "beyond": [j for j, b in zip(ARM_JOINTS, beyond[i], strict=True) if b]})
     status = "ok" if ok.all() and len(ok) == count_targets(count) else "wrong"
     return {
         "function": "get_inverse_kinematics", "status": status, "causes": found,

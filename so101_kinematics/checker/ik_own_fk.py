@@ -15,6 +15,8 @@ import numpy as np
 from so101_kinematics.checker.diagnose import rotation_angle_deg
 from so101_kinematics.fast_fk import forward_kinematics_batch
 
+__all__ = ["own_fk_note"]
+
 
 def _wrap_deg(angle: float, period: float) -> float:
     return (angle + period / 2) % period - period / 2

@@ -29,6 +29,11 @@ from so101_kinematics.ik.call_shapes import get_inverse_kinematics
 from so101_kinematics.ik.geometry import PAN_AXIS_POINT
 from so101_kinematics.ik.solver import sample_top_down_targets
 
+__all__ = [
+    "OUT_OF_REACH", "TARGET_COUNT", "build_targets", "out_of_reach_answers",
+    "reference_fk_source", "region",
+]
+
 TABLE_HEIGHT = 0.014
 """The course's cube height [m]: the object frame of a cube on the table (its examples)."""
 

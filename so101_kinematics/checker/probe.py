@@ -25,6 +25,8 @@ import resource
 import sys
 import traceback
 
+__all__: list[str] = []
+
 OUTPUT_LIMIT = 4000
 """Characters of the student's own output kept for the report."""
 

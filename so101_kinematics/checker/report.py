@@ -14,6 +14,11 @@ import csv
 import io
 import json
 
+__all__ = [
+    "CSV_COLUMNS", "DEFAULT_POINTS", "PASSING", "csv_report", "gradescope_results",
+    "json_report", "score", "text_report",
+]
+
 DEFAULT_POINTS = {"get_gw1": 10.0, "get_g12": 10.0, "get_g23": 10.0, "get_g34": 10.0,
                   "get_g45": 10.0, "get_g5t": 10.0, "get_forward_kinematics": 40.0}
 """Points per test (100 in all)."""

@@ -32,6 +32,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+__all__ = ["DEFAULT_TIMEOUT_S", "PROBE", "run_probe"]
+
 PROBE = Path(__file__).with_name("probe.py")
 
 DEFAULT_TIMEOUT_S = 10.0

@@ -33,6 +33,8 @@ from so101_kinematics.checker.fk import (
 from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number, range_help
 from so101_kinematics.outputs import JSON_REPORT, stamp, write_text_atomic
 
+__all__ = ["POINTS", "check_traj_file", "gradescope_results", "main"]
+
 PROBE = Path(__file__).with_name("traj_probe.py")
 
 DEFAULT_TIMEOUT_S = 20.0

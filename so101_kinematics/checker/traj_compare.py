@@ -21,6 +21,8 @@ from so101_kinematics.checker.traj_fallback import FALLBACK_UTILS
 from so101_kinematics.frames import ARM_JOINTS, JOINT_RANGES_RAD, JOINTS
 from so101_kinematics.planning.profiles import cubic_coefficients
 
+__all__ = ["MOVES", "TOLERANCE_DEG", "build_request", "judge", "reference", "summary"]
+
 TIMESTEP_S = 0.004
 """The stand-in's ``m.opt.timestep`` [s]: the project's model (``model/so101.xml``, ``<option
 timestep>``)."""
@@ -144,6 +146,31 @@ def _factor_words(name: str, factor: float, course: str) -> str:
     return f"{name} is {factor:.3g}x the course's {course}"
 
 
+def _coefficient_causes(fit: dict, tol: float) -> list[str]:
+    """The wrong commands named by their fitted cubic: linear, not a cubic, or which factor."""
+    if abs(fit["n1"] - 1.0) < MATCH and abs(fit["n2"]) < MATCH and abs(fit["n3"]) < MATCH:
+        return ["linear interpolation, not the cubic: the velocity is (qf - q0)/T at both "
+                "ends, not zero (a1 = 0, a2 = 3 (qf - q0)/T^2, a3 = -2 (qf - q0)/T^3)"]
+    if fit["residual_deg"] > tol * 5:
+        return [f"the commands are not a cubic in t (a cubic fits them only to "
+                f"{fit['residual_deg']:.2f} deg)"]
+    causes = []
+    if abs(fit["n1"]) > MATCH:
+        causes.append(f"a1 is not zero: the velocity at the start is {fit['n1']:.3g} "
+                      "(qf - q0)/T (a1 = 0 for a move from rest)")
+    if not _near(fit["n2"], 3.0):
+        causes.append(_factor_words("a2", fit["n2"] / 3.0, "3 (qf - q0)/T^2"))
+    if not _near(fit["n3"], -2.0):
+        causes.append(_factor_words("a3", fit["n3"] / -2.0, "-2 (qf - q0)/T^3"))
+    end_velocity = fit["n1"] + 2 * fit["n2"] + 3 * fit["n3"]
+    if abs(end_velocity) > MATCH:
+        causes.append(f"the velocity at the end is {end_velocity:.3g} (qf - q0)/T, not zero")
+    end = fit["n1"] + fit["n2"] + fit["n3"]
+    if abs(end - 1.0) > MATCH:
+        causes.append(f"at t = T the cubic reaches {end:.3g} of the way to the goal, not 1")
+    return causes
+
+
 def move_causes(move: dict, t, cmd, timestep: float, tol: float, ended: str,
                 steps: int, last: float) -> tuple[list, dict]:
     """What is wrong with one move, in the student's terms, and the fitted factors.
@@ -202,29 +229,7 @@ def move_causes(move: dict, t, cmd, timestep: float, tol: float, ended: str,
     if fit:
         found.update(fit)
     if error_in > tol and not causes and fit:
-        if abs(fit["n1"] - 1.0) < MATCH and abs(fit["n2"]) < MATCH and abs(fit["n3"]) < MATCH:
-            causes.append("linear interpolation, not the cubic: the velocity is (qf - q0)/T at "
-                          "both ends, not zero (a1 = 0, a2 = 3 (qf - q0)/T^2, a3 = -2 (qf - "
-                          "q0)/T^3)")
-        elif fit["residual_deg"] > tol * 5:
-            causes.append(f"the commands are not a cubic in t (a cubic fits them only to "
-                          f"{fit['residual_deg']:.2f} deg)")
-        else:
-            if abs(fit["n1"]) > MATCH:
-                causes.append(f"a1 is not zero: the velocity at the start is {fit['n1']:.3g} "
-                              "(qf - q0)/T (a1 = 0 for a move from rest)")
-            if not _near(fit["n2"], 3.0):
-                causes.append(_factor_words("a2", fit["n2"] / 3.0, "3 (qf - q0)/T^2"))
-            if not _near(fit["n3"], -2.0):
-                causes.append(_factor_words("a3", fit["n3"] / -2.0, "-2 (qf - q0)/T^3"))
-            end_velocity = fit["n1"] + 2 * fit["n2"] + 3 * fit["n3"]
-            if abs(end_velocity) > MATCH:
-                causes.append(f"the velocity at the end is {end_velocity:.3g} (qf - q0)/T, "
-                              "not zero")
-            end = fit["n1"] + fit["n2"] + fit["n3"]
-            if abs(end - 1.0) > MATCH:
-                causes.append(f"at t = T the cubic reaches {end:.3g} of the way to the goal, "
-                              "not 1")
+        causes += _coefficient_causes(fit, tol)
     elif error_in > tol and not causes:
         causes.append(f"the commands differ from the course's cubic by up to {error_in:.2f} deg")
     after = t > duration + timestep / 2

@@ -8,6 +8,8 @@ conversions and commands from here. They follow the course's week-4 and week-9 p
 velocity scene) and run on the checker's stand-in ``mujoco``.
 """
 
+__all__ = ["FALLBACK_UTILS"]
+
 FALLBACK_UTILS = '''"""so101-check-traj's stand-in for the course's so101_mujoco_utils.
 
 Used when none is beside the checked file: the course's conversions and commands,

@@ -28,6 +28,8 @@ import sys
 import time
 import types
 
+__all__: list[str] = []
+
 
 def _load_sibling(name: str, as_name: str):
     """``name``.py beside this file (the child runs ``-I``: this folder is not on sys.path)."""

@@ -16,6 +16,8 @@ import types
 
 import numpy as np
 
+__all__ = ["OBJ", "StandInData", "StandInModel", "mj_name2id"]
+
 JOINTS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper")
 """The course's joint order in ``qpos`` and ``ctrl`` (its ``convert_to_list``)."""
 

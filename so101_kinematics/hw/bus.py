@@ -25,22 +25,24 @@ from collections.abc import Mapping
 from contextlib import contextmanager
 from typing import Any
 
-from so101_kinematics.calibration import (
-    CALIBRATE_HINT,
-    MOTOR_IDS,
+from so101_kinematics.calibration import CALIBRATE_HINT, MOTOR_IDS, ServoCalibration
+from so101_kinematics.errors import (
     CalibrationError,
-    HardwareError,
-    ServoCalibration,
-)
-from so101_kinematics.errors import (  # noqa: F401 - the family, re-exported
     ConnectionFailed,
+    HardwareError,
     LerobotMissing,
-    PortInUse,
-    PortLost,
 )
 from so101_kinematics.frames import JOINTS
-from so101_kinematics.hw.port import FIND_PORT_HINT, claim_port, port_users  # noqa: F401
-from so101_kinematics.planning.motion import Configuration, Limits, unit
+from so101_kinematics.hw.port import FIND_PORT_HINT, claim_port
+from so101_kinematics.inputs import Configuration, Limits, unit
+
+__all__ = [
+    "PORT_SETTLE_S", "SETUP_ATTEMPTS", "bus_errors", "calibration_mismatch", "clamp_to_limits",
+    "configure", "connect", "connect_with_retries", "discard_stale_input", "disconnect",
+    "enable_torque_in_place", "format_pose", "make_bus", "port_lost", "read_block",
+    "read_pose", "recover_port", "release_torque", "silent_servos",
+    "with_retries",
+]
 
 logger = logging.getLogger(__name__)
 

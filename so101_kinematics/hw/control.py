@@ -28,18 +28,11 @@ from collections.abc import Callable, Mapping
 
 from so101_kinematics.calibration import calibrated_limits
 from so101_kinematics.clearance import check_path
-from so101_kinematics.errors import (  # noqa: F401 - the family, re-exported
-    BusError,
-    FreezeRequested,
-    ServoFault,
-    StopRequested,
-    TrackingError,
-)
+from so101_kinematics.errors import BusError, PortLost, StopRequested
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.gravity import Feedforward
 from so101_kinematics.hw.bus import (
     PORT_SETTLE_S,
-    PortLost,
     discard_stale_input,
     port_lost,
     read_pose,
@@ -50,20 +43,8 @@ from so101_kinematics.hw.feedforward import tracking_allowance
 from so101_kinematics.hw.goals import goal_for, guard, send_goal
 from so101_kinematics.hw.lead import VelocityLead
 from so101_kinematics.hw.misreads import ReadingCheck
-from so101_kinematics.hw.signals import (  # noqa: F401 - stopping the loop, with the loop
-    STOP_SIGNALS,
-    gc_frozen,
-    signals_as_interrupt,
-    stop_on_signals,
-)
-from so101_kinematics.hw.timing import (  # noqa: F401 - the loop's time and speed, with the loop
+from so101_kinematics.hw.timing import (
     DEFAULT_RATE_HZ,
-    MAX_GRIPPER_SPEED_PCT_S,
-    MAX_JOINT_SPEED_DEG_S,
-    MAX_RATE_HZ,
-    MIN_RATE_HZ,
-    PEAK_SPEED_FACTOR,
-    SPEED_CAP_LIMIT_DEG_S,
     TRACKING_TOLERANCE_DEG,
     Cycle,
     RateLoop,
@@ -72,13 +53,19 @@ from so101_kinematics.hw.timing import (  # noqa: F401 - the loop's time and spe
     check_profile,
     check_rate,
     loop_timing_stats,
-    peak_speed_factor,
     speed_caps,
     stretch_warning,
     tracking_tolerances,
 )
-from so101_kinematics.planning.motion import Configuration, Trajectory, check_configuration
+from so101_kinematics.inputs import Configuration, check_configuration
+from so101_kinematics.planning.motion import Trajectory
 from so101_kinematics.trims import Trims, as_trims
+
+__all__ = [
+    "ArmSession", "OUTAGE_TOLERANCE_S", "READ_RETRIES", "RECOVERY_TIMEOUT_S",
+    "RETURN_MIN_DURATION_S", "RETURN_SPEED_DEG_S", "STATUS_EVERY", "TRACKING_TIMEOUT_S",
+    "TRACKING_TOLERANCE_LIMIT_DEG",
+]
 
 logger = logging.getLogger(__name__)
 

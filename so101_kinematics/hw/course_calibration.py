@@ -17,6 +17,8 @@ from so101_kinematics.errors import CalibrationError, SO101Error
 if TYPE_CHECKING:
     from so101_kinematics.hw.run import RunResult
 
+__all__ = ["ScriptEnded", "course_load_calibration", "refuse"]
+
 
 class ScriptEnded(SystemExit):
     """The helpers ended the script; ``line`` (printed to stderr) says why and how the arm is left.

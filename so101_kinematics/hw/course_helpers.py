@@ -51,16 +51,12 @@ from so101_kinematics.hw.bus import (
     bus_errors,
     connect,
     disconnect,
+    format_pose,
     release_torque,
     with_retries,
 )
-from so101_kinematics.hw.control import ArmSession, signals_as_interrupt, stop_on_signals
-from so101_kinematics.hw.course_calibration import (  # noqa: F401 - the course's loader
-    CourseCalibration,
-    ScriptEnded,
-    course_load_calibration,
-    refuse,
-)
+from so101_kinematics.hw.control import ArmSession
+from so101_kinematics.hw.course_calibration import ScriptEnded, refuse
 from so101_kinematics.hw.feedforward import read_feedforward, sag_allowance, torque_on_in_place
 from so101_kinematics.hw.guarded import RAW_TICKS, GuardedBus, ramp_to_goal, resync
 from so101_kinematics.hw.lead import VelocityLead
@@ -72,21 +68,26 @@ from so101_kinematics.hw.run import (
     after_abort,
     ending,
     finish,
-    format_pose,
     starting_pose,
 )
 from so101_kinematics.hw.servo_settings import configure_as_course
+from so101_kinematics.hw.signals import signals_as_interrupt, stop_on_signals
 from so101_kinematics.inputs import (
     MISSING,
-    START_MISMATCH,  # noqa: F401 - so101_utils's setting
+    Configuration,
     check_number,
     is_finite_number,
     move_arguments,
     radians_warning,
     start_mismatch,
 )
-from so101_kinematics.planning.motion import Configuration
 from so101_kinematics.trims import Trims, as_trims
+
+__all__ = [
+    "AT_START_TOLERANCE_DEG", "_RUNS", "_end_forgotten_runs", "course_guarded_call",
+    "course_hold_position", "course_logged_move", "course_move_to_pose", "course_trims",
+    "end_at_start", "setup_motors",
+]
 
 logger = logging.getLogger("so101_utils")
 

@@ -10,7 +10,12 @@ from collections.abc import Mapping
 
 from so101_kinematics.errors import ServoFault, TorqueLost, TrackingError
 from so101_kinematics.hw.bus import discard_stale_input, recover_port
-from so101_kinematics.planning.motion import Configuration, unit
+from so101_kinematics.inputs import Configuration, unit
+
+__all__ = [
+    "GRIPPER_OVERLOAD", "STATUS_BITS", "check_status", "check_torque", "check_tracking",
+    "read_torque",
+]
 
 STATUS_BITS = {0x01: "input voltage out of range", 0x04: "overheated", 0x08: "overcurrent",
                0x20: "overloaded"}

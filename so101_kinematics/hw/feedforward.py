@@ -19,6 +19,11 @@ from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.gravity import Feedforward
 from so101_kinematics.hw.bus import clamp_to_limits, enable_torque_in_place, read_pose
 
+__all__ = [
+    "RAMP_PERIOD_S", "RAMP_S", "read_feedforward", "sag_allowance", "torque_on_in_place",
+    "tracking_allowance",
+]
+
 logger = logging.getLogger(__name__)
 
 SETTLE_TIMEOUT_S = 1.0

@@ -12,13 +12,20 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping
 
-from so101_kinematics.errors import JointLimitError
+from so101_kinematics.errors import JointLimitError, PortLost
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.gravity import Feedforward
-from so101_kinematics.hw.bus import PortLost, clamp_to_limits, port_lost
-from so101_kinematics.inputs import LIMIT_TOLERANCE, limit_excess, limit_message
-from so101_kinematics.planning.motion import Configuration, Limits
+from so101_kinematics.hw.bus import clamp_to_limits, port_lost
+from so101_kinematics.inputs import (
+    LIMIT_TOLERANCE,
+    Configuration,
+    Limits,
+    limit_excess,
+    limit_message,
+)
 from so101_kinematics.trims import Trims
+
+__all__ = ["goal_for", "guard", "send_goal"]
 
 logger = logging.getLogger(__name__)
 

@@ -49,6 +49,8 @@ from so101_kinematics.hw.servo_settings import COURSE, course_value
 from so101_kinematics.hw.timing import capped_duration
 from so101_kinematics.inputs import START_MISMATCH, check_configuration, is_finite_number
 
+__all__ = ["GuardedBus", "RAW_TICKS", "ramp_to_goal", "resync"]
+
 logger = logging.getLogger("so101_utils")
 
 GOAL = "Goal_Position"

@@ -24,9 +24,13 @@ import numpy as np
 from so101_kinematics.cli import add_gravity_ff_argument
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
-from so101_kinematics.hw.run import MotionAborted, ending, format_pose, run_on_arm
-from so101_kinematics.planning.motion import Configuration, Plan, Step
+from so101_kinematics.hw.bus import format_pose
+from so101_kinematics.hw.run import MotionAborted, ending, run_on_arm
+from so101_kinematics.inputs import Configuration
+from so101_kinematics.planning.motion import Plan, Step
 from so101_kinematics.trims import TRIM_LIMIT_DEG, as_trims
+
+__all__ = ["HOME_CHECK_SPEED_DEG_S", "add_calibration_check_arguments", "home_check"]
 
 HOME_CONFIGURATION = dict.fromkeys(JOINTS, 0.0)  # the course's home: every joint 0, gripper 0
 HOME_CHECK_SPEED_DEG_S = 30.0  # "slowly": the speed cap of the home check [deg/s]

@@ -43,6 +43,8 @@ from so101_kinematics.frames import JOINTS
 from so101_kinematics.gravity import Feedforward
 from so101_kinematics.planning.motion import Trajectory
 
+__all__ = ["VelocityLead", "add_velocity_ff_argument", "lag_time", "lead_for"]
+
 LEAD_CAP_DEG = 10.0
 """The largest lead of any joint [deg] (gripper [%]). The lag the servo model gives at the
 default speed cap (``hw/timing.py``: 100 deg/s at the profile's peak) at lerobot's P = 16

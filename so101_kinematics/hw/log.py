@@ -16,7 +16,9 @@ from collections.abc import Iterable
 from pathlib import Path
 
 from so101_kinematics.frames import JOINTS
-from so101_kinematics.hw.control import ArmSession, Cycle
+from so101_kinematics.hw.control import ArmSession
+from so101_kinematics.hw.timing import Cycle
+from so101_kinematics.inputs import unit
 from so101_kinematics.markers import png_metadata
 from so101_kinematics.outputs import (
     JSON_REPORT,
@@ -28,8 +30,13 @@ from so101_kinematics.outputs import (
     temporary_beside,
     write_text_atomic,
 )
-from so101_kinematics.planning.motion import Plan, unit
+from so101_kinematics.planning.motion import Plan
 from so101_kinematics.trims import Trims
+
+__all__ = [
+    "CycleLog", "HEADER", "LOG_KIND", "SIDECAR_KIND", "plan_record", "plot_log",
+    "sidecar_path", "write_log_csv",
+]
 
 FLUSH_EVERY_S = 0.5  # the log reaches the disk at least this often [s of run time]
 BEFORE_LEAD = (["t_s", "wall_s", "step"] + [f"cmd_{j}" for j in JOINTS]

@@ -26,6 +26,8 @@ from collections.abc import Mapping
 from so101_kinematics.frames import ARM_JOINTS
 from so101_kinematics.servo import VARIANTS
 
+__all__ = ["Misread", "ReadingCheck"]
+
 RANGE_MARGIN = 30.0
 """How far past its calibrated range [deg; gripper: 0-100 units] a reading may be.
 

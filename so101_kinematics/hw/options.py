@@ -8,18 +8,19 @@ from __future__ import annotations
 
 import argparse
 
-from so101_kinematics.hw.control import (
+from so101_kinematics.hw.control import TRACKING_TIMEOUT_S, TRACKING_TOLERANCE_LIMIT_DEG
+from so101_kinematics.hw.lead import add_velocity_ff_argument
+from so101_kinematics.hw.timing import (
     DEFAULT_RATE_HZ,
     MAX_JOINT_SPEED_DEG_S,
     MAX_RATE_HZ,
     MIN_RATE_HZ,
     SPEED_CAP_LIMIT_DEG_S,
-    TRACKING_TIMEOUT_S,
     TRACKING_TOLERANCE_DEG,
-    TRACKING_TOLERANCE_LIMIT_DEG,
 )
-from so101_kinematics.hw.lead import add_velocity_ff_argument
-from so101_kinematics.planning.motion import SPEED_CAPPED_PROFILES
+from so101_kinematics.planning.profiles import SPEED_CAPPED_PROFILES
+
+__all__ = ["add_loop_arguments"]
 
 
 def add_loop_arguments(parser: argparse.ArgumentParser) -> None:

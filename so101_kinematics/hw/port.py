@@ -7,6 +7,8 @@ import os
 
 from so101_kinematics.errors import ConnectionFailed, PortInUse
 
+__all__ = ["FIND_PORT_HINT", "claim_port"]
+
 FIND_PORT_HINT = "lerobot-find-port"
 
 

@@ -11,12 +11,16 @@ from collections.abc import Mapping
 from typing import Any
 
 from so101_kinematics.calibration import calibrated_limits
+from so101_kinematics.errors import JointLimitError
 from so101_kinematics.frames import JOINT_LIMITS
 from so101_kinematics.hw.control import TRACKING_TOLERANCE_LIMIT_DEG
 from so101_kinematics.hw.timing import SPEED_CAP_LIMIT_DEG_S, check_rate
-from so101_kinematics.planning.motion import JointLimitError, Plan, check_number
+from so101_kinematics.inputs import check_number
+from so101_kinematics.planning.motion import Plan
 from so101_kinematics.planning.plans import validate_plan
 from so101_kinematics.trims import Trims, as_trims
+
+__all__ = ["check_run_settings", "validate_plan_for_arm"]
 
 
 def validate_plan_for_arm(plan: Plan, calibration: Mapping[str, Any] | None,

@@ -37,13 +37,12 @@ from collections.abc import Mapping
 
 from so101_kinematics.clearance import check_path
 from so101_kinematics.errors import PlanError, StopRequested
-from so101_kinematics.hw.control import (
-    MAX_GRIPPER_SPEED_PCT_S,
-    RETURN_MIN_DURATION_S,
-    RETURN_SPEED_DEG_S,
-    speed_caps,
-)
-from so101_kinematics.planning.motion import Configuration, Plan, check_configuration
+from so101_kinematics.hw.control import RETURN_MIN_DURATION_S, RETURN_SPEED_DEG_S
+from so101_kinematics.hw.timing import MAX_GRIPPER_SPEED_PCT_S, speed_caps
+from so101_kinematics.inputs import Configuration, check_configuration
+from so101_kinematics.planning.motion import Plan
+
+__all__ = ["held_grip", "put_down"]
 
 logger = logging.getLogger("pick_place_hw")
 

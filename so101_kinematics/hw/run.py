@@ -17,19 +17,19 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from so101_kinematics.calibration import (
-    CALIBRATE_HINT,
-    MOTOR_IDS,
+from so101_kinematics.calibration import CALIBRATE_HINT, MOTOR_IDS, calibrated_limits
+from so101_kinematics.errors import (
     CalibrationError,
+    FreezeRequested,
     HardwareError,
-    calibrated_limits,
+    NotConfirmed,
+    PortLost,
+    StopRequested,
+    TorqueLost,
 )
-from so101_kinematics.errors import NotConfirmed as NotConfirmed
-from so101_kinematics.errors import TorqueLost
 from so101_kinematics.frames import JOINT_LIMITS, JOINTS
 from so101_kinematics.hw.bus import (
     SETUP_ATTEMPTS,
-    PortLost,
     bus_errors,
     clamp_to_limits,
     connect,
@@ -42,35 +42,34 @@ from so101_kinematics.hw.bus import (
     silent_servos,
     with_retries,
 )
-from so101_kinematics.hw.control import (
-    DEFAULT_RATE_HZ,
-    MAX_JOINT_SPEED_DEG_S,
-    RECOVERY_TIMEOUT_S,
-    TRACKING_TOLERANCE_DEG,
-    ArmSession,
-    Cycle,
-    FreezeRequested,
-    Segment,
-    StopRequested,
-    capped_duration,
-    gc_frozen,
-    speed_caps,
-    stop_on_signals,
-    tracking_tolerances,
-)
+from so101_kinematics.hw.control import RECOVERY_TIMEOUT_S, ArmSession
 from so101_kinematics.hw.cycle_checks import read_torque
 from so101_kinematics.hw.feedforward import read_feedforward, torque_on_in_place
 from so101_kinematics.hw.lead import VelocityLead
-from so101_kinematics.hw.preflight import (  # noqa: F401 - the run's checks, re-exported
-    check_run_settings,
-    validate_plan_for_arm,
-)
+from so101_kinematics.hw.preflight import check_run_settings, validate_plan_for_arm
 from so101_kinematics.hw.putdown import held_grip, put_down
 from so101_kinematics.hw.servo_settings import configure_as_course, describe_unable, read_back
-from so101_kinematics.planning.motion import Configuration, Plan, Step, run_plan, unit
+from so101_kinematics.hw.signals import gc_frozen, stop_on_signals
+from so101_kinematics.hw.timing import (
+    DEFAULT_RATE_HZ,
+    MAX_JOINT_SPEED_DEG_S,
+    TRACKING_TOLERANCE_DEG,
+    Cycle,
+    Segment,
+    capped_duration,
+    speed_caps,
+    tracking_tolerances,
+)
+from so101_kinematics.inputs import Configuration, unit
+from so101_kinematics.planning.motion import Plan, Step, run_plan
 from so101_kinematics.sensors.cube_reader import read_cubes
 from so101_kinematics.sensors.cube_wire import CubeReading
 from so101_kinematics.trims import Trims, as_trims
+
+__all__ = [
+    "LIMIT_SLACK_DEG", "MotionAborted", "RELEASE_HINT", "RunResult", "after_abort", "ending",
+    "execute", "finish", "release_arm", "run_on_arm", "starting_pose",
+]
 
 logger = logging.getLogger("pick_place_hw")
 

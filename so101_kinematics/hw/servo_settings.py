@@ -36,6 +36,11 @@ from so101_kinematics.hw.bus import configure, discard_stale_input, recover_port
 from so101_kinematics.hw.cycle_checks import GRIPPER_OVERLOAD, STATUS_BITS
 from so101_kinematics.hw.timing import TRACKING_TOLERANCE_DEG
 
+__all__ = [
+    "COURSE", "configure_as_course", "course_value", "describe_unable", "read_back",
+    "unable_to_hold",
+]
+
 logger = logging.getLogger(__name__)
 
 _ARM, _GRIP = servo.LEROBOT, servo.LEROBOT_GRIPPER

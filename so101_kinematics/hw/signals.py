@@ -20,6 +20,8 @@ from so101_kinematics.errors import FreezeRequested
 if TYPE_CHECKING:
     from so101_kinematics.hw.control import ArmSession
 
+__all__ = ["gc_frozen", "signals_as_interrupt", "stop_on_signals"]
+
 
 @contextmanager
 def gc_frozen():

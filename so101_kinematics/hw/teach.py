@@ -8,14 +8,22 @@ import sys
 import time
 from collections.abc import Mapping
 
+from so101_kinematics.errors import PortLost
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
-from so101_kinematics.hw.bus import PortLost, port_lost, read_pose, recover_port
-from so101_kinematics.hw.control import READ_RETRIES, RECOVERY_TIMEOUT_S, RateLoop, capped_duration
+from so101_kinematics.hw.bus import port_lost, read_pose, recover_port
+from so101_kinematics.hw.control import READ_RETRIES, RECOVERY_TIMEOUT_S
+from so101_kinematics.hw.timing import RateLoop, capped_duration
+from so101_kinematics.inputs import Configuration
 from so101_kinematics.planning import stack_report
-from so101_kinematics.planning.motion import Configuration, Plan
+from so101_kinematics.planning.motion import Plan
 from so101_kinematics.planning.plans import GRIPPER_CLOSED, pick_and_place_steps
 from so101_kinematics.planning.straight_line import is_path_sample
+
+__all__ = [
+    "MAX_TEACH_RATE_HZ", "TEACH_RATE_HZ", "cube_outcome", "format_configuration",
+    "format_plan", "grasp_outcome", "outcome_lines", "teach",
+]
 
 TEACH_RATE_HZ = 5.0        # live pose printing [Hz]
 MAX_TEACH_RATE_HZ = 50.0   # a terminal cannot show more [Hz]

@@ -12,15 +12,18 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import NamedTuple
 
+from so101_kinematics.errors import PlanError
 from so101_kinematics.frames import JOINTS
-from so101_kinematics.planning.motion import (
-    PROFILES,
-    SPEED_CAPPED_PROFILES,
-    Configuration,
-    PlanError,
-    check_number,
-    unit,
-)
+from so101_kinematics.inputs import Configuration, check_number, unit
+from so101_kinematics.planning.profiles import PROFILES, SPEED_CAPPED_PROFILES
+
+__all__ = [
+    "Cycle", "DEFAULT_RATE_HZ", "MAX_GRIPPER_SPEED_PCT_S", "MAX_JOINT_SPEED_DEG_S",
+    "MAX_RATE_HZ", "MIN_RATE_HZ", "RateLoop", "SPEED_CAP_LIMIT_DEG_S", "Segment",
+    "TRACKING_TOLERANCE_DEG", "capped_duration", "check_profile", "check_rate",
+    "loop_timing_stats", "peak_speed_factor", "speed_caps", "stretch_warning",
+    "tracking_tolerances",
+]
 
 DEFAULT_RATE_HZ = 100.0            # control loop rate [Hz]
 MIN_RATE_HZ = 20.0                 # slower, one cycle's step at the speed cap exceeds 5 deg

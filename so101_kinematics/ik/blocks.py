@@ -26,6 +26,8 @@ from so101_kinematics.ik.call_shapes import get_inverse_kinematics
 from so101_kinematics.ik.solver import as_position
 from so101_kinematics.inputs import Configuration, check_duration
 
+__all__ = ["pick_up_moves", "place_moves"]
+
 BLOCK_CLEARANCE = 0.03  # [m] above the block (or the target) before going down and after
 BLOCK_GRIPPER_OPEN = 50.0  # [0, 100] the opening that clears a 26-28 mm block
 BLOCK_GRIPPER_CLOSED = 5.0  # [0, 100] squeezing the block

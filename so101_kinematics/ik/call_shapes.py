@@ -32,7 +32,9 @@ from so101_kinematics.errors import KinematicsInputError, KinematicsTypeError, U
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.ik.geometry import MIN_HEIGHT
 from so101_kinematics.ik.solver import solve_keywords
-from so101_kinematics.planning.motion import describe_value
+from so101_kinematics.inputs import describe_value
+
+__all__ = ["_as_rotation", "get_inverse_kinematics"]
 
 TOP_DOWN_TOL_DEG = 0.5
 """Largest tilt of an orientation's z axis from the vertical still taken as top-down [deg]."""

@@ -19,6 +19,14 @@ from so101_kinematics.frames import (
 )
 from so101_kinematics.planning.plans import STARTING_CONFIGURATION
 
+__all__ = [
+    "GRIPPER_OPEN", "MIN_HEIGHT", "PAN_AXIS_POINT", "POSITION_LIMIT",
+    "REFERENCE_CONFIGURATION", "REFINE_TOL", "SOLVE_TOL", "_A", "_ACROSS0", "_ALONG", "_B",
+    "_C", "_DEFAULT_REFERENCE", "_H0", "_KINK", "_LATERAL0", "_LEN_A", "_LEN_B", "_LIMITS",
+    "_LIMIT_SLACK", "_PAN", "_QUARTER", "_REACH_MAX", "_REACH_MIN", "_ROLL", "_T", "_TILT",
+    "_Z0", "_chain", "_jacobian_from_chain", "_wrap", "get_jacobian", "log",
+]
+
 MIN_HEIGHT = CUBE_HALF_SIZE - 0.001
 """Lowest object-frame height accepted by default [m]: a cube centre at most 1 mm into the table."""
 

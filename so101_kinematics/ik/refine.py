@@ -25,6 +25,8 @@ from so101_kinematics.ik.geometry import (
     log,
 )
 
+__all__ = ["_check", "_describe", "_refine", "line_task"]
+
 
 # ---------------------------------------------------------------------------
 # Check against the FK and numerical refinement.

@@ -30,6 +30,8 @@ from so101_kinematics.ik.geometry import (
 )
 from so101_kinematics.inputs import format_limit
 
+__all__ = ["_Search", "_pan", "_pitch_candidates", "_pitch_windows"]
+
 
 # ---------------------------------------------------------------------------
 # Closed form. Targets are tuples of floats relative to _C (plain floats are

@@ -35,18 +35,11 @@ from so101_kinematics.ik.geometry import (
     _wrap,
     log,
 )
-from so101_kinematics.ik.refine import (
-    _check,
-    _describe,
-    _refine,
-)
-from so101_kinematics.ik.search import (
-    _pan,
-    _pitch_candidates,
-    _pitch_windows,
-    _Search,
-)
-from so101_kinematics.planning.motion import check_number, describe_value, is_finite_number
+from so101_kinematics.ik.refine import _check, _describe, _refine
+from so101_kinematics.ik.search import _pan, _pitch_candidates, _pitch_windows, _Search
+from so101_kinematics.inputs import check_number, describe_value, is_finite_number
+
+__all__ = ["as_position", "sample_top_down_targets", "solve_keywords"]
 
 
 # ---------------------------------------------------------------------------

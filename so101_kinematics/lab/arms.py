@@ -31,7 +31,8 @@ from so101_kinematics.hw.bus_arm import BusArm
 from so101_kinematics.interfaces import Arm, Sensor
 from so101_kinematics.sim.cube import build_model
 from so101_kinematics.sim.sim_arm import SimArm
-from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+from so101_kinematics.virtual.arm import VirtualSO101
+from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
 __all__ = ["KINDS", "ArmConfig", "ArmRig", "open_arm"]
 

@@ -26,6 +26,8 @@ from so101_kinematics.hw.run import RELEASE_HINT, MotionAborted, ending, run_on_
 from so101_kinematics.paths import DOCS_DIR
 from so101_kinematics.planning.motion import Plan, Step
 
+__all__ = ["FAULTS", "PHASES", "run_drill"]
+
 DOC_PATH = DOCS_DIR / "hardware_safety.md"
 AT_START_DEG = 2.0  # "at the start": every arm joint within this of its starting angle [deg]
 
@@ -115,7 +117,8 @@ def run_drill(fault: str, phase: str, folder: str | Path | None = None,
         velocity_ff: run with the velocity lead (``--velocity-ff``, ``hw/lead.py``).
         profile: the moves' time scaling (``--profile``).
     """
-    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+    from so101_kinematics.virtual.arm import VirtualSO101
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
     calibration = load_calibration(DEFAULT_CALIBRATION_PATH)
     folder = Path(folder or tempfile.mkdtemp(prefix="so101-drill-"))

@@ -17,6 +17,8 @@ What the log records (``hw/log.py``, ``hw/control.py``, ``hw/run.py``):
 
 from __future__ import annotations
 
+__all__ = ["run_ending", "stop_index"]
+
 STOP_STEP = "stop"  # ArmSession.stop_here's cycle (hw/control.py)
 RETURN_STEP = "abort_return"  # ArmSession.return_slowly's moves (hw/control.py)
 FINAL_RETURN_STEP = "return_to_start"  # planning.motion.run_plan's last step

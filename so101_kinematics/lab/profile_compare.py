@@ -38,6 +38,8 @@ from so101_kinematics.outputs import atomic_output
 from so101_kinematics.planning import motion_metrics
 from so101_kinematics.planning.profiles import PROFILES
 
+__all__ = ["DEFAULT_PROFILE", "compare_profiles", "draw_profiles"]
+
 DEFAULT_PROFILE = "minimum_jerk"  # pick_place_hw.py --profile's default, unchanged since 17420a9
 UNKNOWN_PLAN = "?"
 

@@ -42,6 +42,11 @@ from so101_kinematics.paths import REPO
 from so101_kinematics.sim import actuation
 from so101_kinematics.sim.scene import load_model, set_initial_pose, to_radians
 
+__all__ = [
+    "Recording", "STEP_FRAMES", "VIRTUAL_FRAMES", "delay_ms", "figures", "load", "replay",
+    "replay_virtual", "step_figures",
+]
+
 DATA_DIR = REPO / "tests" / "data" / "fidelity"
 """The recordings (``.npz``) and their provenance (``SOURCES.md``)."""
 
@@ -157,7 +162,8 @@ def replay_virtual(recording: Recording, frames, volts: float | None = None,
 
     from so101_kinematics.calibration import load_calibration
     from so101_kinematics.hw.bus import configure, connect, disconnect, enable_torque_in_place
-    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+    from so101_kinematics.virtual.arm import VirtualSO101
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
     volts = servo.DEFAULT_SUPPLY_V if volts is None else volts
     frames = np.asarray(frames)

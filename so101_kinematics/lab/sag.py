@@ -16,6 +16,8 @@ from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.servo import KIT_SUPPLY_V
 from so101_kinematics.sim.table_contact import table_force_n
 
+__all__ = ["describe_servo", "logged_supply"]
+
 SETTLE_S = 1.5  # [s] held before the reading; the sag above settles within 0.5 s
 
 

@@ -39,6 +39,11 @@ from so101_kinematics.outputs import atomic_output
 from so101_kinematics.planning.motion import Plan
 from so101_kinematics.planning.plans import pick_and_place_steps
 
+__all__ = [
+    "CUBE_COLOR", "ORIGIN_COLOR", "PAN_AXIS_COLOR", "PAPER_MM", "SCALE_BAR_COLOR",
+    "write_sheet",
+]
+
 PAPER_MM = {"a4": (210.0, 297.0), "letter": (215.9, 279.4)}
 """Paper sizes, portrait (width, height) [mm]."""
 MM_PER_INCH = 25.4

@@ -45,6 +45,8 @@ from so101_kinematics.planning.motion import Plan, Step
 from so101_kinematics.planning.plans import pick_and_place_steps
 from so101_kinematics.servo import COUNTS_PER_TURN, TARGET_RATE_MAX
 
+__all__ = ["Comparison", "LogError", "_plan", "compare_run", "draw_report", "read_log", "replay"]
+
 SETTLE_WINDOW_S = 0.2  # the pick/place pose: mean measured pose over the step's last [s]
 MAX_SPEED_DEG_S = TARGET_RATE_MAX * 360.0 / COUNTS_PER_TURN  # [deg/s] the STS3215's fastest
 MISREAD_MARGIN_DEG = 1.0  # [deg] beyond twice that speed's travel: no servo moved so (see below)

@@ -33,6 +33,8 @@ from so101_kinematics.planning.motion import Plan, Trajectory
 from so101_kinematics.planning.plans import default_plan
 from so101_kinematics.planning.profiles import PROFILES
 
+__all__ = ["measure", "move_cycles", "move_segments"]
+
 MODES = ("plain", "lead", "registers")
 """The ways of getting the velocity to the arm, compared (the module's docstring)."""
 
@@ -169,7 +171,8 @@ def measure(mode: str, plan: Plan | None = None, profile: str = "cubic",
     """
     from so101_kinematics.calibration import load_calibration
     from so101_kinematics.hw import run as hw_run
-    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+    from so101_kinematics.virtual.arm import VirtualSO101
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
     if mode not in MODES:
         raise ValueError(f"mode {mode!r} is not one of {', '.join(MODES)}. Fix: choose one.")

@@ -4,3 +4,5 @@ The time scalings (``profiles``) and the one runner (``motion.run_plan``); the p
 (``plans``, ``cartesian_plan``, ``straight_line``, ``stacking`` and its report
 ``stack_report``); the figures of a trajectory (``trajectory_log``, ``motion_metrics``).
 """
+
+__all__: list[str] = []

@@ -16,17 +16,23 @@ from collections.abc import Mapping
 import numpy as np
 
 from so101_kinematics.cli import number, range_help
-from so101_kinematics.errors import UnreachableError
+from so101_kinematics.errors import PlanError, UnreachableError
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.ik.call_shapes import get_inverse_kinematics
 from so101_kinematics.ik.geometry import GRIPPER_OPEN, MIN_HEIGHT, POSITION_LIMIT
 from so101_kinematics.ik.solver import as_position
-from so101_kinematics.planning.motion import Plan, PlanError, check_number
+from so101_kinematics.inputs import check_number
+from so101_kinematics.planning.motion import Plan
 from so101_kinematics.planning.plans import (
     FINAL_CONFIGURATION,
     STARTING_CONFIGURATION,
     pick_and_place_plan,
 )
+
+__all__ = [
+    "APPROACH_HEIGHT", "CUBE_YAW_RANGE", "DEFAULT_LIFT_HEIGHT", "PRE_GRASP_SLIDE",
+    "add_cartesian_arguments", "cartesian_plan", "plan_from_arguments",
+]
 
 DEFAULT_LIFT_HEIGHT = 0.10
 """Height of the lift and carry waypoints above the pick and place positions [m]."""

@@ -18,27 +18,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from so101_kinematics.errors import JointLimitError as JointLimitError
-from so101_kinematics.errors import PlanError as PlanError
-from so101_kinematics.inputs import (  # noqa: F401 - motion's vocabulary, re-exported
-    MAX_DURATION,
-    Configuration,
-    Limits,
-    check_configuration,
-    check_duration,
-    check_number,
-    describe_value,
-    format_range,
-    is_finite_number,
-    unit,
-)
-from so101_kinematics.planning.profiles import (  # noqa: F401 - the profiles, re-exported
-    PROFILES,
-    SPEED_CAPPED_PROFILES,
-    cubic,
-    linear,
-    minimum_jerk,
-)
+from so101_kinematics.errors import PlanError
+from so101_kinematics.inputs import Configuration, check_number
+from so101_kinematics.planning.profiles import PROFILES
+
+__all__ = ["Plan", "Step", "Trajectory", "run_plan"]
 
 
 @dataclass(frozen=True)

@@ -41,6 +41,11 @@ import numpy as np
 
 from so101_kinematics.servo import COUNTS_PER_TURN
 
+__all__ = [
+    "DERIVATIVE_WINDOW_S", "ENCODER_COUNT_DEG", "METRIC_KEYS", "fitted_derivatives", "metrics",
+    "step_derivatives", "to_encoder_counts",
+]
+
 METRIC_KEYS = ("tracking_rms_deg", "tracking_max_deg", "peak_velocity_deg_s",
                "peak_acceleration_deg_s2", "peak_jerk_deg_s3")
 """The figures of :func:`metrics`, in their units."""

@@ -18,8 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from so101_kinematics.clearance import check_plan_clearance
-from so101_kinematics.errors import JointLimitError as JointLimitError
-from so101_kinematics.errors import PlanError as PlanError
+from so101_kinematics.errors import PlanError
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.inputs import (
     RADIANS_BOUND,
@@ -30,6 +29,12 @@ from so101_kinematics.inputs import (
     looks_like_radians,
 )
 from so101_kinematics.planning.motion import Plan, Step
+
+__all__ = [
+    "FINAL_CONFIGURATION", "GRIPPER_CLOSED", "STARTING_CONFIGURATION", "data_kind",
+    "default_plan", "load_plan", "parse_data", "pick_and_place_plan", "pick_and_place_steps",
+    "read_text_file", "validate_plan",
+]
 
 # The course's pick-and-place. The six configurations of the assignment are
 # start_open, start_closed, lift, carry, final_closed and final_open; the first

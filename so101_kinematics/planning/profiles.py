@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+__all__ = ["PROFILES", "SPEED_CAPPED_PROFILES", "cubic_coefficients", "quintic_coefficients"]
+
 
 def _ones(s):
     return np.ones_like(s, dtype=float) if isinstance(s, np.ndarray) else 1.0

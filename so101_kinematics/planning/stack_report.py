@@ -13,6 +13,8 @@ import numpy as np
 
 from so101_kinematics.planning.stacking import CLEARANCE, StackPlan
 
+__all__ = ["STACK_TILT_TOLERANCE", "STACK_TOLERANCE", "measure_stack", "stack_outcome"]
+
 STACK_TOLERANCE = 0.005
 """[m] each block's centre this close to the one below it horizontally (the bottom one: to the
 stack's (x, y)) and to its level's height: a stack (the issue's 5 mm)."""

@@ -39,18 +39,25 @@ import numpy as np
 
 from so101_kinematics.cli import number, range_help
 from so101_kinematics.constants import CUBE_HALF_SIZE, CUBE_SIZE, HOME_POSE
-from so101_kinematics.errors import UnreachableError
+from so101_kinematics.errors import PlanError, UnreachableError
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS
 from so101_kinematics.ik.call_shapes import get_inverse_kinematics
 from so101_kinematics.ik.geometry import MIN_HEIGHT, POSITION_LIMIT
+from so101_kinematics.inputs import check_number
 from so101_kinematics.planning.cartesian_plan import (
     APPROACH_HEIGHT,
     CUBE_YAW_RANGE,
     DEFAULT_LIFT_HEIGHT,
     cartesian_plan,
 )
-from so101_kinematics.planning.motion import Plan, PlanError, Step, check_number
+from so101_kinematics.planning.motion import Plan, Step
+
+__all__ = [
+    "CLEARANCE", "COURSE_BLOCK_HEIGHTS", "LAB_BASE_HEIGHT", "StackPlan", "add_stack_arguments",
+    "block_height", "default_starts", "min_target_height", "stack_from_arguments",
+    "stack_plan",
+]
 
 COURSE_BLOCK_HEIGHTS = (0.014, 0.043, 0.071, 0.100)
 """The course's block centres [m] for the 1st..4th block of a stack (its lab blocks)."""

@@ -38,8 +38,15 @@ from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINT_RANGES_RAD
 from so101_kinematics.ik.geometry import SOLVE_TOL
 from so101_kinematics.ik.refine import line_task
-from so101_kinematics.planning.motion import Configuration, Plan, Step
+from so101_kinematics.inputs import Configuration
+from so101_kinematics.planning.motion import Plan, Step
 from so101_kinematics.planning.profiles import PROFILES
+
+__all__ = [
+    "CONTROL_DT", "METHODS", "SEGMENTS", "add_approach_arguments", "cycle_deviations",
+    "describe", "is_path_sample", "max_path_deviation_mm", "path_deviations",
+    "plan_for_approach", "straight_path", "straighten_plan",
+]
 
 METHODS = ("ik", "resolved_rate")
 APPROACHES = ("joint", "straight")

@@ -15,6 +15,8 @@ from collections.abc import Mapping, Sequence
 
 from so101_kinematics.frames import GRIPPER_RANGE, JOINT_RANGES_RAD, JOINTS
 
+__all__ = ["logging_frame", "plot_data", "require_pandas"]
+
 
 def require_pandas(what: str = "move_to_pose_with_logging"):
     """The pandas module, or an ImportError in one line naming the extra.

@@ -22,6 +22,11 @@ from __future__ import annotations
 import struct
 from typing import NamedTuple
 
+__all__ = [
+    "CubeReading", "MAX_CUBES", "SENSOR_ID", "SIZE", "address", "decode", "encode",
+    "encode_absent", "index_of",
+]
+
 SENSOR_ID = 100
 """Bus ID of the cube sensor (no SO-101 servo uses it)."""
 ADDRESS = 0

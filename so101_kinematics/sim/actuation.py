@@ -35,6 +35,11 @@ from so101_kinematics.errors import PlanError
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.sim.sts3215 import ServoBank
 
+__all__ = [
+    "IDEAL_GAINS", "VELOCITY_SUFFIX", "expected_sag", "forget", "has_velocity_actuators",
+    "lerobot_settings", "servo_spec", "step", "use_servo", "velocity_actuators",
+]
+
 IDEAL_GAINS = (998.22, 2.731, 3.35, 0.60)
 """The upstream ideal servo: kp [N m/rad], kv [N m s/rad], force range [N m], joint damping
 [N m s/rad]."""

@@ -21,6 +21,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+__all__ = ["collidable_geom_pairs", "mixed_contact_parameters", "use_explicit_contact_pairs"]
+
 
 def collidable_geom_pairs(m: mujoco.MjModel) -> list[tuple[int, int]]:
     """Geom pairs (ids, ascending) that MuJoCo's dynamic filter lets collide.

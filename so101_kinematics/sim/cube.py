@@ -17,20 +17,24 @@ import mujoco
 import numpy as np
 
 from so101_kinematics.constants import CUBE_SIZE
+from so101_kinematics.errors import PlanError
 from so101_kinematics.fast_fk import forward_kinematics as get_forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINT_LIMITS, TOOL_SITE
 from so101_kinematics.ik.call_shapes import get_inverse_kinematics
-from so101_kinematics.planning.cartesian_plan import (
-    CUBE_YAW_RANGE,
-)
-from so101_kinematics.planning.motion import Plan, PlanError, check_number
+from so101_kinematics.inputs import check_number
+from so101_kinematics.paths import SCENE_PATH
+from so101_kinematics.planning.cartesian_plan import CUBE_YAW_RANGE
+from so101_kinematics.planning.motion import Plan
 from so101_kinematics.planning.plans import default_plan, pick_and_place_steps
-from so101_kinematics.sim import actuation, scene
+from so101_kinematics.sim import actuation
 from so101_kinematics.sim.contact_pairs import use_explicit_contact_pairs
 from so101_kinematics.sim.meshes import ensure_meshes
-from so101_kinematics.sim.render import (
-    use_render_meshes,
-)
+from so101_kinematics.sim.render import use_render_meshes
+
+__all__ = [
+    "CUBE_OFFSET_RANGE_MM", "CubeMonitor", "CubeStart", "build_model", "check_cube_start",
+    "cube_name", "cube_names", "cube_on_table", "cube_state", "scene_limits", "scene_model",
+]
 
 # The free cube: a 26 mm hardwood cube (17.6 cm^3 at ~0.7 g/cm^3 = 12 g).
 # Sliding friction 0.5 is wood on wood or on PLA; where it touches a jaw pad,
@@ -104,7 +108,7 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
         contact computation until the arm touches it.
     """
     ensure_meshes()
-    spec = mujoco.MjSpec.from_file(str(scene.SCENE_PATH))
+    spec = mujoco.MjSpec.from_file(str(SCENE_PATH))
     if physics_only:
         _remove_visuals(spec)
     elif render_meshes:

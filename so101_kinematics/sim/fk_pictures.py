@@ -34,6 +34,12 @@ from so101_kinematics.sim.scene import (
     set_initial_pose,
 )
 
+__all__ = [
+    "DEFAULT_SCREENSHOT", "FRAMES_PATH", "SCREENSHOT_CAMERA", "SCREENSHOT_SIZE", "TABLE_PATH",
+    "fk_table_markdown", "project_to_pixels", "render_frames", "render_screenshot",
+    "show_cylinder",
+]
+
 log = logging.getLogger("test_fk_mujoco")
 
 # The course's show_cylinder: along the object frame's z axis, centred on it.

@@ -50,6 +50,13 @@ from so101_kinematics.sim.render import (
 )
 from so101_kinematics.sim.video import VideoRecorder
 
+__all__ = [
+    "CUBE_SYMMETRY", "DemoReport", "POSITION_TOLERANCE", "SERVO_POSITION_TOLERANCE",
+    "SERVO_YAW_TOLERANCE", "TARGET_HEIGHT", "Target", "YAW_TOLERANCE", "check_target",
+    "measure_target", "open_scene", "random_targets", "show_cube", "tolerances",
+    "yaw_difference",
+]
+
 TARGET_HEIGHT = 0.014  # [m] the course's targets: a cube's centre on the table, 1 mm clearance
 CUBE_SYMMETRY = 90.0  # [deg] a cube looks the same turned by this about the vertical
 POSITION_TOLERANCE = 0.002  # [m] object frame to target: "reached" (an ideal servo)

@@ -31,8 +31,14 @@ from pathlib import Path
 import numpy as np
 
 from so101_kinematics.cli import ArgumentParser
-from so101_kinematics.errors import MeshError as MeshError
+from so101_kinematics.errors import MeshError
 from so101_kinematics.paths import MODEL_DIR
+
+__all__ = [
+    "ASSET_DIR", "FIX_COMMAND", "RENDER_CELL_SIZE", "decimate_mesh", "ensure_meshes",
+    "ensure_render_meshes", "install_meshes", "read_manifest", "read_stl", "sha256_of",
+    "verify_meshes", "write_stl",
+]
 
 ASSET_DIR = MODEL_DIR / "assets"
 MANIFEST = MODEL_DIR / "so101_meshes.sha256"

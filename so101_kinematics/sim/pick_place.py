@@ -19,12 +19,13 @@ import mujoco
 import numpy as np
 
 from so101_kinematics import display
-from so101_kinematics.errors import ViewerClosed
+from so101_kinematics.errors import PlanError, RenderSettingError, ViewerClosed
 from so101_kinematics.fast_fk import forward_kinematics as get_forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, TOOL_SITE
+from so101_kinematics.inputs import check_number
 from so101_kinematics.paths import REPO
 from so101_kinematics.planning import straight_line
-from so101_kinematics.planning.motion import Plan, PlanError, Step, check_number, run_plan
+from so101_kinematics.planning.motion import Plan, Step, run_plan
 from so101_kinematics.planning.plans import default_plan, pick_and_place_steps, validate_plan
 from so101_kinematics.sim import actuation, scene, stepping
 from so101_kinematics.sim.cube import (
@@ -40,13 +41,18 @@ from so101_kinematics.sim.render import (
     DEFAULT_FPS,
     DEFAULT_SIZE,
     QUALITY,
-    RenderSettingError,
     add_overlays,
     check_fps,
     check_frame_size,
     target_cubes,
 )
 from so101_kinematics.sim.video import VideoRecorder
+
+__all__ = [
+    "DEFAULT_VIDEO", "INITIAL_KEYFRAME", "PLACEMENT_TOLERANCE", "RunReport", "TILT_TOLERANCE",
+    "TIMESTEP_RANGE", "_report", "choose_mode", "execute_plan", "run_pick_place",
+    "total_duration",
+]
 
 DEFAULT_VIDEO = REPO / "out" / "pick_place.mp4"
 INITIAL_KEYFRAME = "home"  # the arm's initial pose, returned to at the end

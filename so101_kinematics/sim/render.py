@@ -41,9 +41,16 @@ import mujoco
 import numpy as np
 
 from so101_kinematics.constants import CUBE_HALF_SIZE
-from so101_kinematics.errors import RenderError, RenderSettingError  # noqa: F401
+from so101_kinematics.errors import RenderError, RenderSettingError
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.sim.meshes import ensure_render_meshes
+
+__all__ = [
+    "DEFAULT_CAMERA", "DEFAULT_FPS", "DEFAULT_SIZE", "FINAL_RGBA", "FRAME_EDGE_RANGE",
+    "FrameRenderer", "MIN_FPS", "Overlay", "QUALITY", "RenderQuality", "START_RGBA",
+    "VIDEO_CODEC", "VIDEO_PARAMS", "add_overlays", "check_fps", "check_frame_size", "max_fps",
+    "target_cubes", "use_render_meshes",
+]
 
 DEFAULT_CAMERA = "pick_place"
 DEFAULT_SIZE = (640, 480)  # [px] width, height
@@ -81,7 +88,7 @@ def check_fps(fps, highest: float, name: str = "fps") -> float:
     Raises:
         RenderSettingError: naming the value, the range and why the maximum.
     """
-    from so101_kinematics.planning.motion import check_number
+    from so101_kinematics.inputs import check_number
 
     return check_number(fps, name, MIN_FPS, highest, "frames/s", error=RenderSettingError,
                         fix=f"give at most {highest:g} (the simulation steps every "

@@ -23,19 +23,27 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from so101_kinematics.errors import PlanError
 from so101_kinematics.frames import GRIPPER_RANGE, JOINT_RANGES_RAD, JOINTS, TOOL_SITE
 from so101_kinematics.inputs import (
     LIMIT_TOLERANCE,
-    PlanError,
+    Configuration,
+    check_configuration,
     describe_value,
     format_limit,
     limit_excess,
     unit,
 )
-from so101_kinematics.paths import MODEL_DIR, SCENE_PATH  # noqa: F401 - the scene's files
-from so101_kinematics.planning.motion import Configuration, check_configuration
+from so101_kinematics.paths import SCENE_PATH
 from so101_kinematics.sim import actuation
 from so101_kinematics.sim.meshes import ensure_meshes
+
+__all__ = [
+    "convert_to_dictionary", "convert_to_list", "from_radians", "get_command",
+    "get_configuration", "get_object_pose", "gripper_from_radians", "gripper_to_radians",
+    "held_at_limits", "joint_limits", "joint_table", "load_model", "send_position_command",
+    "send_velocity_command", "set_initial_pose", "to_radians", "validate",
+]
 
 logger = logging.getLogger(__name__)
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from so101_kinematics.constants import CUBE_SIZE
-from so101_kinematics.planning.motion import PlanError
+from so101_kinematics.errors import PlanError, RenderSettingError
 from so101_kinematics.planning.plans import validate_plan
 from so101_kinematics.planning.stack_report import (
     STACK_TILT_TOLERANCE,
@@ -32,11 +32,12 @@ from so101_kinematics.sim.render import (
     DEFAULT_SIZE,
     FINAL_RGBA,
     QUALITY,
-    RenderSettingError,
     check_fps,
     check_frame_size,
 )
 from so101_kinematics.sim.render import Overlay as _Overlay
+
+__all__ = ["run_stack", "stack_report"]
 
 
 @dataclass

@@ -38,20 +38,21 @@ from so101_kinematics import display
 from so101_kinematics.errors import CallShapeError, ViewerClosed
 from so101_kinematics.inputs import (
     MISSING,
+    check_duration,
     describe_value,
     is_finite_number,
     move_arguments,
     radians_warning,
     start_mismatch,
 )
-from so101_kinematics.planning.motion import Trajectory, check_duration
+from so101_kinematics.planning.motion import Trajectory
 from so101_kinematics.sim import actuation
-from so101_kinematics.sim.scene import (
-    get_command,
-    held_at_limits,
-    joint_table,
-    to_radians,
-)
+from so101_kinematics.sim.scene import get_command, held_at_limits, joint_table, to_radians
+
+__all__ = [
+    "COMMAND_BLOCK_STEPS", "HOLD_SHAPES", "VIEWER_SYNC_PERIOD", "_guard_passive_viewer",
+    "hold_position", "move_to_pose",
+]
 
 logger = logging.getLogger(__name__)
 

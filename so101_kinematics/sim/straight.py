@@ -14,15 +14,12 @@ import numpy as np
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, TOOL_SITE
 from so101_kinematics.ik.call_shapes import get_inverse_kinematics
-from so101_kinematics.planning.straight_line import (  # noqa: F401 - the line's vocabulary, re-exported
-    CONTROL_DT,
-    METHODS,
-    max_path_deviation_mm,
-    straight_path,
-)
+from so101_kinematics.planning.straight_line import CONTROL_DT, max_path_deviation_mm, straight_path
 from so101_kinematics.sim import stepping
 from so101_kinematics.sim.scene import set_initial_pose
 from so101_kinematics.sim.tracking import StepLog
+
+__all__ = ["DURATION_S", "FROM", "SETTLE_S", "TO", "control_period", "figures", "run_straight"]
 
 FROM = (0.25, 0.1, 0.04425)  # [m]: 3 cm above the page's first block
 TO = (0.25, -0.1, 0.04425)  # [m]: 3 cm above its second

@@ -30,6 +30,8 @@ import math
 
 from so101_kinematics import servo
 
+__all__ = ["ServoBank"]
+
 
 class ServoBank:
     """``n`` STS3215 servos' registers and state, stepped together.

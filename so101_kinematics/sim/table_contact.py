@@ -14,6 +14,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+__all__ = ["arm_table_contacts", "table_force_n"]
+
 TABLE_GEOM = "table"  # model/table.xml
 
 

@@ -27,6 +27,11 @@ from so101_kinematics.sim import stepping
 from so101_kinematics.sim.scene import gripper_from_radians, joint_table, set_initial_pose
 from so101_kinematics.sim.table_contact import arm_table_contacts
 
+__all__ = [
+    "HOLD_S", "MOVE_S", "SETTLE_S", "StepLog", "TARGETS", "log_frame", "metrics",
+    "plot_tracking", "run_week9", "table_contact",
+]
+
 BLOCK_SIZE = 0.0285  # [m], the course's week-9 block (1.125 in)
 TARGETS = ((0.25, 0.1, BLOCK_SIZE / 2), (0.25, -0.1, BLOCK_SIZE / 2))  # [m], the page's
 MOVE_S = 2.0  # [s] per move, the page's

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import mujoco
 
-from so101_kinematics.errors import RenderError, RenderSettingError  # noqa: F401
+from so101_kinematics.errors import RenderError, RenderSettingError
 from so101_kinematics.sim.render import (
     DEFAULT_CAMERA,
     DEFAULT_FPS,
@@ -26,6 +26,8 @@ from so101_kinematics.sim.render import (
     check_frame_size,
     max_fps,
 )
+
+__all__ = ["VideoRecorder"]
 
 log = logging.getLogger(__name__)
 
@@ -75,8 +77,9 @@ class VideoRecorder:
         import imageio.v2 as imageio
         from tqdm import tqdm
 
+        from so101_kinematics.errors import OutputPathError
         from so101_kinematics.markers import mp4_params
-        from so101_kinematics.outputs import OutputPathError, check_output_path, temporary_beside
+        from so101_kinematics.outputs import check_output_path, temporary_beside
 
         path = Path(path)
         if path.suffix.lower() != ".mp4":

@@ -98,27 +98,17 @@ from multiprocessing.connection import Connection
 from pathlib import Path
 
 from so101_kinematics.display import has_display
-from so101_kinematics.errors import (  # noqa: F401
-    CubePositionError,
-    FaultSpecError,
-    VirtualSO101Error,
-)
+from so101_kinematics.errors import VirtualSO101Error
 from so101_kinematics.paths import REPO
 from so101_kinematics.sensors.cube_wire import CubeReading
 from so101_kinematics.servo import KIT_SUPPLY_V
-from so101_kinematics.virtual.cubes import (  # noqa: F401 - re-exported
-    CUBE_REACH_M,
-    check_base_height,
-    check_cube_position,
-    check_cubes,
-)
+from so101_kinematics.virtual.cubes import check_base_height, check_cube_position, check_cubes
 from so101_kinematics.virtual.electrical import SUPPLY_V, THERMAL_TIME_S
-from so101_kinematics.virtual.faults import FAULT_KINDS, MAX_FAULT_MS, parse_faults  # noqa: F401
+from so101_kinematics.virtual.faults import parse_faults
 from so101_kinematics.virtual.rules import check_rules
-from so101_kinematics.virtual.shipped_calibration import (
-    DEFAULT_CALIBRATION_PATH,
-    load_calibration,
-)
+from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH, load_calibration
+
+__all__ = ["VirtualSO101"]
 
 logger = logging.getLogger("virtual_so101")
 

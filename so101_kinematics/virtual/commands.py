@@ -11,6 +11,8 @@ from so101_kinematics.sensors import cube_wire as cube_sensor
 from so101_kinematics.virtual.protocol import ADDR, EEPROM_END, ERROR_BITS, FIRMWARE
 from so101_kinematics.virtual.servo_memory import FACTORY_ID, factory_eeprom
 
+__all__ = ["ParentCommands"]
+
 logger = logging.getLogger("virtual_so101")
 
 

@@ -9,6 +9,8 @@ from so101_kinematics.errors import CubePositionError
 from so101_kinematics.inputs import check_number
 from so101_kinematics.sensors.cube_wire import MAX_CUBES
 
+__all__ = ["CUBE_REACH_M", "check_base_height", "check_cube_position", "check_cubes"]
+
 CUBE_REACH_M = 0.5  # a cube is placed within this of the base, on the table [m]
 BASE_HEIGHT_RANGE_M = (0.0, 0.05)  # the table below the base frame [m] (the lab's mount: 0.015)
 

@@ -56,6 +56,12 @@ from collections.abc import Iterable
 from so101_kinematics.servo import DEFAULT_SUPPLY_V
 from so101_kinematics.virtual.protocol import ERR_OVERHEAT, ERR_OVERLOAD, ERR_VOLTAGE
 
+__all__ = [
+    "AMBIENT_C", "CURRENT_FLICKER", "SUPPLY_RESISTANCE_OHM", "SUPPLY_V", "THERMAL_TIME_S",
+    "VOLTAGE_FLICKER", "current_units", "limp_current", "next_temperature", "noisy_reading",
+    "status_bits", "voltage_units",
+]
+
 CURRENT_UNIT_MA = 6.5  # [mA] one unit of Present_Current (STS3215)
 STALL_CURRENT_MA = 2700.0  # [mA] current at stall torque (12 V STS3215)
 AMBIENT_C = 25.0  # [degC]

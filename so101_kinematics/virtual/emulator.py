@@ -25,9 +25,11 @@ from so101_kinematics.virtual.electrical import SUPPLY_V, THERMAL_TIME_S
 from so101_kinematics.virtual.hand import Hand
 from so101_kinematics.virtual.instructions import BusInstructions
 from so101_kinematics.virtual.protocol import take_packets
-from so101_kinematics.virtual.registers import GOAL_LOG_LENGTH, ServoRegisters  # noqa: F401
+from so101_kinematics.virtual.registers import GOAL_LOG_LENGTH, ServoRegisters
 from so101_kinematics.virtual.rules import check_rules
 from so101_kinematics.virtual.servo_memory import VirtualServo
+
+__all__: list[str] = []
 
 logger = logging.getLogger("virtual_so101")
 

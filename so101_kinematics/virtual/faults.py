@@ -9,6 +9,8 @@ from collections.abc import Mapping
 
 from so101_kinematics.errors import FaultSpecError
 
+__all__ = ["parse_faults"]
+
 # --- faults -----------------------------------------------------------------------------------
 FAULT_KINDS = ("drop", "corrupt", "remove", "stall", "firmware", "outage", "unplug", "latency",
                "overload", "overheat", "voltage")

@@ -31,6 +31,8 @@ import time
 from so101_kinematics.clearance import check_path
 from so101_kinematics.errors import ClearanceError
 
+__all__ = ["Hand"]
+
 HAND_SPEED = math.radians(90.0)  # [rad/s] average speed of the joint that moves most
 MIN_SEGMENT_S = 0.3  # [s] shortest hand move
 

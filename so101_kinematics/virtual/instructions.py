@@ -33,6 +33,7 @@ import random
 import time
 
 from so101_kinematics.sensors import cube_wire as cube_sensor
+from so101_kinematics.servo import COUNTS_PER_TURN
 from so101_kinematics.virtual.protocol import (
     BITS_PER_BYTE,
     BROADCAST_ID,
@@ -50,10 +51,11 @@ from so101_kinematics.virtual.protocol import (
     INST_SYNC_WRITE,
     INST_WRITE,
     REGISTERED,
-    RESOLUTION,
     collide,
     status_packet,
 )
+
+__all__ = ["BusInstructions"]
 
 logger = logging.getLogger("virtual_so101")
 
@@ -154,7 +156,7 @@ class BusInstructions:
         if inst == INST_RESET_TURNS and not params:
             return lambda servo: None
         if inst == INST_CALIBRATE and len(params) in (0, 2):
-            value = RESOLUTION // 2 if not params else params[0] | params[1] << 8
+            value = COUNTS_PER_TURN // 2 if not params else params[0] | params[1] << 8
             return lambda servo: self.set_present(servo, value)
         return None
 

@@ -22,12 +22,19 @@ Example (PING servo 1)::
 
 from __future__ import annotations
 
-from so101_kinematics.servo import COUNTS_PER_TURN
+__all__ = [
+    "ADDR", "BAUD_RATES", "BITS_PER_BYTE", "BROADCAST_ID", "EEPROM_END", "ERROR_BITS",
+    "ERR_OVERHEAT", "ERR_OVERLOAD", "ERR_VOLTAGE", "FIRMWARE", "INST_ACTION", "INST_BACKUP",
+    "INST_CALIBRATE", "INST_PING", "INST_READ", "INST_REG_WRITE", "INST_RESET",
+    "INST_RESET_TURNS", "INST_RESTART", "INST_SYNC_READ", "INST_SYNC_WRITE", "INST_WRITE",
+    "MAX_SERVO_ID", "MODEL_NUMBER", "READ_ONLY", "REGISTERED", "SIGN_BITS",
+    "checksum", "collide", "cycle_wire_bytes", "decode_sign_magnitude",
+    "encode_sign_magnitude", "instruction_packet", "status_packet", "take_packets",
+]
 
 # --- STS3215 facts -------------------------------------------------------------------------------
 MODEL_NUMBER = 777
 FIRMWARE = (3, 10)
-RESOLUTION = COUNTS_PER_TURN  # encoder ticks per turn (servo.py)
 # Baud_Rate register value -> [bit/s], as Feetech's memory table (ftservo/ftservo-wiki,
 # docs/en/reference/parameter/memory-sts.md, address 6) and its SDK headers (SMS_STS.h) give them.
 # lerobot's STS_SMS_SERIES_BAUDRATE_TABLE says 57 600 / 38 400 / 19 200 for codes 5-7: a servo

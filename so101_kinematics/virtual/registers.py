@@ -36,6 +36,7 @@ import time
 from so101_kinematics import servo as servo_facts
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.gravity import feedforward
+from so101_kinematics.servo import COUNTS_PER_TURN
 from so101_kinematics.sim.actuation import IDEAL_GAINS
 from so101_kinematics.sim.sts3215 import ServoBank
 from so101_kinematics.virtual.electrical import (
@@ -46,11 +47,12 @@ from so101_kinematics.virtual.protocol import (
     EEPROM_END,
     MAX_SERVO_ID,
     READ_ONLY,
-    RESOLUTION,
     decode_sign_magnitude,
 )
 from so101_kinematics.virtual.sensor_registers import PWM_DIRECTION, SensorReadings
 from so101_kinematics.virtual.servo_memory import VirtualServo
+
+__all__ = ["GOAL_LOG_LENGTH", "ServoRegisters"]
 
 STALL_LOAD_RATE = 2000.0  # [0.1 % per s] Present_Load rise of a stalled servo
 HAND_GAINS = IDEAL_GAINS  # a hand guiding a limp joint: the upstream model's stiff spring
@@ -263,7 +265,7 @@ class ServoRegisters(SensorReadings):
             touched.add(48)
         if 40 in touched and regs[40] == 128:  # "calibrate the present position to 2048"
             regs[40] = int(was_on)  # reads back 0/1: torque stays as it was
-            self.set_present(servo, RESOLUTION // 2)
+            self.set_present(servo, COUNTS_PER_TURN // 2)
             touched |= {31, 32}
         if addr < EEPROM_END and regs[55] == 0:
             servo.saved = bytes(regs[:EEPROM_END])
@@ -315,8 +317,8 @@ class ServoRegisters(SensorReadings):
         with torque on holds where it is.
         """
         angle = servo.stalled_at if servo.stalled_at is not None else float(self.d.qpos[servo.qadr])
-        encoder = (servo.angle_to_present(angle) + servo.get("Homing_Offset")) % RESOLUTION
-        offset = (encoder - value + RESOLUTION // 2) % RESOLUTION - RESOLUTION // 2
+        encoder = (servo.angle_to_present(angle) + servo.get("Homing_Offset")) % COUNTS_PER_TURN
+        offset = (encoder - value + COUNTS_PER_TURN // 2) % COUNTS_PER_TURN - COUNTS_PER_TURN // 2
         servo.set("Homing_Offset", max(-2047, offset))
         if servo.regs[55] == 0:
             servo.saved = bytes(servo.regs[:EEPROM_END])

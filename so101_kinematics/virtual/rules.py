@@ -26,6 +26,8 @@ from collections.abc import Mapping
 
 from so101_kinematics.errors import InputError
 
+__all__ = ["check_rules"]
+
 RULES = {
     "goal_time": ("ignored", "move_time"),
     "limp_goal": ("follows", "kept"),

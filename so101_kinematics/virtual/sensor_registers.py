@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 
 from so101_kinematics import servo as servo_facts
+from so101_kinematics.servo import COUNTS_PER_TURN
 from so101_kinematics.virtual.electrical import (
     CURRENT_FLICKER,
     VOLTAGE_FLICKER,
@@ -26,9 +27,10 @@ from so101_kinematics.virtual.electrical import (
     noisy_reading,
     status_bits,
 )
-from so101_kinematics.virtual.protocol import RESOLUTION
 from so101_kinematics.virtual.servo_memory import VirtualServo
 from so101_kinematics.virtual.shipped_calibration import TICKS_PER_RAD
+
+__all__ = ["PWM_DIRECTION", "SensorReadings"]
 
 ENCODER_NOISE = 0.3
 """How often a Present_Position reading is a count off (either way, seeded): a real STS3215 at
@@ -85,11 +87,11 @@ class SensorReadings:
         angle = servo.stalled_at if servo.stalled_at is not None else float(d.qpos[servo.qadr])
         noise = self.noise.random()
         jitter = -1 if noise < ENCODER_NOISE / 2 else 1 if noise > 1 - ENCODER_NOISE / 2 else 0
-        present = (round(servo.base + servo.scale * angle + servo.delta) + jitter) % RESOLUTION
+        present = (round(servo.base + servo.scale * angle + servo.delta) + jitter) % COUNTS_PER_TURN
         if not servo.torque and self.rules["limp_goal"] == "follows":  # the STS's (rules.py)
             servo.set("Goal_Position", present)
         if ENCODER_OUTSIDE_POSITION_MODE and not servo.position_mode:  # the bare encoder
-            present = (present + servo.get("Homing_Offset")) % RESOLUTION
+            present = (present + servo.get("Homing_Offset")) % COUNTS_PER_TURN
         regs[56] = present & 0xFF
         regs[57] = present >> 8
         if hi <= 58:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from so101_kinematics.servo import VARIANTS
+from so101_kinematics.servo import COUNTS_PER_TURN, VARIANTS
 from so101_kinematics.virtual.electrical import AMBIENT_C
 from so101_kinematics.virtual.protocol import (
     ADDR,
@@ -18,12 +18,13 @@ from so101_kinematics.virtual.protocol import (
     EEPROM_END,
     FIRMWARE,
     MODEL_NUMBER,
-    RESOLUTION,
     SIGN_BITS,
     decode_sign_magnitude,
     encode_sign_magnitude,
 )
 from so101_kinematics.virtual.shipped_calibration import radians_to_present
+
+__all__ = ["FACTORY_ID", "VirtualServo", "factory_eeprom"]
 
 # Factory values. Source: Feetech's STS3215 memory table (the spreadsheet lerobot's tables.py
 # links to, "Initial value" column; the same values where ftservo/ftservo-wiki's
@@ -39,7 +40,7 @@ from so101_kinematics.virtual.shipped_calibration import radians_to_present
 FACTORY = {
     "Firmware_Major_Version": FIRMWARE[0], "Firmware_Minor_Version": FIRMWARE[1],
     "Model_Number": MODEL_NUMBER, "Baud_Rate": 0, "Return_Delay_Time": 0,
-    "Response_Status_Level": 1, "Min_Position_Limit": 0, "Max_Position_Limit": RESOLUTION - 1,
+    "Response_Status_Level": 1, "Min_Position_Limit": 0, "Max_Position_Limit": COUNTS_PER_TURN - 1,
     "Max_Temperature_Limit": 70, "Max_Voltage_Limit": round(VARIANTS["C018"].max_volts * 10),
     "Min_Voltage_Limit": 40,
     "Max_Torque_Limit": 1000, "Phase": 12, "Unloading_Condition": 44, "LED_Alarm_Condition": 47,
@@ -148,7 +149,7 @@ class VirtualServo:
 
     def angle_to_present(self, angle: float) -> int:
         """Joint angle [rad] -> Present_Position with the current Homing_Offset register."""
-        return round(self.base + self.scale * angle + self.delta) % RESOLUTION
+        return round(self.base + self.scale * angle + self.delta) % COUNTS_PER_TURN
 
     def goal_to_angle(self, goal: int) -> float:
         """Goal_Position (clamped to the limit registers) -> actuator target [rad]."""

@@ -28,6 +28,8 @@ from so101_kinematics.calibration import ServoCalibration, ticks_to_user
 from so101_kinematics.frames import JOINT_LIMITS, JOINTS
 from so101_kinematics.sensors.cube_wire import MAX_CUBES
 
+__all__ = ["COMMANDS", "SWEEP_BASES", "UPRIGHT", "run_line", "serve"]
+
 QUIT = "quit"
 REACHED = 1.0  # [deg, gripper %] a hand move that ends further off has failed
 MIDDLE_TICKS = 2047  # lerobot-calibrate's homing puts the range's middle here

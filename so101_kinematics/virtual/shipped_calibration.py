@@ -30,19 +30,24 @@ from pathlib import Path
 
 from so101_kinematics.calibration import (
     MOTOR_IDS,
-    CalibrationError,
     ServoCalibration,
     calibration_source_name,
     ticks_to_user,
     user_to_ticks,
 )
 from so101_kinematics.calibration import load_calibration as load_lerobot_calibration
+from so101_kinematics.errors import CalibrationError
 from so101_kinematics.paths import CALIBRATION_DIR
-from so101_kinematics.virtual.protocol import RESOLUTION
+from so101_kinematics.servo import COUNTS_PER_TURN
+
+__all__ = [
+    "DEFAULT_CALIBRATION_PATH", "TICKS_PER_RAD", "load_calibration",
+    "make_default_calibration", "present_to_radians", "radians_to_present",
+]
 
 DEFAULT_CALIBRATION_PATH = CALIBRATION_DIR / "virtual_so101.json"
 
-TICKS_PER_RAD = (RESOLUTION - 1) / (2.0 * math.pi)  # lerobot's scale (360 deg = 4095 ticks)
+TICKS_PER_RAD = (COUNTS_PER_TURN - 1) / (2.0 * math.pi)  # lerobot's scale (360 deg = 4095 ticks)
 
 # Plausible encoder offsets of the virtual arm's servo horns (any |value| <= 2047 works).
 DEFAULT_HOMING_OFFSETS = {"shoulder_pan": 143, "shoulder_lift": -612, "elbow_flex": 488,
@@ -67,10 +72,10 @@ def make_default_calibration(m) -> dict[str, dict[str, int]]:
     for name, servo_id in MOTOR_IDS.items():
         lower, upper = (float(x) for x in m.joint(name).range)
         if name in FULL_TURN_JOINTS:
-            range_min, range_max = 0, RESOLUTION - 1
+            range_min, range_max = 0, COUNTS_PER_TURN - 1
         elif name == "gripper":
             span = round((upper - lower) * TICKS_PER_RAD)
-            range_min = RESOLUTION // 2 - (span + 1) // 2  # about the encoder's middle
+            range_min = COUNTS_PER_TURN // 2 - (span + 1) // 2  # about the encoder's middle
             range_max = range_min + span
         else:
             half = math.ceil(max(abs(lower), abs(upper)) * TICKS_PER_RAD - 1e-9)
@@ -117,8 +122,8 @@ def present_to_radians(m, cal: Mapping[str, int], joint: str, present: float) ->
         present: position in the calibration's frame [ticks] (the gripper's is
             clamped to its calibrated range, as lerobot reads it).
     """
-    from so101_kinematics.sim.scene import (
-        to_radians,  # imports mujoco: only where a model is at hand
+    from so101_kinematics.sim.scene import (  # imports mujoco: only where a model is at hand
+        to_radians,
     )
 
     user = ticks_to_user(joint, present, ServoCalibration(**cal))

@@ -214,7 +214,8 @@ def test_the_virtual_arm_through_the_bus_is_an_arm_that_reaches_its_goal():
     pytest.importorskip("lerobot")
     from so101_kinematics.calibration import load_calibration
     from so101_kinematics.hw.bus import connect, enable_torque_in_place
-    from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101
+    from so101_kinematics.virtual.arm import VirtualSO101
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
     with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, cube=(0.22, -0.05, 0.0)) as virtual:
         arm = BusArm(connect(virtual.port, load_calibration(DEFAULT_CALIBRATION_PATH)), "left")

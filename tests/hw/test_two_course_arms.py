@@ -19,7 +19,8 @@ pytest.importorskip("lerobot")
 pytestmark = [pytest.mark.hw, pytest.mark.slow]
 
 from so101_kinematics.servo import KIT_SUPPLY_V  # noqa: E402
-from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH, VirtualSO101  # noqa: E402
+from so101_kinematics.virtual.arm import VirtualSO101  # noqa: E402
+from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH  # noqa: E402
 
 
 def test_two_arms_set_up_in_one_program_move_and_end_each_on_its_own():
