@@ -24,7 +24,8 @@ from so101_kinematics.errors import KinematicsInputError, KinematicsTypeError
 __all__ = [
     "ANGLE_RANGE_DEG", "ARM_JOINTS", "BODY_OF_FRAME", "FIXED_ROTATION", "FIXED_TRANSFORMS",
     "FRAMES", "GRIPPER_MOUNT_TILT_DEG", "GRIPPER_RANGE", "JOINTS", "JOINT_LIMITS",
-    "MOVING_JAW_BODY", "JOINT_RANGES_RAD", "Rx", "Ry", "Rz", "TOOL_SITE", "_as_degrees", "check_angle",
+    "MOVING_JAW_BODY", "JOINT_RANGES_RAD", "Rx", "Ry", "Rz", "TOOL_SITE", "_as_degrees",
+    "check_angle",
     "get_frame_chain", "joint_angles", "joint_transform", "pose", "read_angles",
 ]
 
