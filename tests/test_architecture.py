@@ -18,6 +18,7 @@ MAY_IMPORT = {
     "hw": {"core", "ik", "hw"},
     "virtual": {"core", "sim", "virtual"},
     "lab": {"core", "ik", "sim", "hw", "virtual", "lab"},
+    "commands": {"core", "ik", "sim", "hw", "virtual", "lab", "commands"},
 }
 """Layer -> the layers it may import. hw and virtual are interchangeable backends: neither
 imports the other; the core imports no backend; nothing imports the course's files."""
@@ -26,6 +27,8 @@ imports the other; the core imports no backend; nothing imports the course's fil
 def layer(module: str) -> str:
     """so101_kinematics.hw.bus -> "hw"; so101_kinematics.planning.motion -> "core"."""
     parts = module.split(".")
+    if module == "so101_kinematics.__main__":  # python -m so101_kinematics: the so101 command
+        return "commands"
     return parts[1] if len(parts) > 2 and parts[1] in MAY_IMPORT else "core"
 
 

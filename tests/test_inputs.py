@@ -479,14 +479,14 @@ def test_fk_script_checks_its_outputs_before_the_hold(tmp_path, capsys, monkeypa
 
 
 # --- options that do nothing alone, durations that cannot be followed (issue 28) -----------
-def test_report_without_compare_is_refused_before_anything_runs(tmp_path, capsys, monkeypatch):
+def test_the_moved_report_is_refused_before_anything_runs(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(pick_place_sim, "run_pick_place", lambda *a, **k: pytest.fail("ran"))
     monkeypatch.chdir(tmp_path)
     figure = tmp_path / "figure.png"
     code, err = run_sim(capsys, ["--report", str(figure)])
     assert code == 2
     line = one_line_error(err)
-    assert "--report works only with --compare" in line and "Fix:" in line
+    assert "--report moved to the so101 command" in line and "Fix: run `so101 compare" in line
     assert list(tmp_path.iterdir()) == []  # no figure, no video
 
 
