@@ -529,6 +529,11 @@ MUTANTS: list[Mutant] = [
       "if volts else servo.DEFAULT_SUPPLY_V", "if volts else servo.KIT_SUPPLY_V",
       "tests/test_velocity_ff.py::"
       "test_nothing_read_the_feedforward_and_lead_assume_the_courses_12_v_c018"),
+    m("moved_option_swallowed", "an option that moved to `so101` (pick_place_sim.py --compare) "
+      "is silently accepted: the script runs without it", "so101_kinematics/cli.py", None,
+      "        parser.exit(EXIT_BAD_INPUT, f", "        return None and parser.exit(2, f",
+      "tests/course_files/test_moved_options.py::"
+      "test_an_old_option_is_refused_in_one_line_with_its_new_spelling"),
 ]
 
 
