@@ -16,7 +16,13 @@ from so101_kinematics.calibration import (
     load_calibration,
 )
 from so101_kinematics.clearance import check_plan_clearance
-from so101_kinematics.cli import ArgumentParser, StoreGiven, add_moved_options, ignored_with_plan
+from so101_kinematics.cli import (
+    ArgumentParser,
+    StoreGiven,
+    add_moved_options,
+    hide_expert_options,
+    ignored_with_plan,
+)
 from so101_kinematics.commands.so101_command import MOVED_FROM_HW
 from so101_kinematics.hw.bus import FIND_PORT_HINT, LerobotMissing, connect, disconnect, read_pose
 from so101_kinematics.hw.control import signals_as_interrupt, speed_caps
@@ -81,8 +87,8 @@ EXPERT = {"move_duration", "hold", "velocity_ff", "rate", "max_speed", "tracking
           "straight_method"}  # accepted, listed by --help-all only: tuning and experiments
 
 
-def build_parser(show_all: bool = False) -> argparse.ArgumentParser:
-    """The command-line interface; ``show_all``: list the expert options too (--help-all)."""
+def build_parser() -> argparse.ArgumentParser:
+    """The command-line interface: the week's options; --help-all lists the expert ones too."""
     parser = ArgumentParser(
         description="The course's pick-and-place on a real SO-101 follower (lerobot Feetech "
                     "bus): the plan checked before torque on, then a loop that sends a goal and "
@@ -132,16 +138,11 @@ def build_parser(show_all: bool = False) -> argparse.ArgumentParser:
     parser.add_argument("--plot", type=Path, help="PNG of commanded vs measured per joint")
     outputs.add_overwrite_argument(parser)
     parser.add_argument("--verbose", "-v", action="store_true", help="debug logging")
-    parser.add_argument("--help-all", action="store_true", help="list the expert options too "
-                        "(loop tuning, trims, approach, ...) and exit")
     add_cartesian_arguments(parser)
     stacking.add_stack_arguments(parser)
     add_approach_arguments(parser)
     add_moved_options(parser, MOVED_FROM_HW)
-    if not show_all:  # the expert options stay accepted; --help-all lists them
-        for action in parser._actions:
-            if action.dest in EXPERT:
-                action.help = argparse.SUPPRESS
+    hide_expert_options(parser, EXPERT)
     return parser
 
 
@@ -215,9 +216,6 @@ def _run(args, plan, calibration, source, release: str, stack=None) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 done, 1 aborted or failed, 2 refused)."""
-    if "--help-all" in (sys.argv[1:] if argv is None else argv):
-        build_parser(show_all=True).print_help()
-        return 0
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as stop:  # a bad option (one line printed) or --help: its exit code

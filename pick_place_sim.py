@@ -1,4 +1,7 @@
-"""Run the course's pick-and-place on the simulated SO-101: viewer, headless or MP4 video."""
+"""Run the course's pick-and-place on the simulated SO-101: viewer, headless or MP4 video.
+
+The course's files at the root are the project's one facade; ``so101_kinematics`` does the work.
+"""
 
 from __future__ import annotations
 
@@ -22,6 +25,7 @@ from so101_kinematics.cli import (
     StoreGiven,
     add_moved_options,
     add_servo_arguments,
+    hide_expert_options,
     ignored_with_plan,
     number,
     range_help,
@@ -59,10 +63,6 @@ from so101_kinematics.sim.cube import (  # noqa: F401 - the scene, for the tests
 from so101_kinematics.sim.pick_place import (  # noqa: F401 - the run, for the tests and notebooks
     DEFAULT_VIDEO,
     INITIAL_KEYFRAME,
-    PLACEMENT_TOLERANCE,
-    TILT_TOLERANCE,
-    TIMESTEP_RANGE,
-    RunReport,
     choose_mode,
     run_pick_place,
     total_duration,
@@ -98,6 +98,12 @@ def _size(text: str) -> tuple[int, int]:
         return check_frame_size((width, height), "size")
     except RenderSettingError as error:
         raise argparse.ArgumentTypeError(str(error)) from None
+
+
+EXPERT = {"fps", "size", "camera", "quality", "cube", "cube_turn", "cube_yaw", "lift_height",
+          "blocks", "block", "base_height", "servo", "supply", "variant", "p_coefficient",
+          "gravity_ff", "approach", "straight_method", "overwrite", "no_progress"}
+"""Options accepted but listed only by --help-all: video settings, the servo model, experiments."""
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -170,6 +176,7 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("-v", "--verbose", action="store_true", help="log details (and show "
                         "the traceback of an unexpected error)")
+    hide_expert_options(parser, EXPERT)
     return run_script(parser, argv, lambda args: _run(parser, args),
                       interrupted="nothing was written; existing output files are as they were.",
                       log_format="%(levelname)s %(name)s: %(message)s")

@@ -298,3 +298,26 @@ Fix: run `so101 compare LOG.csv --report R.png`.
     """
     for option, new in moved.items():
         parser.add_argument(option, action=_Moved, new=new, dest=f"moved_{option.strip('-')}")
+
+
+class _HelpAll(argparse.Action):
+    """``--help-all``: the help with the expert options listed too."""
+
+    def __init__(self, option_strings, dest, hidden=None, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS,
+                         help="list every option, the expert ones too, and exit", **kwargs)
+        self.hidden = hidden or {}
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        for action, text in self.hidden.items():
+            action.help = text
+        parser.print_help()
+        parser.exit()
+
+
+def hide_expert_options(parser: argparse.ArgumentParser, dests: set[str]) -> None:
+    """Keep ``--help`` to the week's options: ``dests`` stay accepted, listed by ``--help-all``."""
+    hidden = {action: action.help for action in parser._actions if action.dest in dests}
+    for action in hidden:
+        action.help = argparse.SUPPRESS
+    parser.add_argument("--help-all", action=_HelpAll, hidden=hidden)

@@ -20,6 +20,8 @@ import so101_inverse_kinematics as ik
 import so101_mujoco_utils as utils
 import test_fk_mujoco
 from so101_kinematics import cli
+from so101_kinematics.errors import KinematicsTypeError
+from so101_kinematics.frames import Rx
 from so101_kinematics.outputs import (
     MP4,
     OutputPathError,
@@ -345,11 +347,11 @@ def test_fk_at_plus_and_minus_one_turn_is_the_zero_pose():
 
 @pytest.mark.parametrize("call, match", [
     (lambda: fk.get_gw1("45"), "shoulder_pan must be a number of degrees, got '45'"),
-    (lambda: fk.Rx(None), "thetadeg must be a number of degrees, got None"),
+    (lambda: Rx(None), "thetadeg must be a number of degrees, got None"),
     (lambda: fk.get_g23(True), "elbow_flex"),
 ])
 def test_text_and_none_are_type_errors_of_the_family(call, match):
-    with pytest.raises(fk.KinematicsTypeError, match=match) as info:
+    with pytest.raises(KinematicsTypeError, match=match) as info:
         call()
     assert isinstance(info.value, TypeError) and isinstance(info.value, ValueError)
 
@@ -360,8 +362,8 @@ def test_nan_is_refused_by_the_elementary_transforms():
 
 
 @pytest.mark.parametrize("kwargs, error, match", [
-    ({"position": ("0.2", "0", "0.05")}, fk.KinematicsTypeError, "position x must be a number"),
-    ({"position": (0.2, 0.0, 0.05), "yaw_deg": "45"}, fk.KinematicsTypeError, "yaw_deg"),
+    ({"position": ("0.2", "0", "0.05")}, KinematicsTypeError, "position x must be a number"),
+    ({"position": (0.2, 0.0, 0.05), "yaw_deg": "45"}, KinematicsTypeError, "yaw_deg"),
     ({"position": (0.2, 0.0, 0.05), "gripper": math.nan}, fk.KinematicsInputError,
      r"gripper must be a finite number in \[0, 100\]"),
     ({"position": (0.2, 0.0, 0.05), "gripper": 500}, fk.KinematicsInputError,
@@ -374,8 +376,8 @@ def test_ik_refuses_malformed_arguments_with_a_project_error(kwargs, error, matc
         ik.get_inverse_kinematics(**kwargs)
 
 
-@pytest.mark.parametrize("chunk, error", [(2.5, fk.KinematicsTypeError),
-                                          (True, fk.KinematicsTypeError),
+@pytest.mark.parametrize("chunk, error", [(2.5, KinematicsTypeError),
+                                          (True, KinematicsTypeError),
                                           (0, fk.KinematicsInputError)])
 def test_batch_chunk_must_be_a_whole_number(chunk, error):
     with pytest.raises(error, match="chunk must be a whole number >= 1"):
@@ -386,7 +388,7 @@ def test_batch_chunk_must_be_a_whole_number(chunk, error):
                                     [[0.0] * 4 + ["x"]],
                                     np.zeros((2, 5), dtype=bool)])
 def test_batch_refuses_non_numbers(angles):
-    with pytest.raises(fk.KinematicsTypeError):
+    with pytest.raises(KinematicsTypeError):
         fk.get_forward_kinematics_batch(angles)
 
 

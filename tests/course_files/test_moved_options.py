@@ -49,7 +49,7 @@ def test_the_hardware_script_lists_about_a_dozen_options(capsys):
         pick_place_hw.build_parser().parse_args(["--help"])
     listed = options_listed(capsys.readouterr().out)
     assert {"--port", "--id", "--calibration", "--plan", "--dry-run", "--log"} <= listed
-    assert len(listed) <= 16, sorted(listed)
+    assert len(listed - {"--help", "--help-all"}) <= 15, sorted(listed)
     assert not listed & {"--sheet", "--paper", "--compare", "--rate", "--trims"}
 
 
@@ -65,4 +65,7 @@ def test_help_all_lists_the_expert_options_and_they_still_work(capsys):
 def test_the_simulator_no_longer_lists_the_comparison(capsys):
     assert pick_place_sim.main(["--help"]) == 0
     listed = options_listed(capsys.readouterr().out)
-    assert "--plan" in listed and not listed & {"--compare", "--report"}
+    assert "--plan" in listed and not listed & {"--compare", "--report", "--supply", "--fps"}
+    assert len(listed - {"--help", "--help-all"}) <= 15, sorted(listed)
+    assert pick_place_sim.main(["--help-all"]) == 0
+    assert {"--supply", "--fps", "--approach"} <= options_listed(capsys.readouterr().out)
