@@ -1,4 +1,7 @@
-"""Pick-and-place on a real SO-101 follower through lerobot's FeetechMotorsBus, safe by default."""
+"""Pick-and-place on a real SO-101 follower through lerobot's FeetechMotorsBus, safe by default.
+
+The course's files at the root are the project's one facade; ``so101_kinematics`` does the work.
+"""
 
 from __future__ import annotations
 
@@ -66,11 +69,7 @@ MAX_MOVE_DURATION_S = 60.0  # longest move or hold of the built-in plan [s]
 
 
 def ask(question: str, assume_yes: bool, stdin=None) -> bool:
-    """Ask yes/no on a terminal; ``assume_yes`` answers yes; never blocks on a non-terminal.
-
-    Raises:
-        NotConfirmed: stdin is not a terminal and ``assume_yes`` is False.
-    """
+    """Ask yes/no on a terminal; ``assume_yes`` answers yes; NotConfirmed on a non-terminal."""
     if assume_yes:
         return True
     stdin = stdin or sys.stdin

@@ -1,4 +1,7 @@
-"""Show the FK object pose as a red cylinder in the SO-101's gripper (assignment part 1b)."""
+"""Show the FK object pose as a red cylinder in the SO-101's gripper (assignment part 1b).
+
+The course's files at the root are the project's one facade; ``so101_kinematics`` does the work.
+"""
 
 from __future__ import annotations
 

@@ -1,5 +1,7 @@
 """Serve a virtual SO-101 on a pseudo-terminal: six STS3215s, a MuJoCo arm behind them, hands.
 
+The course's files at the root are the project's one facade; ``so101_kinematics`` does the work.
+
     python virtual_so101.py [--calibration PATH] [--factory | --leader] [--link PATH]
                             [--viewer] [--wire-timing] [--faults SPEC] [--supply VOLTS]
 
