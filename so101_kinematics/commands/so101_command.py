@@ -6,6 +6,7 @@ assignment; the tools that work on their outputs live here::
     so101 compare run.csv --report report.png      # a hardware log replayed in the simulator
     so101 sheet sheet.pdf --paper letter           # the placement sheet (print at 100 %)
     so101 check-fk my_fk.py                        # the checkers (as so101-check-fk/ik/traj)
+    so101 virtual-calibration my_arm.json          # the virtual arm's calibration file
 
 Also ``python -m so101_kinematics ...``.
 """
@@ -22,7 +23,7 @@ from so101_kinematics import outputs
 from so101_kinematics.cli import ArgumentParser, run_script
 from so101_kinematics.errors import InputError
 
-__all__ = ["COMPARE_REPORT", "MOVED_FROM_HW", "MOVED_FROM_SIM", "main"]
+__all__ = ["COMPARE_REPORT", "MOVED_FROM_HW", "MOVED_FROM_SIM", "MOVED_FROM_VIRTUAL", "main"]
 
 PROG = "so101"
 
@@ -40,6 +41,12 @@ MOVED_FROM_HW = {
     "--paper": "so101 sheet PATH.pdf --paper a4|letter",
 }
 """pick_place_hw.py's old options -> their new spelling (refused in one line, exit 2)."""
+
+MOVED_FROM_VIRTUAL = {
+    "--write-default-calibration": "so101 virtual-calibration PATH [--overwrite]",
+    "--force": "so101 virtual-calibration PATH --overwrite",
+}
+"""virtual_so101.py's old options -> their new spelling (refused in one line, exit 2)."""
 
 
 def _checker(module: str) -> Callable[[list[str]], int]:
@@ -82,9 +89,14 @@ def build_parser() -> argparse.ArgumentParser:
     from so101_kinematics.planning.stacking import add_stack_arguments
     add_cartesian_arguments(sheet)
     add_stack_arguments(sheet)
+    calibration = sub.add_parser(
+        "virtual-calibration", help="write the virtual arm's calibration (from the model)",
+        description="Write the lerobot calibration the virtual SO-101 ships with, derived from "
+                    "the model, to PATH.")
+    calibration.add_argument("path", type=Path, metavar="PATH")
     for name, (_, text) in CHECKERS.items():
         sub.add_parser(name, help=text, add_help=False)
-    for command in (compare, sheet):
+    for command in (compare, sheet, calibration):
         outputs.add_overwrite_argument(command)
         command.add_argument("-v", "--verbose", action="store_true", help="log details (and "
                              "show the traceback of an unexpected error)")
@@ -100,7 +112,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         except SystemExit as stop:  # its one-line refusal (or --help): the exit code
             return stop.code
     parser = build_parser()
-    work = {"compare": _compare, "sheet": _sheet}
+    work = {"compare": _compare, "sheet": _sheet, "virtual-calibration": _virtual_calibration}
     return run_script(parser, argv, lambda args: work[args.command](args),
                       refused=(InputError,),
                       interrupted="nothing was written; existing output files are as they were.")
@@ -154,4 +166,17 @@ def _sheet(args: argparse.Namespace) -> int:
     origin = args.plan or ("--pick/--place" if args.pick else "the course's plan")
     print(write_sheet(plan, path, args.paper, source=str(origin), stack=stack,
                       base_height=args.base_height).summary())
+    return 0
+
+
+def _virtual_calibration(args: argparse.Namespace) -> int:
+    """The calibration the virtual SO-101 ships with (derived from the model), to a file."""
+    from so101_kinematics.sim.scene import load_model
+    from so101_kinematics.virtual.shipped_calibration import make_default_calibration
+
+    path = outputs.check_output_path(args.path, "so101 virtual-calibration",
+                                     overwrite=args.overwrite)
+    outputs.write_text_atomic(path, json.dumps(make_default_calibration(load_model()),
+                                               indent=4) + "\n")
+    print(f"Calibration written to {path}")
     return 0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -11,9 +12,10 @@ import pytest
 
 from so101_kinematics.checker import fk as fk_checker
 from so101_kinematics.commands import so101_command
+from so101_kinematics.virtual.arm import DEFAULT_CALIBRATION_PATH
 
 REPO = Path(__file__).resolve().parents[2]
-SUBCOMMANDS = {"compare", "sheet", "check-fk", "check-ik", "check-traj"}
+SUBCOMMANDS = {"compare", "sheet", "check-fk", "check-ik", "check-traj", "virtual-calibration"}
 
 
 def tomllib():
@@ -77,3 +79,14 @@ def test_sheet_writes_the_course_plan_with_no_arm(tmp_path, capsys):
     assert so101_command.main(["sheet", str(sheet), "--paper", "letter"]) == 0
     assert sheet.read_bytes().startswith(b"%PDF-")
     assert "letter" in capsys.readouterr().out
+
+
+def test_virtual_calibration_writes_the_shipped_file_and_keeps_an_existing_one(tmp_path, capsys):
+    """The file the virtual arm ships with (calibration/), derived again from the model."""
+    path = tmp_path / "virtual.json"
+    assert so101_command.main(["virtual-calibration", str(path)]) == 0
+    assert json.loads(path.read_text()) == json.loads(DEFAULT_CALIBRATION_PATH.read_text())
+    path.write_text("my notes\n")
+    assert so101_command.main(["virtual-calibration", str(path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--overwrite" in err[-1] and path.read_text() == "my notes\n"

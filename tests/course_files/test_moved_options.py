@@ -11,13 +11,16 @@ import pytest
 
 import pick_place_hw
 import pick_place_sim
+import virtual_so101
 from so101_kinematics.commands import so101_command
 
 MOVED = [(pick_place_sim, ["--compare", "run.csv", "--report", "r.png"], "--compare",
           "so101 compare"),
          (pick_place_sim, ["--headless", "--report", "r.png"], "--report", "so101 compare"),
          (pick_place_hw, ["--sheet", "s.pdf"], "--sheet", "so101 sheet"),
-         (pick_place_hw, ["--dry-run", "--paper", "letter"], "--paper", "so101 sheet")]
+         (pick_place_hw, ["--dry-run", "--paper", "letter"], "--paper", "so101 sheet"),
+         (virtual_so101, ["--write-default-calibration", "c.json"], "--write-default-calibration",
+          "so101 virtual-calibration")]
 
 
 @pytest.mark.parametrize("script, argv, option, new", MOVED,
@@ -36,7 +39,8 @@ def test_an_old_option_is_refused_in_one_line_with_its_new_spelling(script, argv
 def test_each_new_spelling_names_a_real_subcommand():
     parser = so101_command.build_parser()
     names = set(parser._subparsers._group_actions[0].choices)
-    for spelling in {**so101_command.MOVED_FROM_SIM, **so101_command.MOVED_FROM_HW}.values():
+    for spelling in {**so101_command.MOVED_FROM_SIM, **so101_command.MOVED_FROM_HW,
+                     **so101_command.MOVED_FROM_VIRTUAL}.values():
         assert re.match(r"so101 (\S+)", spelling)[1] in names
 
 
