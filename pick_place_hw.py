@@ -11,13 +11,7 @@ import sys
 from pathlib import Path
 
 from so101_kinematics import outputs
-from so101_kinematics.calibration import (
-    CalibrationError,
-    HardwareError,
-    calibrated_limits,
-    find_calibration,
-    load_calibration,
-)
+from so101_kinematics.calibration import calibrated_limits, find_calibration, load_calibration
 from so101_kinematics.clearance import check_plan_clearance
 from so101_kinematics.cli import (
     ArgumentParser,
@@ -27,8 +21,14 @@ from so101_kinematics.cli import (
     ignored_with_plan,
 )
 from so101_kinematics.commands.so101_command import MOVED_FROM_HW
-from so101_kinematics.hw.bus import FIND_PORT_HINT, LerobotMissing, connect, disconnect, read_pose
-from so101_kinematics.hw.control import signals_as_interrupt, speed_caps
+from so101_kinematics.errors import (
+    CalibrationError,
+    HardwareError,
+    LerobotMissing,
+    NotConfirmed,
+    PlanError,
+)
+from so101_kinematics.hw.bus import clamp_to_limits, connect, disconnect, read_pose
 from so101_kinematics.hw.home_check import add_calibration_check_arguments, home_check
 from so101_kinematics.hw.log import (
     LOG_KIND,
@@ -39,21 +39,15 @@ from so101_kinematics.hw.log import (
     sidecar_path,
 )
 from so101_kinematics.hw.options import add_loop_arguments
-from so101_kinematics.hw.run import (
-    RELEASE_HINT,
-    MotionAborted,
-    NotConfirmed,
-    check_run_settings,
-    clamp_to_limits,
-    ending,
-    release_arm,
-    run_on_arm,
-    validate_plan_for_arm,
-)
+from so101_kinematics.hw.port import FIND_PORT_HINT
+from so101_kinematics.hw.preflight import check_run_settings, validate_plan_for_arm
+from so101_kinematics.hw.run import RELEASE_HINT, MotionAborted, ending, release_arm, run_on_arm
+from so101_kinematics.hw.signals import signals_as_interrupt
 from so101_kinematics.hw.teach import format_configuration, format_plan, outcome_lines, teach
+from so101_kinematics.hw.timing import speed_caps
+from so101_kinematics.inputs import check_number
 from so101_kinematics.planning import stacking
 from so101_kinematics.planning.cartesian_plan import add_cartesian_arguments, plan_from_arguments
-from so101_kinematics.planning.motion import PlanError, check_number
 from so101_kinematics.planning.plans import default_plan, load_plan
 from so101_kinematics.planning.straight_line import (
     add_approach_arguments,

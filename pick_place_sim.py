@@ -34,9 +34,10 @@ from so101_kinematics.cli import (
     zero_duration_warning,
 )
 from so101_kinematics.commands.so101_command import MOVED_FROM_SIM
+from so101_kinematics.errors import OutputPathError, PlanError, RenderError, RenderSettingError
+from so101_kinematics.inputs import MAX_DURATION
 from so101_kinematics.outputs import (
     MP4,
-    OutputPathError,
     add_overwrite_argument,
     check_output_path,
     report_of,
@@ -49,7 +50,6 @@ from so101_kinematics.planning.cartesian_plan import (
     add_cartesian_arguments,
     plan_from_arguments,
 )
-from so101_kinematics.planning.motion import MAX_DURATION, PlanError
 from so101_kinematics.planning.plans import default_plan, load_plan
 from so101_kinematics.planning.stacking import add_stack_arguments, stack_from_arguments
 from so101_kinematics.planning.straight_line import add_approach_arguments, plan_for_approach
@@ -74,8 +74,6 @@ from so101_kinematics.sim.render import (
     FRAME_EDGE_RANGE,
     MIN_FPS,
     QUALITY,
-    RenderError,
-    RenderSettingError,
     check_fps,
     check_frame_size,
     max_fps,

@@ -9,13 +9,15 @@ import logging
 import sys
 from pathlib import Path
 
-from so101_kinematics.calibration import HardwareError, find_calibration, load_calibration
+from so101_kinematics.calibration import find_calibration, load_calibration
 from so101_kinematics.cli import ArgumentParser
-from so101_kinematics.hw.bus import FIND_PORT_HINT, connect, disconnect
-from so101_kinematics.hw.control import signals_as_interrupt
+from so101_kinematics.errors import HardwareError, PlanError
+from so101_kinematics.hw.bus import connect, disconnect
+from so101_kinematics.hw.port import FIND_PORT_HINT
 from so101_kinematics.hw.run import release_arm
+from so101_kinematics.hw.signals import signals_as_interrupt
 from so101_kinematics.hw.teach import MAX_TEACH_RATE_HZ, TEACH_RATE_HZ, teach
-from so101_kinematics.planning.motion import PlanError, check_number
+from so101_kinematics.inputs import check_number
 
 RATE_HZ = TEACH_RATE_HZ  # printing rate [Hz]
 MAX_DURATION_S = 86_400.0  # --duration at most a day [s]

@@ -31,12 +31,11 @@ from collections.abc import Mapping
 from so101_kinematics.errors import CallShapeError, ViewerClosed  # noqa: F401
 from so101_kinematics.frames import TOOL_SITE  # noqa: F401
 from so101_kinematics.ik.blocks import pick_up_moves, place_moves
+from so101_kinematics.paths import MODEL_DIR, SCENE_PATH  # noqa: F401 - the course's scene files
 from so101_kinematics.planning import trajectory_log
 from so101_kinematics.planning.trajectory_log import plot_data  # noqa: F401 - week 8's plot
 from so101_kinematics.sim import scene, tracking
 from so101_kinematics.sim.scene import (  # noqa: F401 - the course's names
-    MODEL_DIR,
-    SCENE_PATH,
     convert_to_dictionary,
     convert_to_list,
     from_radians,

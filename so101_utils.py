@@ -30,18 +30,17 @@ from __future__ import annotations
 
 import math
 
+from so101_kinematics.hw.course_calibration import course_load_calibration
 from so101_kinematics.hw.course_helpers import (
-    MISSING,
     course_guarded_call,
     course_hold_position,
-    course_load_calibration,
     course_logged_move,
     course_move_to_pose,
     course_trims,
 )
 from so101_kinematics.hw.course_helpers import setup_motors as _setup_motors
 from so101_kinematics.ik.blocks import pick_up_moves, place_moves
-from so101_kinematics.planning.motion import check_configuration
+from so101_kinematics.inputs import MISSING, check_configuration
 from so101_kinematics.planning.trajectory_log import (
     logging_frame,
     plot_data,  # noqa: F401 - week 8's plot

@@ -25,15 +25,15 @@ from so101_kinematics.cli import (
     range_help,
     run_script,
 )
+from so101_kinematics.errors import OutputPathError, PlanError
+from so101_kinematics.inputs import MAX_DURATION
 from so101_kinematics.outputs import (
     PNG,
-    OutputPathError,
     add_overwrite_argument,
     check_output_path,
     text_kind,
     write_text_atomic,
 )
-from so101_kinematics.planning.motion import MAX_DURATION, PlanError
 from so101_kinematics.sim.fk_pictures import (  # noqa: F401 - the pictures, for the tests
     DEFAULT_SCREENSHOT,
     FRAMES_PATH,

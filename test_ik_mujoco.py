@@ -29,17 +29,16 @@ from so101_kinematics.cli import (
     servo_from_arguments,
     zero_duration_warning,
 )
-from so101_kinematics.errors import KinematicsInputError, RenderError
+from so101_kinematics.errors import KinematicsInputError, OutputPathError, PlanError, RenderError
+from so101_kinematics.inputs import MAX_DURATION
 from so101_kinematics.outputs import (
     MP4,
-    OutputPathError,
     add_overwrite_argument,
     check_output_path,
     report_of,
     stamp,
     write_text_atomic,
 )
-from so101_kinematics.planning.motion import MAX_DURATION, PlanError
 from so101_kinematics.sim import actuation
 from so101_kinematics.sim.ik_demo import (  # noqa: F401 - the pieces, for the tests
     POSITION_TOLERANCE,

@@ -24,11 +24,10 @@ from so101_kinematics.cli import (
     run_script,
     servo_from_arguments,
 )
-from so101_kinematics.errors import KinematicsInputError, RenderError
+from so101_kinematics.errors import KinematicsInputError, OutputPathError, PlanError, RenderError
 from so101_kinematics.outputs import (
     MP4,
     PNG,
-    OutputPathError,
     add_overwrite_argument,
     check_output_path,
     report_of,
@@ -36,7 +35,7 @@ from so101_kinematics.outputs import (
     write_text_atomic,
 )
 from so101_kinematics.outputs import atomic_output as _atomic_output
-from so101_kinematics.planning.motion import PROFILES, PlanError
+from so101_kinematics.planning.profiles import PROFILES
 from so101_kinematics.servo import DEFAULT_SUPPLY_V
 from so101_kinematics.sim import actuation, straight, tracking
 from so101_kinematics.sim.ik_demo import open_scene

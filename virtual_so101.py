@@ -35,8 +35,10 @@ from so101_kinematics.errors import (
 )
 from so101_kinematics.servo import KIT_SUPPLY_V, VARIANTS
 from so101_kinematics.virtual import shell
-from so101_kinematics.virtual.arm import CUBE_REACH_M, DEFAULT_CALIBRATION_PATH, VirtualSO101
+from so101_kinematics.virtual.arm import VirtualSO101
+from so101_kinematics.virtual.cubes import CUBE_REACH_M
 from so101_kinematics.virtual.electrical import SUPPLY_V
+from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
 logger = logging.getLogger("virtual_so101")
 
