@@ -1,4 +1,7 @@
-"""Pick-and-place on a real SO-101 follower through lerobot's FeetechMotorsBus, safe by default."""
+"""Pick-and-place on a real SO-101 follower through lerobot's FeetechMotorsBus, safe by default.
+
+The course's files at the root are the project's one facade; ``so101_kinematics`` does the work.
+"""
 
 from __future__ import annotations
 
@@ -10,7 +13,14 @@ from pathlib import Path
 from so101_kinematics import outputs
 from so101_kinematics.calibration import calibrated_limits, find_calibration, load_calibration
 from so101_kinematics.clearance import check_plan_clearance
-from so101_kinematics.cli import ArgumentParser, StoreGiven, ignored_with_plan, requires
+from so101_kinematics.cli import (
+    ArgumentParser,
+    StoreGiven,
+    add_moved_options,
+    hide_expert_options,
+    ignored_with_plan,
+)
+from so101_kinematics.commands.so101_command import MOVED_FROM_HW
 from so101_kinematics.errors import (
     CalibrationError,
     HardwareError,
@@ -19,7 +29,6 @@ from so101_kinematics.errors import (
     PlanError,
 )
 from so101_kinematics.hw.bus import clamp_to_limits, connect, disconnect, read_pose
-from so101_kinematics.hw.control import OUTAGE_TOLERANCE_S
 from so101_kinematics.hw.home_check import add_calibration_check_arguments, home_check
 from so101_kinematics.hw.log import (
     LOG_KIND,
@@ -37,7 +46,6 @@ from so101_kinematics.hw.signals import signals_as_interrupt
 from so101_kinematics.hw.teach import format_configuration, format_plan, outcome_lines, teach
 from so101_kinematics.hw.timing import speed_caps
 from so101_kinematics.inputs import check_number
-from so101_kinematics.lab.sheet import PAPER_MM, write_sheet
 from so101_kinematics.planning import stacking
 from so101_kinematics.planning.cartesian_plan import add_cartesian_arguments, plan_from_arguments
 from so101_kinematics.planning.plans import default_plan, load_plan
@@ -55,11 +63,7 @@ MAX_MOVE_DURATION_S = 60.0  # longest move or hold of the built-in plan [s]
 
 
 def ask(question: str, assume_yes: bool, stdin=None) -> bool:
-    """Ask yes/no on a terminal; ``assume_yes`` answers yes; never blocks on a non-terminal.
-
-    Raises:
-        NotConfirmed: stdin is not a terminal and ``assume_yes`` is False.
-    """
+    """Ask yes/no on a terminal; ``assume_yes`` answers yes; NotConfirmed on a non-terminal."""
     if assume_yes:
         return True
     stdin = stdin or sys.stdin
@@ -70,21 +74,25 @@ def ask(question: str, assume_yes: bool, stdin=None) -> bool:
     return stdin.readline().strip().lower() in ("y", "yes")
 
 
+EXPERT = {"move_duration", "hold", "velocity_ff", "rate", "max_speed", "tracking_tolerance",
+          "teach", "trims", "gravity_ff", "write_calibration", "no_return_on_abort", "overwrite",
+          "cube_yaw", "lift_height", "blocks", "block", "base_height", "approach",
+          "straight_method"}  # accepted, listed by --help-all only: tuning and experiments
+
+
 def build_parser() -> argparse.ArgumentParser:
-    """The command-line interface."""
+    """The command-line interface: the week's options; --help-all lists the expert ones too."""
     parser = ArgumentParser(
-        description="The course's pick-and-place on a real SO-101 follower (lerobot Feetech bus). "
-                    "Validates the plan against the model's and the arm's calibrated limits before "
-                    "torque on; ramps from the measured pose; caps joint speed; reads the arm "
-                    "every cycle and pauses the plan while it does not answer (up to "
-                    f"{OUTAGE_TOLERANCE_S:g} s). Any other ending (a stall, an error bit, Ctrl-C, "
-                    "SIGTERM, SIGHUP) is a controlled stop, a slow return to the start and the "
-                    "torque released there; the program never releases the arm elsewhere.",
+        description="The course's pick-and-place on a real SO-101 follower (lerobot Feetech "
+                    "bus): the plan checked before torque on, then a loop that sends a goal and "
+                    "reads the arm back every cycle. Any stop ends with a slow return to the start "
+                    "and the torque released there, never elsewhere (docs/hardware_safety.md).",
         epilog="Examples:\n  python pick_place_hw.py --calibration my_arm.json --dry-run\n"
                "  python pick_place_hw.py --port /dev/ttyACM0 --id my_arm --log run.csv "
                "--plot run.png\n"
-               "  python pick_place_hw.py --port /dev/ttyACM0 --id my_arm --teach\n"
-               "  python pick_place_hw.py --port /dev/ttyACM0 --id my_arm --release",
+               "  python pick_place_hw.py --port /dev/ttyACM0 --id my_arm --release\n"
+               "The placement sheet: `so101 sheet PATH.pdf`; the pose live by hand: "
+               "read_position.py.",
         formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--port", help=f"serial port of the arm (find it with `{FIND_PORT_HINT}`)")
     who = parser.add_mutually_exclusive_group()
@@ -121,15 +129,13 @@ def build_parser() -> argparse.ArgumentParser:
                         help="CSV of time, commanded and measured joints per cycle (written as "
                              "the run goes; an earlier run's log is never replaced)")
     parser.add_argument("--plot", type=Path, help="PNG of commanded vs measured per joint")
-    parser.add_argument("--sheet", type=Path, metavar="PATH.pdf",
-                        help="write the placement sheet (print at 100 %%) and stop; no arm needed")
-    parser.add_argument("--paper", choices=sorted(PAPER_MM),
-                        help="paper of the --sheet (default a4)")
     outputs.add_overwrite_argument(parser)
     parser.add_argument("--verbose", "-v", action="store_true", help="debug logging")
     add_cartesian_arguments(parser)
     stacking.add_stack_arguments(parser)
     add_approach_arguments(parser)
+    add_moved_options(parser, MOVED_FROM_HW)
+    hide_expert_options(parser, EXPERT)
     return parser
 
 
@@ -230,23 +236,13 @@ def _main(args) -> int:
     check_number(args.move_duration, "--move-duration", 0.0, MAX_MOVE_DURATION_S, "s")
     check_number(args.hold, "--hold", 0.0, MAX_MOVE_DURATION_S, "s")
     check_run_settings(args.rate, args.max_speed, args.tracking_tolerance)
-    for refusal in (requires(args, "paper", "sheet"), ignored_with_plan(args)):
-        if refusal:
-            raise PlanError(refusal)
+    if ignored_with_plan(args):
+        raise PlanError(ignored_with_plan(args))
     trims = args.trims and load_trims(args.trims)  # a dry run checks them as a real run does
     stack = stacking.stack_from_arguments(args)
     plan = stack.plan if stack else plan_from_arguments(args) or (
         load_plan(args.plan) if args.plan else default_plan(args.move_duration, args.hold))
     plan = plan_for_approach(args, plan, 1.0 / args.rate, stack)
-    if args.sheet is not None:
-        validate_plan_for_arm(plan, None, base_height=args.base_height)
-        path = outputs.check_output_path(args.sheet, "--sheet", inputs=(args.plan, args.trims),
-                                         suffixes=(".pdf",), kind=outputs.PDF,
-                                         overwrite=args.overwrite)
-        origin = args.plan or ("--pick/--place" if args.pick else "the course's plan")
-        print(write_sheet(plan, path, args.paper or "a4", source=str(origin), stack=stack,
-                          base_height=args.base_height).summary())
-        return 0
     source = args.calibration or (find_calibration(args.robot_id, args.port)
                                   if args.robot_id else None)
     calibration = load_calibration(source, args.robot_id) if source is not None else None

@@ -1,4 +1,7 @@
-"""Run the course's pick-and-place on the simulated SO-101: viewer, headless or MP4 video."""
+"""Run the course's pick-and-place on the simulated SO-101: viewer, headless or MP4 video.
+
+The course's files at the root are the project's one facade; ``so101_kinematics`` does the work.
+"""
 
 from __future__ import annotations
 
@@ -18,23 +21,21 @@ from so101_kinematics.cli import (
     EXIT_BAD_INPUT,
     ArgumentParser,
     StoreGiven,
+    add_moved_options,
     add_servo_arguments,
+    hide_expert_options,
     ignored_with_plan,
     number,
     range_help,
-    requires,
     run_script,
     servo_from_arguments,
     zero_duration_warning,
 )
+from so101_kinematics.commands.so101_command import MOVED_FROM_SIM
 from so101_kinematics.errors import OutputPathError, PlanError, RenderError, RenderSettingError
-from so101_kinematics.hw.log import sidecar_path
 from so101_kinematics.inputs import MAX_DURATION
-from so101_kinematics.lab.profile_compare import compare_profiles, draw_profiles
-from so101_kinematics.lab.sim_vs_arm import LogError, draw_report
 from so101_kinematics.outputs import (
     MP4,
-    PNG,
     add_overwrite_argument,
     check_output_path,
     report_of,
@@ -60,10 +61,6 @@ from so101_kinematics.sim.cube import (  # noqa: F401 - the scene, for the tests
 from so101_kinematics.sim.pick_place import (  # noqa: F401 - the run, for the tests and notebooks
     DEFAULT_VIDEO,
     INITIAL_KEYFRAME,
-    PLACEMENT_TOLERANCE,
-    TILT_TOLERANCE,
-    TIMESTEP_RANGE,
-    RunReport,
     choose_mode,
     run_pick_place,
     total_duration,
@@ -99,6 +96,12 @@ def _size(text: str) -> tuple[int, int]:
         raise argparse.ArgumentTypeError(str(error)) from None
 
 
+EXPERT = {"fps", "size", "camera", "quality", "cube", "cube_turn", "cube_yaw", "lift_height",
+          "blocks", "block", "base_height", "servo", "supply", "variant", "p_coefficient",
+          "gravity_ff", "approach", "straight_method", "overwrite", "no_progress"}
+"""Options accepted but listed only by --help-all: video settings, the servo model, experiments."""
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse the command line, run, print the summary; returns the exit code."""
     duration = (0.0, MAX_DURATION, "s")
@@ -114,7 +117,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                                unless --record is given
   --record PATH.mp4            offscreen video (any machine; MUJOCO_GL=egl)
 
-Output files (--record, --json, --report) are checked before the run (an
+Output files (--record, --json) are checked before the run (an
 existing file is replaced only when it carries our marker: an MP4 / a PNG of
 ours, a JSON report of this script; or with --overwrite) and written beside the
 target, then renamed over it when complete: an interrupted run (Ctrl-C) leaves
@@ -162,17 +165,14 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
     add_servo_arguments(parser)
     add_approach_arguments(parser)
     parser.add_argument("--json", type=Path, metavar="PATH", help="write the run report as JSON")
-    parser.add_argument("--compare", type=Path, nargs="+", metavar="LOG.csv",
-                        help="replay hardware logs (pick_place_hw.py --log, e.g. one per "
-                        "--profile) in the simulator and compare, per profile the arm beside "
-                        "the simulator; needs --report")
-    parser.add_argument("--report", type=Path, metavar="PATH.png", help="--compare's figure")
     add_overwrite_argument(parser)
+    add_moved_options(parser, MOVED_FROM_SIM)
     parser.add_argument("--strict", action="store_true", help="exit 1 unless the cube is placed "
                         "within tolerance")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("-v", "--verbose", action="store_true", help="log details (and show "
                         "the traceback of an unexpected error)")
+    hide_expert_options(parser, EXPERT)
     return run_script(parser, argv, lambda args: _run(parser, args),
                       interrupted="nothing was written; existing output files are as they were.",
                       log_format="%(levelname)s %(name)s: %(message)s")
@@ -180,12 +180,10 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
 
 def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     """Check the outputs and the plan, run, report (see :func:`main`)."""
-    for refusal in (requires(args, "report", "compare"), ignored_with_plan(args)):
-        if refusal:
-            print(f"error: {refusal}", file=sys.stderr)
-            return EXIT_BAD_INPUT
-    if args.compare is not None:
-        return _compare(args)
+    refusal = ignored_with_plan(args)
+    if refusal:
+        print(f"error: {refusal}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     mode, video = choose_mode(args.headless, args.record, so101_display.has_display())
     try:
         json_path = None
@@ -234,38 +232,6 @@ def _run(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
                                                  indent=2) + "\n")
     if args.strict and not report.success:
         return 1
-    return 0
-
-
-def _compare(args: argparse.Namespace) -> int:
-    """--compare LOG.csv [LOG.csv ...] --report PATH.png [--json PATH]: the sim-versus-arm report.
-
-    One log: its report, then its profile's figures; several: the profiles' table.
-    """
-    try:
-        if args.report is None:
-            raise OutputPathError("--compare needs --report PATH.png for the figure.")
-        inputs = [p for log in args.compare for p in (log, sidecar_path(log))]
-        report = check_output_path(args.report, "--report", inputs=inputs, suffixes=(".png",),
-                                   kind=PNG, overwrite=args.overwrite)
-        json_path = args.json and check_output_path(args.json, "--json", inputs=inputs,
-                                                    kind=REPORT, overwrite=args.overwrite)
-        profiles = compare_profiles(args.compare)
-    except (LogError, OutputPathError) as error:
-        print(f"error: {error}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    if len(profiles.runs) == 1:
-        result = profiles.runs[0].comparison
-        print(result.summary())
-        print(f"Report: {draw_report(result, report, f'{args.compare[0]}: simulator vs arm')}")
-        comparison = {**result.as_json(), "profile_comparison": profiles.as_json()}
-    else:
-        print(f"Report: {draw_profiles(profiles, report, 'profiles: simulator vs arm')}")
-        comparison = profiles.as_json()
-    print(profiles.table())
-    if json_path:
-        comparison = stamp(comparison, "pick_place_sim.py --compare")
-        write_text_atomic(json_path, json.dumps(comparison, indent=2) + "\n")
     return 0
 
 

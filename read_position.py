@@ -1,4 +1,7 @@
-"""Print the SO-101's pose live (torque off, move it by hand) as a configuration and FK position."""
+"""Print the SO-101's pose live (torque off, move it by hand) as a configuration and FK position.
+
+The course's files at the root are the project's one facade; ``so101_kinematics`` does the work.
+"""
 
 from __future__ import annotations
 
@@ -22,7 +25,7 @@ MAX_DURATION_S = 86_400.0  # --duration at most a day [s]
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit status (0 done, 1 failed, 2 refused)."""
-    parser = ArgumentParser(description=__doc__)
+    parser = ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--port", required=True,
                         help=f"serial port of the arm (find it with `{FIND_PORT_HINT}`)")
     who = parser.add_mutually_exclusive_group(required=True)

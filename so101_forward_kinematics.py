@@ -1,32 +1,15 @@
 """Forward kinematics of the SO-101 arm as a product of rigid transforms (the course's part 1a).
 
-Frame convention, used in every name here:
-    ``g_ab`` is the pose of frame ``b`` expressed in frame ``a``: a 4x4
-    homogeneous matrix ``[[R_ab, p_ab], [0, 0, 0, 1]]`` that maps coordinates
-    in ``b`` to coordinates in ``a``. Poses chain by multiplication:
-    ``g_ac = g_ab @ g_bc``.
+The course's files at the root are the project's one facade; ``so101_kinematics`` does the work.
 
-Frames: ``w`` is the world (the base, origin on the table, z up), ``1`` to
-``5`` are the bodies moved by shoulder_pan, shoulder_lift, elbow_flex,
-wrist_flex and wrist_roll (each joint turns about its frame's local z axis),
-and ``t`` is the object (tool) frame: the centre of a 26 mm cube held between
-the jaws, with frame 5's axes (site ``object_frame`` in ``model/so101.xml``):
-z from the fingertips towards the wrist, x from the fixed jaw towards the
-moving one. At a top-down grasp it is ``Rz(yaw)``, z up, as the course's
-inverse kinematics assignment draws it, with ``yaw = wrist_roll -
-shoulder_pan + GRIPPER_MOUNT_TILT_DEG``: the model's gripper mount is turned
--2.79 deg about the roll axis (the course's diagram has it square), so
-``wrist_roll = shoulder_pan`` gives ``Rz(-2.79 deg)``, not quite the
-identity. The gripper joint moves only the moving jaw, so it does not enter
-the object pose.
-
-Each ``get_gxx`` is a fixed displacement and rotation taken from the
-upstream SO-101 model (``so101_new_calib``; the numbers are in
-``so101_kinematics/frames.py``), followed by the joint rotation ``Rz(theta)``.
-Angles are in degrees. :func:`get_forward_kinematics` is the course's
-product ``gw1 @ g12 @ g23 @ g34 @ g45 @ g5t``; the package evaluates the same
-product in closed form for speed (``so101_kinematics.fast_fk``, equal to 1e-12),
-and :func:`get_forward_kinematics_batch` does so for many configurations.
+``g_ab`` is the pose of frame ``b`` in frame ``a`` (a 4x4 homogeneous matrix); poses chain by
+multiplication, ``g_ac = g_ab @ g_bc``. Frames: ``w`` the world (the base, z up), ``1`` to ``5``
+the bodies turned by shoulder_pan, shoulder_lift, elbow_flex, wrist_flex and wrist_roll (each
+about its local z), ``t`` the object frame: the centre of a 26 mm cube held between the jaws
+(site ``object_frame`` in ``model/so101.xml``). Each ``get_gxx`` is the upstream model's fixed
+displacement and rotation (``so101_kinematics/frames.py``) times the joint's ``Rz(theta)``,
+angles in degrees. At a top-down grasp ``g_wt`` is ``Rz(yaw)``, z up, with ``yaw = wrist_roll -
+shoulder_pan + GRIPPER_MOUNT_TILT_DEG`` (the model's gripper mount is turned -2.79 deg).
 
 Example (the course's test configuration)::
 
@@ -47,25 +30,14 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from so101_kinematics.errors import KinematicsInputError, KinematicsTypeError  # noqa: F401
+from so101_kinematics.errors import KinematicsInputError  # noqa: F401 - what the getters raise
 from so101_kinematics.fast_fk import forward_kinematics_batch
-from so101_kinematics.frames import (  # noqa: F401 - the course's names, from one place
-    ANGLE_RANGE_DEG,
+from so101_kinematics.frames import (  # noqa: F401 - JOINTS, ARM_JOINTS, TOOL_SITE: the course's
     ARM_JOINTS,
-    BODY_OF_FRAME,
-    FIXED_TRANSFORMS,
-    FRAMES,
-    GRIPPER_MOUNT_TILT_DEG,
     JOINTS,
     TOOL_SITE,
-    Rx,
-    Ry,
-    Rz,
     check_angle,
-    get_frame_chain,
-    joint_angles,
     joint_transform,
-    pose,
     read_angles,
 )
 

@@ -1,57 +1,31 @@
-"""Inverse kinematics of the SO-101 arm for the object frame of the FK module.
+"""Inverse kinematics of the SO-101 arm for the object frame of the FK module (assignment 7).
 
-The SO-101 has five arm joints, so a full 6-D pose of the object frame ``t``
-(the centre of a held 26 mm cube; at a top-down grasp ``Rz(yaw)``, z up, as
-the course draws it; see ``so101_forward_kinematics``) is reachable only on a
-5-D subset. :func:`get_inverse_kinematics` takes the course's call shapes:
+The course's files at the root are the project's one facade; ``so101_kinematics`` does the work.
 
-- ``get_inverse_kinematics(position)``: a top-down grasp at yaw 0;
-- ``get_inverse_kinematics(position, orientation)``: a 3x3 rotation,
-  ``np.eye(3)`` for a top-down grasp at yaw 0, ``Rz(yaw)`` for another yaw (a
-  tilted orientation only where the five joints can take it);
-- ``get_inverse_kinematics(position, yaw, pitch)``: radians, as the course
-  passes them; pitch is the approach's tilt from the vertical (0 top-down);
+Five arm joints reach a full 6-D pose of the object frame ``t`` only on a 5-D subset.
+:func:`get_inverse_kinematics` takes the course's call shapes: ``(position)`` (top-down, yaw
+0), ``(position, orientation)`` (a 3x3 rotation, ``Rz(yaw)`` for a top-down grasp) and
+``(position, yaw, pitch)`` (radians, pitch 0 top-down); and the package's keywords in degrees
+(``approach="down"`` with ``yaw_deg``, ``approach="pitch"`` with ``pitch_deg``, ``approach=None``
+for position only, ``initial``, ``gripper``, ``min_height``).
 
-and the package's keywords (degrees): ``approach="down"`` with ``yaw_deg``
-(the cube's yaw, any of its four grasps), ``approach="pitch"`` with
-``pitch_deg`` (below the horizontal, 90 top-down), ``approach=None``
-(position only: the wrist keeps its roll, the pitch stays near the
-reference's), plus ``initial``, ``gripper`` and ``min_height``.
+The geometric steps, closed form on the model's numbers (``so101_kinematics/ik/``):
 
-At a top-down grasp the frame's yaw is ``wrist_roll - shoulder_pan +
-GRIPPER_MOUNT_TILT_DEG``: the course's ``wrist_roll = shoulder_pan`` for yaw 0
-is right up to the gripper mount's -2.79 deg tilt, which this IK includes
-(``wrist_roll = shoulder_pan + 2.79 deg``).
-
-Closed form, derived from the exact model numbers of ``so101_kinematics/frames.py``.
-Shoulder_lift, elbow_flex and wrist_flex turn about parallel horizontal
-axes, so after shoulder_pan the arm is a planar three-link chain, offset
-sideways from the pan axis:
-
-- sideways (along the lift axis) the object frame sits
-  ``L = -0.0182778 + 0.0181 + 0.0051 sin(alpha) - 0.000218 cos(alpha)`` [m]
-  from the pan axis (shoulder and wrist offsets, and the part of the tool
-  offset that turns with the roll), ``alpha = wrist_roll +
-  GRIPPER_MOUNT_TILT_DEG``. So ``shoulder_pan = asin(L / r) - azimuth``, r the
-  horizontal distance of the target from the pan axis; the mirrored
-  solution ``pi - asin(L / r) - azimuth`` reaches backwards over the base;
-- the approach pitch below the horizontal is ``psi = shoulder_lift +
-  elbow_flex + wrist_flex``; with ``psi = 90 deg`` the frame's yaw is
-  ``alpha - shoulder_pan`` (a cube repeats every 90 deg);
-- in the arm's plane the object frame is the wrist_flex axis plus
-  ``0.0611 + 0.1075`` m along the approach and ``-(0.0051 cos(alpha) +
-  0.000218 sin(alpha))`` m across it; the wrist_flex axis is reached by two
-  kinked links (``(-0.11257, -0.028)`` and ``(-0.1349, 0.0052)`` m in their
-  joint frames): the law of cosines, elbow-up and elbow-down branches.
-
-A given yaw ties ``alpha`` to ``shoulder_pan`` and ``L`` to ``alpha``: a scalar
-equation solved by Newton's method in two or three steps. Every result is
-checked with the FK; if it is off by more than ``REFINE_TOL`` (it is
-normally off by ~1e-16) it is refined by damped least squares on the
-analytic Jacobian (:func:`get_jacobian`), which also finishes position-only
-targets the closed-form search misses. The solver lives in
-``so101_kinematics/ik/`` (geometry, the closed-form search, refinement, the
-course's call shapes); this file is what the course's scripts import.
+1. shoulder_lift, elbow_flex and wrist_flex turn about parallel horizontal axes, so after
+   shoulder_pan the arm is a planar three-link chain, offset sideways from the pan axis by
+   ``L = -0.0182778 + 0.0181 + 0.0051 sin(alpha) - 0.000218 cos(alpha)`` [m], ``alpha =
+   wrist_roll + GRIPPER_MOUNT_TILT_DEG``: ``shoulder_pan = asin(L / r) - azimuth`` (r the
+   target's horizontal distance from the pan axis; ``pi - asin(L / r) - azimuth`` reaches
+   backwards over the base);
+2. the approach pitch below the horizontal is ``psi = shoulder_lift + elbow_flex +
+   wrist_flex``; top-down (``psi = 90 deg``) the frame's yaw is ``alpha - shoulder_pan``;
+3. in the arm's plane the wrist_flex axis (:func:`get_wrist_flex_position`) is ``0.0611 +
+   0.1075`` m back along the approach from the target and ``0.0051 cos(alpha) + 0.000218
+   sin(alpha)`` m across it; two kinked links (``(-0.11257, -0.028)`` and ``(-0.1349,
+   0.0052)`` m in their joint frames) reach it by the law of cosines, elbow up or down;
+4. a given yaw ties ``alpha`` to ``shoulder_pan``: a scalar equation, two or three Newton steps.
+   Every result is checked with the FK and, if off by more than ``REFINE_TOL``, refined by
+   damped least squares on the analytic Jacobian.
 
 Angles are degrees at this module's boundary (configuration dicts, as the
 course's), radians inside. Example (the course's starting position)::
@@ -68,26 +42,11 @@ from __future__ import annotations
 import numpy as np
 
 from so101_forward_kinematics import get_g5t, get_g45
-from so101_kinematics.constants import CUBE_HALF_SIZE  # noqa: F401 - the course's names
-from so101_kinematics.errors import UnreachableError  # noqa: F401
-from so101_kinematics.frames import (  # noqa: F401
-    GRIPPER_MOUNT_TILT_DEG,
-    JOINT_LIMITS,
-    JOINT_RANGES_RAD,
-)
+from so101_kinematics.errors import UnreachableError  # noqa: F401 - what the IK raises
 from so101_kinematics.ik.call_shapes import _as_rotation as as_rotation
-from so101_kinematics.ik.call_shapes import get_inverse_kinematics  # noqa: F401
-from so101_kinematics.ik.geometry import (  # noqa: F401
-    GRIPPER_OPEN,
-    MIN_HEIGHT,
-    PAN_AXIS_POINT,
-    POSITION_LIMIT,
-    REFERENCE_CONFIGURATION,
-    REFINE_TOL,
-    SOLVE_TOL,
-    get_jacobian,
-)
-from so101_kinematics.ik.solver import as_position, sample_top_down_targets  # noqa: F401
+from so101_kinematics.ik.call_shapes import get_inverse_kinematics  # noqa: F401 - the course's
+from so101_kinematics.ik.geometry import GRIPPER_OPEN  # noqa: F401 - the course's 50
+from so101_kinematics.ik.solver import as_position
 
 
 def get_wrist_flex_position(target_position, target_orientation=None):

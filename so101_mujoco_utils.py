@@ -1,30 +1,17 @@
 """MuJoCo helpers for the SO-101, as the course's scripts call them.
 
-Load the scene, set the arm's pose, command it, and move it as the course
-does: ``move_to_pose(m, d, viewer, cfg, duration)`` and
-``hold_position(m, d, viewer, duration)`` (assignment 6) or
-``hold_position(m, d, viewer, cfg, duration)`` (assignment 7: command ``cfg``,
-then hold), with arm joints in [deg] and the
-gripper in [0, 100] (0 closed, 100 open). The machinery lives in the
-package: ``so101_kinematics/sim/scene.py`` (loading, units, poses, commands)
-and ``so101_kinematics/sim/stepping.py`` (the timed moves, the viewer).
+The course's files at the root are the project's one facade; ``so101_kinematics`` does the work.
 
-As the course's utils, in simulation:
-
-- a joint beyond the model's range (a pose copied from the viewer,
-  -1.75 rad = -100.27 deg) is held at its limit, with one warning line naming
-  the joint, the value and the limit (the real arm, ``so101_utils``, refuses
-  it); a value on a limit's round number (-100 deg) is within it;
-- closing the viewer stops the motion: ``move_to_pose`` and ``hold_position``
-  return at once from then on, so ``while viewer.is_running():`` ends;
-- ``convert_to_dictionary(d.qpos)`` / ``convert_to_list(cfg)`` convert between
-  radians and a configuration, the gripper by this project's mapping
-  (see ``scene.convert_to_dictionary``);
-- ``pick_up_block`` / ``place_block`` are assignment 8's (``m, d, viewer`` first);
-- ``move_to_pose_cubic`` is assignment 9's (the course's cubic, both shapes), and on
-  ``model/scene_with_velocity.xml`` (12 controls) it and ``send_position_command(d,
-  pos, vel)`` feed the velocity too; ``move_to_pose_with_logging`` / ``plot_data``
-  are week 8's tracking log (a pandas DataFrame).
+``move_to_pose(m, d, viewer, cfg, duration)`` and ``hold_position(m, d, viewer, duration)``
+(assignment 6; ``hold_position(m, d, viewer, cfg, duration)`` in assignment 7) step the
+physics (``mj_step``) and refresh the viewer (``viewer.sync()``) at real time, arm joints in
+[deg], the gripper in [0, 100] (``so101_kinematics/sim/stepping.py``). As the course's utils:
+a joint beyond the model's range is held at its limit with one warning line (the real arm,
+``so101_utils``, refuses it); closing the viewer stops the motion, so ``while
+viewer.is_running():`` ends. Also: the converters ``convert_to_dictionary(d.qpos)`` /
+``convert_to_list(cfg)``, assignment 8's ``pick_up_block`` / ``place_block``, assignment 9's
+``move_to_pose_cubic`` (on ``model/scene_with_velocity.xml`` with the velocity fed too), week
+8's ``move_to_pose_with_logging`` / ``plot_data``.
 
 Example (the course's test pose, headless)::
 
@@ -41,11 +28,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from so101_kinematics.display import has_display  # noqa: F401 - the scripts' display check
 from so101_kinematics.errors import CallShapeError, ViewerClosed  # noqa: F401
-from so101_kinematics.frames import GRIPPER_RANGE, JOINTS, TOOL_SITE  # noqa: F401
+from so101_kinematics.frames import TOOL_SITE  # noqa: F401
 from so101_kinematics.ik.blocks import pick_up_moves, place_moves
-from so101_kinematics.paths import MODEL_DIR, SCENE_PATH  # noqa: F401 - the course's names
+from so101_kinematics.paths import MODEL_DIR, SCENE_PATH  # noqa: F401 - the course's scene files
 from so101_kinematics.planning import trajectory_log
 from so101_kinematics.planning.trajectory_log import plot_data  # noqa: F401 - week 8's plot
 from so101_kinematics.sim import scene, tracking
@@ -59,15 +45,11 @@ from so101_kinematics.sim.scene import (  # noqa: F401 - the course's names
     gripper_from_radians,
     gripper_to_radians,
     joint_limits,
-    joint_table,
     load_model,
     to_radians,
-    validate,
 )
 from so101_kinematics.sim.stepping import (  # noqa: F401
-    COMMAND_BLOCK_STEPS,
     HOLD_SHAPES,
-    VIEWER_SYNC_PERIOD,
     hold_position,
     move_to_pose,
 )

@@ -12,60 +12,26 @@ Assignment 8 runs its inverse kinematics on the real arm with four helpers::
     move_to_pose(bus, starting_pose, 2.0)
     bus.disable_torque()                                  # released at the starting pose
 
-They are a thin face over ``so101_kinematics/hw`` (the same control loop,
-speed caps, checks and endings as ``pick_place_hw.py``), so the fault policy
-of docs/hardware_safety.md holds in a student's script too:
+The course's files at the root are the project's one facade; ``so101_kinematics`` does the work.
 
-- a fault (a stall, a servo's error bit, the arm silent for more than 1 s),
-  Ctrl-C, SIGTERM, SIGHUP or an exception inside ``move_to_pose`` or
-  ``hold_position``: the arm stops, returns slowly (20 deg/s) to the pose it
-  had at ``setup_motors`` and is released there; the last line says where the
-  arm is and whether it is torqued, and the script ends (exit status 1). A
-  second signal during that return freezes the arm where it is, torque on;
-- ``bus.disable_torque()``: at the starting pose (every arm joint within
-  3 deg of it) the torque is released at once; away from it the arm first
-  returns there slowly, then is released. A servo holds its last goal by
-  itself, so holding is safer than letting go: this program never lets the
-  arm fall. To release it elsewhere, hold it and run
-  ``python pick_place_hw.py --release --port PORT --id ID``;
-- a script that ends without ``bus.disable_torque()`` (finished, an
-  exception, Ctrl-C or SIGTERM/SIGHUP between the calls) gets the same ending
-  when Python exits: slow return to the start, release there, last line;
-- bad input before anything moved (an unknown robot id, a malformed
-  calibration, a port that is missing or in use): one line, exit status 2.
+The same control loop, speed caps, checks and endings as ``pick_place_hw.py`` run under these
+helpers, so docs/hardware_safety.md's fault policy holds in a student's script: a fault, a
+signal or an exception returns the arm slowly to the pose it had at ``setup_motors`` and
+releases it there (``bus.disable_torque()`` too); the last line says where the arm is and
+whether it is torqued; bad input before anything moved is one line, exit status 2.
 
-Trims (the course's ``offset_config``): ``setup_motors(calibration, PORT,
-offset_config={"shoulder_lift": 2.0, "elbow_flex": -4.0})`` (or a trim file,
-or the course's ``offset_config`` function) adds each joint's trim [deg] to
-every goal written; at most 5 deg per joint (beyond that, recalibrate).
-``offset_config(config)`` gives a configuration with those trims added, as
-the course's helper does. ``bus.sync_read("Present_Position")`` gives the
-servos' own readings.
-
-Assignment 8's ``pick_up_block(bus, block_position, move_to_duration)`` and
-``place_block(bus, target_position, move_to_duration)`` are here too: every
-configuration is solved before the arm moves, and each move is a
-``move_to_pose`` with its checks and endings.
-
-Assignment 9's ``move_to_pose_cubic(bus, desired_position, duration)`` (or with
-the starting position first) is the same move along the course's cubic
-(``velocity_ff=True``: the velocity fed forward through the goal, the week-9 answer to
-"only Goal_Position is sent"), and
-week 8's ``move_to_pose_with_logging(bus, desired_position, duration)`` returns
-the course's DataFrame of target and actual joints for ``plot_data(df)`` (pandas:
-in the hw extra).
+Also here: ``offset_config`` (the course's trims, at most 5 deg per joint), assignment 8's
+``pick_up_block`` / ``place_block``, assignment 9's ``move_to_pose_cubic`` (the course's
+cubic; ``velocity_ff=True`` feeds its velocity through the goal) and week 8's
+``move_to_pose_with_logging`` (the course's DataFrame) with ``plot_data(df)``.
 """
 
 from __future__ import annotations
 
 import math
 
-from so101_kinematics.hw.course_calibration import (  # noqa: F401 - the course's helpers and their settings
-    ScriptEnded,
-    course_load_calibration,
-)
-from so101_kinematics.hw.course_helpers import (  # noqa: F401 - the course's helpers and their settings
-    AT_START_TOLERANCE_DEG,
+from so101_kinematics.hw.course_calibration import course_load_calibration
+from so101_kinematics.hw.course_helpers import (
     course_guarded_call,
     course_hold_position,
     course_logged_move,
@@ -74,14 +40,10 @@ from so101_kinematics.hw.course_helpers import (  # noqa: F401 - the course's he
 )
 from so101_kinematics.hw.course_helpers import setup_motors as _setup_motors
 from so101_kinematics.ik.blocks import pick_up_moves, place_moves
-from so101_kinematics.inputs import (  # noqa: F401 - the course's helpers and their settings
-    MISSING,
-    START_MISMATCH,
-    check_configuration,
-)
-from so101_kinematics.planning.trajectory_log import (  # noqa: F401 - week 8's plot
+from so101_kinematics.inputs import MISSING, check_configuration
+from so101_kinematics.planning.trajectory_log import (
     logging_frame,
-    plot_data,
+    plot_data,  # noqa: F401 - week 8's plot
     require_pandas,
 )
 

@@ -1,4 +1,7 @@
-"""Show the FK object pose as a red cylinder in the SO-101's gripper (assignment part 1b)."""
+"""Show the FK object pose as a red cylinder in the SO-101's gripper (assignment part 1b).
+
+The course's files at the root are the project's one facade; ``so101_kinematics`` does the work.
+"""
 
 from __future__ import annotations
 
@@ -12,8 +15,16 @@ import so101_kinematics.display as so101_display  # first: EGL when there is no 
 import mujoco
 import numpy as np
 
-from so101_forward_kinematics import TOOL_SITE, get_forward_kinematics
-from so101_kinematics.cli import ArgumentParser, number, range_help, run_script
+from so101_forward_kinematics import (
+    TOOL_SITE,
+    get_forward_kinematics,
+)
+from so101_kinematics.cli import (
+    ArgumentParser,
+    number,
+    range_help,
+    run_script,
+)
 from so101_kinematics.errors import OutputPathError, PlanError
 from so101_kinematics.inputs import MAX_DURATION
 from so101_kinematics.outputs import (

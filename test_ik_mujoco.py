@@ -1,4 +1,7 @@
-"""Test the IK in MuJoCo: the arm reaches random top-down cube targets (assignment 7, part 2b)."""
+"""Test the IK in MuJoCo: the arm reaches random top-down cube targets (assignment 7, part 2b).
+
+The course's files at the root are the project's one facade; ``so101_kinematics`` does the work.
+"""
 
 from __future__ import annotations
 
@@ -19,6 +22,7 @@ from so101_kinematics.cli import (
     EXIT_FAILED,
     ArgumentParser,
     add_servo_arguments,
+    hide_expert_options,
     number,
     range_help,
     run_script,
@@ -147,6 +151,8 @@ by how much) or an unexpected error (rerun with -v), 2 bad input, 130 Ctrl-C."""
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="log each target (and show the traceback of an unexpected error)")
+    hide_expert_options(parser, {"servo", "supply", "variant", "p_coefficient", "gravity_ff",
+                                 "overwrite", "no_progress"})  # --help-all lists them
     return run_script(parser, argv, _run, refused=(PlanError, OutputPathError,
                                                    KinematicsInputError, RenderError))
 

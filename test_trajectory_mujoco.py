@@ -1,4 +1,7 @@
-"""Test trajectories in MuJoCo: the course's week-9 sequence, profile by profile (assignment 9)."""
+"""Test trajectories in MuJoCo: the course's week-9 sequence, profile by profile (assignment 9).
+
+The course's files at the root are the project's one facade; ``so101_kinematics`` does the work.
+"""
 
 from __future__ import annotations
 
@@ -17,6 +20,7 @@ import mujoco
 from so101_kinematics.cli import (
     ArgumentParser,
     add_servo_arguments,
+    hide_expert_options,
     run_script,
     servo_from_arguments,
 )
@@ -235,6 +239,8 @@ input, 130 Ctrl-C.""")
     add_overwrite_argument(parser)
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="log each profile (and show the traceback of an unexpected error)")
+    hide_expert_options(parser, {"servo", "supply", "variant", "p_coefficient", "gravity_ff",
+                                 "overwrite", "no_progress"})  # --help-all lists them
     return run_script(parser, argv, run, refused=(PlanError, OutputPathError,
                                                   KinematicsInputError, RenderError))
 

@@ -1,5 +1,7 @@
 """Serve a virtual SO-101 on a pseudo-terminal: six STS3215s, a MuJoCo arm behind them, hands.
 
+The course's files at the root are the project's one facade; ``so101_kinematics`` does the work.
+
     python virtual_so101.py [--calibration PATH] [--factory | --leader] [--link PATH]
                             [--viewer] [--wire-timing] [--faults SPEC] [--supply VOLTS]
 
@@ -16,34 +18,27 @@ emulator, its faults and its deviations from a real arm are described in
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import signal
 import sys
 from pathlib import Path
 
-from so101_kinematics.cli import ArgumentParser
+from so101_kinematics.cli import ArgumentParser, add_moved_options
+from so101_kinematics.commands.so101_command import MOVED_FROM_VIRTUAL
 from so101_kinematics.display import has_display
 from so101_kinematics.errors import (
     CalibrationError,
     CubePositionError,
     FaultSpecError,
-    OutputPathError,
     VirtualSO101Error,
 )
-from so101_kinematics.outputs import check_output_path, write_text_atomic
 from so101_kinematics.servo import KIT_SUPPLY_V, VARIANTS
-from so101_kinematics.sim.scene import load_model
 from so101_kinematics.virtual import shell
-from so101_kinematics.virtual.arm import VirtualSO101  # noqa: F401 - the virtual arm's API, re-exported
-from so101_kinematics.virtual.cubes import CUBE_REACH_M  # noqa: F401 - the virtual arm's API, re-exported
+from so101_kinematics.virtual.arm import VirtualSO101
+from so101_kinematics.virtual.cubes import CUBE_REACH_M
 from so101_kinematics.virtual.electrical import SUPPLY_V
-from so101_kinematics.virtual.faults import parse_faults  # noqa: F401 - the virtual arm's API, re-exported
-from so101_kinematics.virtual.shipped_calibration import (  # noqa: F401 - the virtual arm's API, re-exported
-    DEFAULT_CALIBRATION_PATH,
-    make_default_calibration,
-)
+from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
 logger = logging.getLogger("virtual_so101")
 
@@ -116,10 +111,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--base-height", type=float, default=0.0, metavar="M",
                         help="the table is M [m] below the robot's base frame, 0 to 0.05 "
                              "(default 0; the lab's mount: 0.015)")
-    parser.add_argument("--write-default-calibration", metavar="PATH",
-                        help="write the calibration derived from the model to PATH and exit")
-    parser.add_argument("--force", action="store_true",
-                        help="with --write-default-calibration: replace an existing file")
+    add_moved_options(parser, MOVED_FROM_VIRTUAL)
     parser.add_argument("-v", "--verbose", action="store_true", help="log every fault and start-up")
     try:
         args = parser.parse_args(argv)
@@ -128,18 +120,6 @@ def main(argv: list[str] | None = None) -> int:
     level = logging.INFO if args.verbose else logging.WARNING
     logging.basicConfig(level=level, stream=sys.stderr,
                         format="%(levelname)s %(name)s: %(message)s")
-    if args.write_default_calibration:
-        try:
-            path = check_output_path(args.write_default_calibration,
-                                     "--write-default-calibration", overwrite=args.force,
-                                     overwrite_option="--force")
-        except OutputPathError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
-        calibration = make_default_calibration(load_model())
-        write_text_atomic(path, json.dumps(calibration, indent=4) + "\n")
-        print(f"Calibration written to {path}")
-        return 0
     if args.viewer and not has_display():
         print("error: --viewer needs a display (DISPLAY or WAYLAND_DISPLAY is not set); "
               "run without --viewer.", file=sys.stderr)

@@ -22,10 +22,10 @@ def _rot(axis: str, thetadeg: float) -> np.ndarray:
 
 def _seed_style_forward_kinematics(cfg: dict) -> tuple[np.ndarray, np.ndarray]:
     """FK written as the course's starter code does: np.block per factor, every call."""
-    import so101_forward_kinematics as fk
+    from so101_kinematics.frames import FIXED_TRANSFORMS
 
     def factor(name, theta):
-        displacement, rotations = fk.FIXED_TRANSFORMS[name]
+        displacement, rotations = FIXED_TRANSFORMS[name]
         rotation = np.eye(3)
         for axis, angle in rotations:
             rotation = rotation @ _rot(axis, angle)
@@ -35,7 +35,7 @@ def _seed_style_forward_kinematics(cfg: dict) -> tuple[np.ndarray, np.ndarray]:
     g = (factor("w1", cfg["shoulder_pan"]) @ factor("12", cfg["shoulder_lift"])
          @ factor("23", cfg["elbow_flex"]) @ factor("34", cfg["wrist_flex"])
          @ factor("45", cfg["wrist_roll"]))
-    displacement, rotations = fk.FIXED_TRANSFORMS["5t"]
+    displacement, rotations = FIXED_TRANSFORMS["5t"]
     rotation = np.eye(3)
     for axis, angle in rotations:
         rotation = rotation @ _rot(axis, angle)

@@ -11,8 +11,9 @@ from benchmarks.common import SEED, summarize
 def bench_ik(quick: bool) -> dict:
     """IK per target (top-down with a yaw; free yaw; position only); success on reachable ones."""
     import so101_inverse_kinematics as ik
+    from so101_kinematics.ik.solver import sample_top_down_targets
 
-    _, positions, yaws = ik.sample_top_down_targets(20_000 if quick else 100_000, seed=SEED)
+    _, positions, yaws = sample_top_down_targets(20_000 if quick else 100_000, seed=SEED)
     n = 300 if quick else 1000
     targets = [(tuple(p), float(y)) for p, y in zip(positions[:n], yaws[:n], strict=True)]
     calls = {
@@ -33,7 +34,7 @@ def bench_ik(quick: bool) -> dict:
             medians.append(statistics.median(per_target))
         out[key] = summarize(medians)
     # Success on targets known reachable: FK of random in-limit configurations.
-    _, positions, yaws = ik.sample_top_down_targets(50_000 if quick else 500_000, seed=SEED + 1)
+    _, positions, yaws = sample_top_down_targets(50_000 if quick else 500_000, seed=SEED + 1)
     solved = 0
     for position, yaw in zip(positions, yaws, strict=True):
         try:

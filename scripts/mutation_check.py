@@ -583,6 +583,11 @@ MUTANTS: list[Mutant] = [
       "so101_kinematics/planning/motion.py", None, '__all__ = ["Plan", ',
       '__all__ = ["check_number", "Plan", ',
       "tests/core/test_public_names.py::test_each_module_declares_only_names_it_defines"),
+    m("moved_option_swallowed", "an option that moved to `so101` (pick_place_sim.py --compare) "
+      "is silently accepted: the script runs without it", "so101_kinematics/cli.py", None,
+      "        parser.exit(EXIT_BAD_INPUT, f", "        return None and parser.exit(2, f",
+      "tests/course_files/test_moved_options.py::"
+      "test_an_old_option_is_refused_in_one_line_with_its_new_spelling"),
 ]
 
 

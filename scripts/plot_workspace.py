@@ -22,7 +22,10 @@ sys.path.insert(0, str(REPO))
 
 import so101_inverse_kinematics as ik  # noqa: E402
 from so101_forward_kinematics import get_forward_kinematics  # noqa: E402
+from so101_kinematics.constants import CUBE_HALF_SIZE  # noqa: E402
 from so101_kinematics.errors import OutputPathError  # noqa: E402
+from so101_kinematics.ik.geometry import PAN_AXIS_POINT  # noqa: E402
+from so101_kinematics.ik.solver import sample_top_down_targets  # noqa: E402
 from so101_kinematics.markers import png_metadata  # noqa: E402
 from so101_kinematics.outputs import PNG, add_overwrite_argument, check_output_path  # noqa: E402
 from so101_kinematics.planning.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION  # noqa: E402
@@ -33,7 +36,7 @@ from so101_kinematics.planning.stacking import (  # noqa: E402
 )
 
 OUTPUT = REPO / "docs" / "workspace.png"
-HEIGHT = ik.CUBE_HALF_SIZE   # cube centre above the table [m]
+HEIGHT = CUBE_HALF_SIZE   # cube centre above the table [m]
 GRID_STEP = 0.005            # spacing of the IK grid [m]
 X_RANGE = (-0.12, 0.38)      # table area plotted [m]
 Y_RANGE = (-0.33, 0.33)      # [m]
@@ -69,7 +72,7 @@ def fk_samples(draws: int):
     Returns:
         (positions (n, 3) [m], number that the IK solved).
     """
-    _, positions, yaws = ik.sample_top_down_targets(draws, seed=SEED)
+    _, positions, yaws = sample_top_down_targets(draws, seed=SEED)
     near = np.abs(positions[:, 2] - HEIGHT) <= SLAB
     positions, yaws = positions[near], yaws[near]
     solved = 0
@@ -121,7 +124,7 @@ def plot(output: Path, step: float, draws: int) -> None:
         empty = "" if any(counts) else ": none (wrist_flex limit)"
         level_handles.append(plt.Line2D([], [], color=color, label=f"block {k + 1} centre, "
                                         f"z = {z * 1e3:.0f} mm above the table{empty}"))
-    base = ik.PAN_AXIS_POINT  # the shoulder_pan axis
+    base = PAN_AXIS_POINT  # the shoulder_pan axis
     ax.plot(base[0], base[1], marker="+", color="k", markersize=14, mew=2)
     ax.annotate("shoulder_pan axis", (base[0], base[1]), textcoords="offset points",
                 xytext=(8, -14), fontsize=8)

@@ -22,7 +22,8 @@ from so101_kinematics.inputs import format_range
 
 __all__ = [
     "ArgumentParser", "EXIT_BAD_INPUT", "EXIT_FAILED", "StoreGiven", "add_gravity_ff_argument",
-    "add_servo_arguments", "ignored_with_plan", "number", "range_help", "requires",
+    "add_moved_options", "add_servo_arguments", "hide_expert_options", "ignored_with_plan",
+    "number", "range_help", "requires",
     "run_script", "servo_from_arguments", "zero_duration_warning",
 ]
 
@@ -271,3 +272,57 @@ def servo_from_arguments(args: argparse.Namespace) -> dict:
     p = servo.LEROBOT.p if args.p_coefficient is None else int(args.p_coefficient)
     return {"mode": args.servo, "volts": volts, "variant": args.variant, "p": p,
             "feedforward": args.gravity_ff}
+
+
+class _Moved(argparse.Action):
+    """An option that moved to the ``so101`` command: refused in one line with its new spelling."""
+
+    def __init__(self, option_strings, dest, new: str = "", **kwargs):
+        super().__init__(option_strings, dest, nargs="*", help=argparse.SUPPRESS, **kwargs)
+        self.new = new
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        parser.exit(EXIT_BAD_INPUT, f"{parser.prog}: error: {option_string} moved to the so101 "
+                                    f"command (nothing was run). Fix: run `{self.new}`.\n")
+
+
+def add_moved_options(parser: argparse.ArgumentParser, moved: dict[str, str]) -> None:
+    """Old options that moved: each is refused in one line with its new spelling, exit 2.
+
+    Args:
+        parser: the script's parser.
+        moved: old option -> the command to run now, e.g.
+            ``{"--compare": "so101 compare LOG.csv ... --report PATH.png"}``.
+
+    Example:
+        >>> parser = ArgumentParser(prog="pick_place_sim.py")
+        >>> add_moved_options(parser, {"--compare": "so101 compare LOG.csv --report R.png"})
+        >>> parser.parse_args(["--compare", "run.csv"])  # doctest: +SKIP
+        pick_place_sim.py: error: --compare moved to the so101 command (nothing was run). \
+Fix: run `so101 compare LOG.csv --report R.png`.
+    """
+    for option, new in moved.items():
+        parser.add_argument(option, action=_Moved, new=new, dest=f"moved_{option.strip('-')}")
+
+
+class _HelpAll(argparse.Action):
+    """``--help-all``: the help with the expert options listed too."""
+
+    def __init__(self, option_strings, dest, hidden=None, **kwargs):
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS,
+                         help="list every option, the expert ones too, and exit", **kwargs)
+        self.hidden = hidden or {}
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        for action, text in self.hidden.items():
+            action.help = text
+        parser.print_help()
+        parser.exit()
+
+
+def hide_expert_options(parser: argparse.ArgumentParser, dests: set[str]) -> None:
+    """Keep ``--help`` to the week's options: ``dests`` stay accepted, listed by ``--help-all``."""
+    hidden = {action: action.help for action in parser._actions if action.dest in dests}
+    for action in hidden:
+        action.help = argparse.SUPPRESS
+    parser.add_argument("--help-all", action=_HelpAll, hidden=hidden)

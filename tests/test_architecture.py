@@ -19,6 +19,7 @@ MAY_IMPORT = {
     "hw": {"core", "ik", "sensors", "hw"},
     "virtual": {"core", "sensors", "sim", "virtual"},
     "lab": {"core", "ik", "sensors", "sim", "hw", "virtual", "lab"},
+    "commands": {"core", "ik", "sensors", "sim", "hw", "virtual", "lab", "commands"},
 }
 """Layer -> the layers it may import. hw and virtual are interchangeable backends: neither
 imports the other; the core imports no backend; sensors sit beside the core, under every
@@ -29,6 +30,8 @@ files."""
 def layer(module: str) -> str:
     """so101_kinematics.hw.bus -> "hw"; so101_kinematics.planning.motion -> "core"."""
     parts = module.split(".")
+    if module == "so101_kinematics.__main__":  # python -m so101_kinematics: the so101 command
+        return "commands"
     return parts[1] if len(parts) > 2 and parts[1] in MAY_IMPORT else "core"
 
 

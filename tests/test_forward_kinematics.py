@@ -11,7 +11,17 @@ import pytest
 from conftest import assert_transforms_close
 
 import so101_forward_kinematics as fk
-from so101_kinematics.frames import FIXED_ROTATION
+from so101_kinematics.frames import (
+    BODY_OF_FRAME,
+    FIXED_ROTATION,
+    FRAMES,
+    GRIPPER_MOUNT_TILT_DEG,
+    Rx,
+    Ry,
+    Rz,
+    get_frame_chain,
+    joint_angles,
+)
 from so101_mujoco_utils import joint_limits
 
 N_CONFIGURATIONS = 1000
@@ -71,27 +81,27 @@ def samples(model):
     """FK chains and MuJoCo poses at N seeded random in-limit configurations."""
     data = mujoco.MjData(model)
     angles = random_configurations(model, N_CONFIGURATIONS, seed=20260101)
-    frames = fk.FRAMES[1:]
+    frames = FRAMES[1:]
     n = len(angles)
     fk_chain = np.empty((n, len(frames), 4, 4))
     mj_chain = np.empty((n, len(frames), 4, 4))
     for i, a in enumerate(angles):
         set_arm(model, data, a)
-        chain = fk.get_frame_chain(as_dict(a))
+        chain = get_frame_chain(as_dict(a))
         for k, frame in enumerate(frames):
             fk_chain[i, k] = chain[frame]
             if frame == "t":
                 site = data.site(fk.TOOL_SITE)
                 mj_chain[i, k] = homogeneous(site.xpos, site.xmat.reshape(3, 3))
             else:
-                body = data.body(fk.BODY_OF_FRAME[frame])
+                body = data.body(BODY_OF_FRAME[frame])
                 mj_chain[i, k] = homogeneous(body.xpos, body.xmat.reshape(3, 3))
     return angles, fk_chain, mj_chain
 
 
 def test_every_frame_matches_mujoco_at_random_configurations(samples):
     angles, fk_chain, mj_chain = samples
-    frames = fk.FRAMES[1:]
+    frames = FRAMES[1:]
     assert_all_close(fk_chain, mj_chain,
                      lambda idx: f"frame {frames[idx[1]]} at {as_dict(angles[idx[0]])}:")
 
@@ -174,14 +184,14 @@ def test_seed_style_composition_equals_get_forward_kinematics():
         position, rotation = fk.get_forward_kinematics(cfg)
         np.testing.assert_allclose(position, g_wt[:3, 3], rtol=0, atol=1e-14)
         np.testing.assert_allclose(rotation, g_wt[:3, :3], rtol=0, atol=1e-14)
-        np.testing.assert_allclose(fk.get_frame_chain(cfg)["t"], g_wt, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(get_frame_chain(cfg)["t"], g_wt, rtol=0, atol=1e-14)
 
 
 def test_elementary_rotations_follow_the_right_hand_rule():
-    np.testing.assert_allclose(fk.Rz(90.0) @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], atol=1e-15)
-    np.testing.assert_allclose(fk.Rx(90.0) @ [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], atol=1e-15)
-    np.testing.assert_allclose(fk.Ry(90.0) @ [0.0, 0.0, 1.0], [1.0, 0.0, 0.0], atol=1e-15)
-    for rot in (fk.Rx, fk.Ry, fk.Rz):
+    np.testing.assert_allclose(Rz(90.0) @ [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(Rx(90.0) @ [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], atol=1e-15)
+    np.testing.assert_allclose(Ry(90.0) @ [0.0, 0.0, 1.0], [1.0, 0.0, 0.0], atol=1e-15)
+    for rot in (Rx, Ry, Rz):
         r = rot(33.3)
         np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-15)
         np.testing.assert_allclose(rot(-33.3), r.T, atol=1e-15)
@@ -194,7 +204,7 @@ def test_gripper_mount_tilt_is_the_upstream_quaternion(model):
     mujoco.mju_quat2Mat(expected, quat)
     g45 = fk.get_g45(0.0)
     np.testing.assert_allclose(g45[:3, :3], expected.reshape(3, 3), rtol=0, atol=1e-15)
-    assert -2.8 < fk.GRIPPER_MOUNT_TILT_DEG < -2.78
+    assert -2.8 < GRIPPER_MOUNT_TILT_DEG < -2.78
 
 
 def test_starting_configuration_holds_the_cube_just_above_the_table(model):
@@ -214,7 +224,7 @@ def test_starting_configuration_holds_the_cube_just_above_the_table(model):
     off = math.degrees(abs(math.atan2(rotation[1, 0], rotation[0, 0]) - course))
     assert 2.7 < off < 3.0
     # ... and so is the gripper body's (wrist_roll) axis: the gripper is vertical.
-    g_w5 = fk.get_frame_chain(STARTING_CONFIGURATION)["5"]
+    g_w5 = get_frame_chain(STARTING_CONFIGURATION)["5"]
     assert abs(abs(g_w5[2, 2]) - 1.0) < 1e-12
     # Heights are above the table: the scene's table top is the plane z = 0.
     assert model.geom("table").pos[2] == 0.0
@@ -286,7 +296,7 @@ def test_object_frame_is_right_handed(samples):
 
 GOOD = {"shoulder_pan": 0.0, "shoulder_lift": 0.0, "elbow_flex": 0.0, "wrist_flex": 0.0,
         "wrist_roll": 0.0}
-FK_FUNCTIONS = (fk.get_forward_kinematics, fk.get_frame_chain, fk.joint_angles)
+FK_FUNCTIONS = (fk.get_forward_kinematics, get_frame_chain, joint_angles)
 
 
 @pytest.mark.parametrize("function", FK_FUNCTIONS, ids=lambda f: f.__name__)
@@ -352,7 +362,7 @@ def test_module_docstring_example_runs():
 def test_closed_form_guard_notices_a_changed_fixed_rotation(monkeypatch):
     from so101_kinematics import fast_fk
 
-    changed = dict(FIXED_ROTATION, **{"34": fk.Rz(-90.0) @ fk.Rx(1.0)})
+    changed = dict(FIXED_ROTATION, **{"34": Rz(-90.0) @ Rx(1.0)})
     monkeypatch.setattr(fast_fk, "FIXED_ROTATION", changed)
     with pytest.raises(RuntimeError, match="g_34"):
         fast_fk._closed_form_assumptions()

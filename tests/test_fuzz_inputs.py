@@ -25,6 +25,8 @@ import so101_inverse_kinematics as ik
 import test_fk_mujoco
 from so101_forward_kinematics import ARM_JOINTS, JOINTS
 from so101_kinematics.errors import OutputPathError, PlanError
+from so101_kinematics.frames import JOINT_LIMITS
+from so101_kinematics.ik.geometry import MIN_HEIGHT
 from so101_kinematics.inputs import MAX_DURATION
 from so101_kinematics.planning.plans import STARTING_CONFIGURATION, load_plan
 
@@ -332,7 +334,7 @@ def test_fk_gives_a_pose_or_a_project_error(cfg):
 @given(cfg=st.fixed_dictionaries({joint: in_limits(joint) for joint in ARM_JOINTS}))
 def test_fk_then_position_ik_round_trips(cfg):
     position, _ = fk.get_forward_kinematics(cfg)
-    if position[2] < ik.MIN_HEIGHT:
+    if position[2] < MIN_HEIGHT:
         with pytest.raises(ik.UnreachableError, match="below"):
             ik.get_inverse_kinematics(position, approach=None)
         return
@@ -340,7 +342,7 @@ def test_fk_then_position_ik_round_trips(cfg):
     back, _ = fk.get_forward_kinematics(solved)
     np.testing.assert_allclose(back, position, atol=1e-9)
     for joint in ARM_JOINTS:
-        assert ik.JOINT_LIMITS[joint][0] - 1e-9 <= solved[joint] <= ik.JOINT_LIMITS[joint][1] + 1e-9
+        assert JOINT_LIMITS[joint][0] - 1e-9 <= solved[joint] <= JOINT_LIMITS[joint][1] + 1e-9
 
 
 @settings(FUZZ, max_examples=300)
@@ -367,7 +369,7 @@ def test_ik_gives_a_configuration_or_a_project_error(call):
     else:
         event("solved")
         for joint in ARM_JOINTS:
-            low, high = ik.JOINT_LIMITS[joint]
+            low, high = JOINT_LIMITS[joint]
             assert low - 1e-9 <= cfg[joint] <= high + 1e-9
         assert 0.0 <= cfg["gripper"] <= 100.0
         back, _ = fk.get_forward_kinematics(cfg)

@@ -204,7 +204,7 @@ def test_compare_marks_a_stopped_run_aborted_and_keeps_it_apart(arm, tmp_path, c
     """Issue 33: a run stopped mid-motion (SIGINT: Ctrl-C) and a complete one, same profile:
     --compare marks the stopped one aborted (the sidecar says why) and does not pool it with
     the complete one as run-to-run variation."""
-    import pick_place_sim
+    from so101_kinematics.commands import so101_command
 
     stopped_dir, done_dir = tmp_path / "stopped", tmp_path / "done"
     stopped_dir.mkdir()
@@ -222,8 +222,8 @@ def test_compare_marks_a_stopped_run_aborted_and_keeps_it_apart(arm, tmp_path, c
     assert json.loads((done_dir / "run.run.json").read_text())["aborted"] is None
     out = tmp_path / "compare.json"
     logs = [str(done_dir / "run.csv"), str(stopped_dir / "run.csv")]
-    assert pick_place_sim.main(["--compare", *logs, "--report", str(tmp_path / "c.png"),
-                                "--json", str(out)]) == 0
+    assert so101_command.main(["compare", *logs, "--report", str(tmp_path / "c.png"),
+                               "--json", str(out)]) == 0
     table = capsys.readouterr().out
     (runs,) = json.loads(out.read_text())["profiles"].values()
     assert [run["aborted"] for run in runs][0] is None

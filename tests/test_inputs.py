@@ -20,9 +20,15 @@ import so101_inverse_kinematics as ik
 import so101_mujoco_utils as utils
 import test_fk_mujoco
 from so101_kinematics import cli
-from so101_kinematics.errors import OutputPathError, PlanError
+from so101_kinematics.errors import KinematicsTypeError, OutputPathError, PlanError
+from so101_kinematics.frames import Rx
 from so101_kinematics.inputs import check_number
-from so101_kinematics.outputs import MP4, atomic_output, check_output_path, temporary_beside
+from so101_kinematics.outputs import (
+    MP4,
+    atomic_output,
+    check_output_path,
+    temporary_beside,
+)
 from so101_kinematics.planning.cartesian_plan import cartesian_plan
 from so101_kinematics.planning.motion import Plan, Step, Trajectory
 from so101_kinematics.planning.plans import STARTING_CONFIGURATION, load_plan
@@ -341,11 +347,11 @@ def test_fk_at_plus_and_minus_one_turn_is_the_zero_pose():
 
 @pytest.mark.parametrize("call, match", [
     (lambda: fk.get_gw1("45"), "shoulder_pan must be a number of degrees, got '45'"),
-    (lambda: fk.Rx(None), "thetadeg must be a number of degrees, got None"),
+    (lambda: Rx(None), "thetadeg must be a number of degrees, got None"),
     (lambda: fk.get_g23(True), "elbow_flex"),
 ])
 def test_text_and_none_are_type_errors_of_the_family(call, match):
-    with pytest.raises(fk.KinematicsTypeError, match=match) as info:
+    with pytest.raises(KinematicsTypeError, match=match) as info:
         call()
     assert isinstance(info.value, TypeError) and isinstance(info.value, ValueError)
 
@@ -356,8 +362,8 @@ def test_nan_is_refused_by_the_elementary_transforms():
 
 
 @pytest.mark.parametrize("kwargs, error, match", [
-    ({"position": ("0.2", "0", "0.05")}, fk.KinematicsTypeError, "position x must be a number"),
-    ({"position": (0.2, 0.0, 0.05), "yaw_deg": "45"}, fk.KinematicsTypeError, "yaw_deg"),
+    ({"position": ("0.2", "0", "0.05")}, KinematicsTypeError, "position x must be a number"),
+    ({"position": (0.2, 0.0, 0.05), "yaw_deg": "45"}, KinematicsTypeError, "yaw_deg"),
     ({"position": (0.2, 0.0, 0.05), "gripper": math.nan}, fk.KinematicsInputError,
      r"gripper must be a finite number in \[0, 100\]"),
     ({"position": (0.2, 0.0, 0.05), "gripper": 500}, fk.KinematicsInputError,
@@ -370,8 +376,8 @@ def test_ik_refuses_malformed_arguments_with_a_project_error(kwargs, error, matc
         ik.get_inverse_kinematics(**kwargs)
 
 
-@pytest.mark.parametrize("chunk, error", [(2.5, fk.KinematicsTypeError),
-                                          (True, fk.KinematicsTypeError),
+@pytest.mark.parametrize("chunk, error", [(2.5, KinematicsTypeError),
+                                          (True, KinematicsTypeError),
                                           (0, fk.KinematicsInputError)])
 def test_batch_chunk_must_be_a_whole_number(chunk, error):
     with pytest.raises(error, match="chunk must be a whole number >= 1"):
@@ -382,7 +388,7 @@ def test_batch_chunk_must_be_a_whole_number(chunk, error):
                                     [[0.0] * 4 + ["x"]],
                                     np.zeros((2, 5), dtype=bool)])
 def test_batch_refuses_non_numbers(angles):
-    with pytest.raises(fk.KinematicsTypeError):
+    with pytest.raises(KinematicsTypeError):
         fk.get_forward_kinematics_batch(angles)
 
 
@@ -475,14 +481,14 @@ def test_fk_script_checks_its_outputs_before_the_hold(tmp_path, capsys, monkeypa
 
 
 # --- options that do nothing alone, durations that cannot be followed (issue 28) -----------
-def test_report_without_compare_is_refused_before_anything_runs(tmp_path, capsys, monkeypatch):
+def test_the_moved_report_is_refused_before_anything_runs(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(pick_place_sim, "run_pick_place", lambda *a, **k: pytest.fail("ran"))
     monkeypatch.chdir(tmp_path)
     figure = tmp_path / "figure.png"
     code, err = run_sim(capsys, ["--report", str(figure)])
     assert code == 2
     line = one_line_error(err)
-    assert "--report works only with --compare" in line and "Fix:" in line
+    assert "--report moved to the so101 command" in line and "Fix: run `so101 compare" in line
     assert list(tmp_path.iterdir()) == []  # no figure, no video
 
 

@@ -14,7 +14,11 @@ import so101_inverse_kinematics as ik
 import so101_kinematics.planning.cartesian_plan as cp
 import so101_kinematics.planning.plans as plans
 from so101_forward_kinematics import ARM_JOINTS, JOINTS, get_forward_kinematics, get_gw1
+from so101_kinematics.constants import CUBE_HALF_SIZE
 from so101_kinematics.errors import PlanError
+from so101_kinematics.frames import JOINT_LIMITS, JOINT_RANGES_RAD
+from so101_kinematics.ik.geometry import MIN_HEIGHT, get_jacobian
+from so101_kinematics.ik.solver import sample_top_down_targets
 
 POSITION_TOL = 1e-6   # [m], the issue's acceptance
 ANGLE_TOL = 1e-6      # [rad]
@@ -44,14 +48,14 @@ def tilt(rotation, wanted=UP) -> float:
 
 def assert_in_limits(cfg):
     for joint in ARM_JOINTS:
-        lower, upper = ik.JOINT_LIMITS[joint]
+        lower, upper = JOINT_LIMITS[joint]
         assert lower <= cfg[joint] <= upper, f"{joint} = {cfg[joint]} outside [{lower}, {upper}]"
 
 
 def random_configurations(n: int, seed: int) -> np.ndarray:
     rng = np.random.default_rng(seed)
-    lower = [ik.JOINT_LIMITS[j][0] for j in ARM_JOINTS]
-    upper = [ik.JOINT_LIMITS[j][1] for j in ARM_JOINTS]
+    lower = [JOINT_LIMITS[j][0] for j in ARM_JOINTS]
+    upper = [JOINT_LIMITS[j][1] for j in ARM_JOINTS]
     return rng.uniform(lower, upper, size=(n, len(ARM_JOINTS)))
 
 
@@ -61,8 +65,8 @@ def test_joint_limits_are_the_models(model):
 
     model_limits = joint_limits(model)
     for joint in ARM_JOINTS:
-        assert ik.JOINT_LIMITS[joint] == pytest.approx(model_limits[joint], abs=1e-12)
-        assert ik.JOINT_RANGES_RAD[joint] == pytest.approx(tuple(model.joint(joint).range), abs=0)
+        assert JOINT_LIMITS[joint] == pytest.approx(model_limits[joint], abs=1e-12)
+        assert JOINT_RANGES_RAD[joint] == pytest.approx(tuple(model.joint(joint).range), abs=0)
 
 
 def test_solving_does_not_import_mujoco():
@@ -94,7 +98,7 @@ def test_closed_form_is_exact_without_refinement(monkeypatch):
 
     monkeypatch.setattr(refine, "_refine", no_refinement)  # both places that call it
     monkeypatch.setattr(solver, "_refine", no_refinement)
-    _, positions, yaws = ik.sample_top_down_targets(3000, seed=11)
+    _, positions, yaws = sample_top_down_targets(3000, seed=11)
     assert len(positions) > 100
     for position, yaw in zip(positions[:200], yaws[:200], strict=True):
         cfg = ik.get_inverse_kinematics(position, approach="down", yaw_deg=float(yaw))
@@ -111,7 +115,7 @@ def table_grid(height: float, step: float = 0.02):
     return [(x, y, height) for x in xs for y in ys]
 
 
-@pytest.mark.parametrize("height", [ik.CUBE_HALF_SIZE, 0.06])
+@pytest.mark.parametrize("height", [CUBE_HALF_SIZE, 0.06])
 def test_top_down_round_trip_over_the_table(height):
     """FK(IK(p)) = p and the approach is vertical with the asked yaw, over a grid of the table."""
     rng = np.random.default_rng(7)
@@ -122,7 +126,7 @@ def test_top_down_round_trip_over_the_table(height):
             cfg = ik.get_inverse_kinematics(point, approach="down", yaw_deg=yaw)
         except ik.UnreachableError:
             # On the table, the course's working area (the ring below) is all reachable.
-            assert height > ik.CUBE_HALF_SIZE or not in_working_ring(point), point
+            assert height > CUBE_HALF_SIZE or not in_working_ring(point), point
             continue
         solved += 1
         assert_in_limits(cfg)
@@ -149,7 +153,7 @@ def test_a_ring_around_the_base_is_reachable_top_down():
     for _ in range(300):
         radius, azimuth = rng.uniform(0.14, 0.26), math.radians(rng.uniform(-100.0, 100.0))
         point = (*(centre + radius * np.array([math.cos(azimuth), math.sin(azimuth)])),
-                 ik.CUBE_HALF_SIZE)
+                 CUBE_HALF_SIZE)
         cfg = ik.get_inverse_kinematics(point, approach="down", yaw_deg=None)
         position, rotation = get_forward_kinematics(cfg)
         assert np.abs(position - point).max() < POSITION_TOL
@@ -158,7 +162,7 @@ def test_a_ring_around_the_base_is_reachable_top_down():
 
 # --- Targets known to be reachable: FK of random in-limit configurations -----------------
 def test_every_reachable_top_down_target_is_solved():
-    angles, positions, yaws = ik.sample_top_down_targets(20000, seed=1)
+    angles, positions, yaws = sample_top_down_targets(20000, seed=1)
     assert len(positions) > 400
     for angle, position, yaw in zip(angles, positions, yaws, strict=True):
         for wanted_yaw in (float(yaw), None):
@@ -175,7 +179,7 @@ def test_every_reachable_top_down_target_is_solved():
 def test_every_reachable_position_is_solved():
     for angles in random_configurations(4000, seed=2):
         position, _ = get_forward_kinematics(cfg_from(angles))
-        if position[2] < ik.MIN_HEIGHT:
+        if position[2] < MIN_HEIGHT:
             continue
         cfg = ik.get_inverse_kinematics(position, approach=None)
         assert_in_limits(cfg)
@@ -189,7 +193,7 @@ def test_every_reachable_pitched_target_is_solved():
     for angles in random_configurations(3000, seed=4):
         cfg = cfg_from(angles)
         position, rotation = get_forward_kinematics(cfg)
-        if position[2] < ik.MIN_HEIGHT:
+        if position[2] < MIN_HEIGHT:
             continue
         arm_pitch = angles[1] + angles[2] + angles[3]
         heading = np.array([math.cos(math.radians(angles[0])), -math.sin(math.radians(angles[0]))])
@@ -268,7 +272,7 @@ def test_position_only_too_far():
 
 def test_below_the_table():
     with pytest.raises(ik.UnreachableError, match=r"5\.0 mm below") as error:
-        ik.get_inverse_kinematics((0.25, 0.0, ik.MIN_HEIGHT - 0.005))
+        ik.get_inverse_kinematics((0.25, 0.0, MIN_HEIGHT - 0.005))
     assert error.value.reason == "below_table"
     assert error.value.distance == pytest.approx(0.005)
     cfg = ik.get_inverse_kinematics((0.25, 0.0, 0.005), min_height=0.0)  # allowed when asked
@@ -309,7 +313,7 @@ def test_joint_limit_names_joint_value_and_limit():
         ik.get_inverse_kinematics((0.07, 0.0, 0.013))
     assert error.value.reason == "joint_limit"
     assert error.value.joint in str(error.value)
-    limits = ik.JOINT_LIMITS[error.value.joint]
+    limits = JOINT_LIMITS[error.value.joint]
     printed = [f"{limit:.5f}".rstrip("0").rstrip(".") for limit in limits]  # to 5 decimals
     assert any(f"beyond its limit {text} deg" in str(error.value) for text in printed)
 
@@ -343,7 +347,7 @@ def test_jacobian_matches_finite_differences_of_the_fk():
     step = 1e-6  # [rad]
     for angles in random_configurations(25, seed=5):
         cfg = cfg_from(angles)
-        jac = ik.get_jacobian(cfg)
+        jac = get_jacobian(cfg)
         assert jac.shape == (6, 5)
         _, rotation = get_forward_kinematics(cfg)
         for j, joint in enumerate(ARM_JOINTS):
@@ -372,7 +376,7 @@ def test_jacobian_matches_mujoco(model, data):
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
         mujoco.mj_jacSite(model, data, jacp, jacr, site)
-        jac = ik.get_jacobian(cfg_from(angles))
+        jac = get_jacobian(cfg_from(angles))
         np.testing.assert_allclose(jac[:3], jacp[:, dofs], atol=1e-12)
         np.testing.assert_allclose(jac[3:], jacr[:, dofs], atol=1e-12)
 
@@ -392,7 +396,7 @@ def test_cartesian_plan_has_the_default_plans_waypoints():
     assert timing == [(s.duration, s.hold) for s in default.steps]
     assert plan.return_to_start == default.return_to_start
     assert plan.return_duration == default.return_duration
-    plans.validate_plan(plan, {**ik.JOINT_LIMITS, "gripper": (0.0, 100.0)})
+    plans.validate_plan(plan, {**JOINT_LIMITS, "gripper": (0.0, 100.0)})
     for step in plan.steps:
         assert list(step.configuration) == list(JOINTS)
 

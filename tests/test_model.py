@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from conftest import REPO
 
-from so101_forward_kinematics import BODY_OF_FRAME, JOINTS, TOOL_SITE
+from so101_forward_kinematics import JOINTS, TOOL_SITE
+from so101_kinematics.frames import BODY_OF_FRAME
 from so101_kinematics.gravity import holding_torques
 from so101_kinematics.sim.meshes import read_manifest
 

@@ -105,7 +105,7 @@ def mp4_bytes(comment: bytes) -> bytes:
 @pytest.mark.parametrize("kind, ours, theirs", [
     (PNG, png_bytes("so101-kinematics pick_place_hw.py --plot"), png_bytes(None)),
     (PNG, png_bytes("so101-kinematics x"), png_bytes("GIMP 2.10")),
-    (PDF, pdf_bytes("so101-kinematics pick_place_hw.py --sheet"), pdf_bytes(None)),
+    (PDF, pdf_bytes("so101-kinematics so101 sheet"), pdf_bytes(None)),
     (PDF, pdf_bytes("so101-kinematics x"), b"%!PS-Adobe-3.0\n"),
     (MP4, mp4_bytes(b"so101-kinematics video"), mp4_bytes(b"Lavf60 imageio")),
     (MP4, mp4_bytes(b"so101-kinematics video"), b"RIFF\x00\x00\x00\x00AVI LIST"),
@@ -210,11 +210,11 @@ def test_sim_compare_report_refuses_a_file_that_is_not_a_png(tmp_path):
     log.write_text("t_s\n")
     figure = tmp_path / "figure.png"
     figure.write_text("a drawing in another format\n")
-    done = run("pick_place_sim.py", "--compare", log, "--report", figure)
+    done = run("-m", "so101_kinematics", "compare", log, "--report", figure)
     assert_refused(done, "--report", figure, figure.read_bytes())
 
 
-# --- pick_place_hw.py --log / --plot / --sheet ----------------------------------------------
+# --- pick_place_hw.py --log / --plot, so101 sheet ----------------------------------------------
 def test_hw_log_refuses_a_calibration_file_in_the_dry_run(tmp_path):
     calibration = tmp_path / "other_arm.json"
     shutil.copy(next(CALIBRATION.rglob("*.json")), calibration)
@@ -249,13 +249,13 @@ def test_hw_log_sidecar_is_checked_too(tmp_path):
 
 def test_hw_sheet_replaces_its_own_pdf_and_nothing_else(tmp_path):
     sheet = tmp_path / "sheet.pdf"
-    assert run("pick_place_hw.py", "--sheet", sheet).returncode == 0
+    assert run("-m", "so101_kinematics", "sheet", sheet).returncode == 0
     assert sheet.read_bytes().startswith(b"%PDF-")
-    done = run("pick_place_hw.py", "--sheet", sheet, "--paper", "letter")
+    done = run("-m", "so101_kinematics", "sheet", sheet, "--paper", "letter")
     assert done.returncode == 0, done.stderr
     sheet.write_text("my own notes\n")
-    done = run("pick_place_hw.py", "--sheet", sheet)
-    assert done.returncode == 2 and "--sheet" in done.stderr and "--overwrite" in done.stderr
+    done = run("-m", "so101_kinematics", "sheet", sheet)
+    assert done.returncode == 2 and "so101 sheet" in done.stderr and "--overwrite" in done.stderr
     assert sheet.read_text() == "my own notes\n"
 
 
@@ -365,8 +365,8 @@ def test_hw_sheet_keeps_the_courses_handout(tmp_path):
     handout = tmp_path / "assignment8.pdf"
     handout.write_bytes(pdf_bytes(None))  # a PDF matplotlib wrote for someone else
     before = handout.read_bytes()
-    done = run("pick_place_hw.py", "--sheet", handout)
-    assert_refused(done, "--sheet", handout, before)
+    done = run("-m", "so101_kinematics", "sheet", handout)
+    assert_refused(done, "so101 sheet", handout, before)
 
 
 def test_sim_json_keeps_another_scripts_report(tmp_path):

@@ -1,4 +1,4 @@
-"""The placement sheet (pick_place_hw.py --sheet): measured on the PDF's own vector drawing.
+"""The placement sheet (so101 sheet): measured on the PDF's own vector drawing.
 
 The PDF is parsed here (its content streams, in points of 1/72 inch): the cube
 squares, the scale bar and the origin are found by their colours and measured
@@ -16,6 +16,7 @@ import pytest
 
 import pick_place_hw
 from so101_forward_kinematics import get_forward_kinematics, get_gw1
+from so101_kinematics.commands import so101_command
 from so101_kinematics.lab.sheet import CUBE_COLOR, ORIGIN_COLOR, PAN_AXIS_COLOR, SCALE_BAR_COLOR
 from so101_kinematics.planning.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION
 
@@ -82,7 +83,7 @@ def squares(stream):
 
 def make_sheet(tmp_path, *args):
     out = tmp_path / "sheet.pdf"
-    assert pick_place_hw.main(["--sheet", str(out), *args]) == 0
+    assert so101_command.main(["sheet", str(out), *args]) == 0
     return out
 
 
@@ -145,8 +146,8 @@ def test_on_one_page_the_squares_sit_at_their_positions_from_the_origin(tmp_path
 
 def test_a_sheet_needs_a_pdf_name_and_leaves_an_existing_file_when_refused(tmp_path, capsys):
     out = tmp_path / "sheet.txt"
-    assert pick_place_hw.main(["--sheet", str(out)]) == 2
-    assert "--sheet" in capsys.readouterr().err and not out.exists()
+    assert so101_command.main(["sheet", str(out)]) == 2
+    assert "so101 sheet" in capsys.readouterr().err and not out.exists()
 
 
 def test_the_pan_axis_is_marked_38_8_mm_in_front_of_the_origin_as_printed(tmp_path):
@@ -202,9 +203,10 @@ def test_the_stacking_sheets_labels_stay_inside_the_drawing_of_their_page(tmp_pa
                                                    "stack (2 blocks)"}
 
 
-def test_paper_without_sheet_is_refused_in_one_line(capsys):
-    """Issue 28: an option that does nothing alone is refused, before anything runs."""
-    assert pick_place_hw.main(["--dry-run", "--paper", "letter"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert err == ["Refused, nothing moved: --paper works only with --sheet: alone it does "
-                   "nothing (nothing was run). Fix: add --sheet, or leave out --paper."]
+def test_the_old_sheet_options_are_refused_in_one_line_with_the_new_spelling(capsys):
+    """Issue 35: --sheet and --paper moved to `so101 sheet`; the old spelling says so."""
+    for old in (["--sheet", "s.pdf"], ["--dry-run", "--paper", "letter"]):
+        assert pick_place_hw.main(old) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "moved to the so101 command" in err[0]
+        assert "Fix: run `so101 sheet PATH.pdf" in err[0]

@@ -1,4 +1,4 @@
-"""pick_place_sim.py --compare with one log per profile: tracking and smoothness, arm and sim.
+"""so101 compare with one log per profile: tracking and smoothness, arm and sim.
 
 The metrics against hand calculations on synthetic trajectories; the table from
 synthetic logs (written as pick_place_hw.py --log writes them, replayed in MuJoCo: a
@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pytest
 
-import pick_place_sim
+from so101_kinematics.commands import so101_command
 from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.frames import JOINTS
 from so101_kinematics.hw.log import HEADER, sidecar_path
@@ -204,8 +204,8 @@ def test_a_log_of_another_plan_is_flagged(tmp_path):
 def test_one_log_keeps_todays_report_and_adds_its_profile(tmp_path, capsys):
     log = write_log(tmp_path / "run.csv")
     out = tmp_path / "report.json"
-    assert pick_place_sim.main(["--compare", str(log), "--report", str(tmp_path / "r.png"),
-                                "--json", str(out)]) == 0
+    assert so101_command.main(["compare", str(log), "--report", str(tmp_path / "r.png"),
+                               "--json", str(out)]) == 0
     report = json.loads(out.read_text())
     assert {"max_tracking_error_deg", "sim_vs_arm_rms_deg", "pick_position_error_mm",
             "notes"} <= set(report)
@@ -218,8 +218,8 @@ def test_one_log_keeps_todays_report_and_adds_its_profile(tmp_path, capsys):
 def test_several_logs_write_the_table_and_the_figure(tmp_path, capsys):
     logs = [write_log(tmp_path / "linear.csv", "linear"), write_log(tmp_path / "cubic.csv")]
     out, figure = tmp_path / "profiles.json", tmp_path / "profiles.png"
-    assert pick_place_sim.main(["--compare", *map(str, logs), "--report", str(figure),
-                                "--json", str(out)]) == 0
+    assert so101_command.main(["compare", *map(str, logs), "--report", str(figure),
+                               "--json", str(out)]) == 0
     assert figure.read_bytes().startswith(b"\x89PNG")
     report = json.loads(out.read_text())
     assert list(report["profiles"]) == ["linear", "cubic"] and report["plans_differ"] is False
@@ -230,8 +230,8 @@ def test_several_logs_write_the_table_and_the_figure(tmp_path, capsys):
 def test_a_missing_log_is_one_line_and_exit_2(tmp_path, capsys):
     good = write_log(tmp_path / "good.csv")
     figure = tmp_path / "profiles.png"
-    code = pick_place_sim.main(["--compare", str(good), str(tmp_path / "missing.csv"),
-                                "--report", str(figure)])
+    code = so101_command.main(["compare", str(good), str(tmp_path / "missing.csv"),
+                               "--report", str(figure)])
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1
     assert "missing.csv" in err and "Fix:" in err
@@ -255,8 +255,8 @@ def test_a_log_that_starts_past_a_limit_is_replayed_from_the_limit(tmp_path, cap
     logs = [write_log(tmp_path / "slumped.csv", rest=SLUMPED),
             write_log(tmp_path / "cubic.csv")]
     out = tmp_path / "profiles.json"
-    assert pick_place_sim.main(["--compare", *map(str, logs), "--report",
-                                str(tmp_path / "p.png"), "--json", str(out)]) == 0
+    assert so101_command.main(["compare", *map(str, logs), "--report",
+                               str(tmp_path / "p.png"), "--json", str(out)]) == 0
     report = json.loads(out.read_text())
     assert [run["log"].rsplit("/", 1)[-1] for run in report["profiles"]["cubic"]] == \
         ["slumped.csv", "cubic.csv"]
@@ -316,8 +316,8 @@ def test_an_aborted_run_is_marked_and_not_pooled(tmp_path, capsys, record_reason
     logs = [write_log(tmp_path / "a.csv"),
             write_aborted_log(tmp_path / "b.csv", record_reason), write_log(tmp_path / "c.csv")]
     out = tmp_path / "profiles.json"
-    assert pick_place_sim.main(["--compare", *map(str, logs), "--report",
-                                str(tmp_path / "p.png"), "--json", str(out)]) == 0
+    assert so101_command.main(["compare", *map(str, logs), "--report",
+                               str(tmp_path / "p.png"), "--json", str(out)]) == 0
     table = capsys.readouterr().out
     report = json.loads(out.read_text())
     runs = {run["log"].rsplit("/", 1)[-1]: run for run in report["profiles"]["cubic"]}
@@ -351,8 +351,8 @@ def test_the_sag_printed_is_the_simulators_with_the_table(tmp_path, capsys):
     log = write_log(tmp_path / "run.csv", plan=plan_record(plan),
                     servo={"gravity_ff": True, "supply_v": 5.0, "p": 16})
     out = tmp_path / "report.json"
-    assert pick_place_sim.main(["--compare", str(log), "--report", str(tmp_path / "r.png"),
-                                "--json", str(out)]) == 0
+    assert so101_command.main(["compare", str(log), "--report", str(tmp_path / "r.png"),
+                               "--json", str(out)]) == 0
     report = json.loads(out.read_text())
     pick = pick_and_place_steps(plan)[0].configuration
     free_air = {j: -v for j, v in feedforward(pick, LEROBOT.with_(p=16), 5.0).items()}
@@ -397,8 +397,8 @@ def test_two_profiles_run_on_the_virtual_arm_compare(tmp_path):
                                        str(plan_path), "--profile", profile,
                                        "--log", str(logs[-1])]) == 0
     out = tmp_path / "profiles.json"
-    assert pick_place_sim.main(["--compare", *map(str, logs), "--report",
-                                str(tmp_path / "profiles.png"), "--json", str(out)]) == 0
+    assert so101_command.main(["compare", *map(str, logs), "--report",
+                               str(tmp_path / "profiles.png"), "--json", str(out)]) == 0
     report = json.loads(out.read_text())
     assert list(report["profiles"]) == ["linear", "cubic"] and not report["plans_differ"]
     for profile in ("linear", "cubic"):

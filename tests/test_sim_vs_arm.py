@@ -1,4 +1,4 @@
-"""pick_place_sim.py --compare: a hardware log replayed in the simulator (the virtual arm's run)."""
+"""so101 compare: a hardware log replayed in the simulator (the virtual arm's run)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import pick_place_hw
-import pick_place_sim
 from so101_forward_kinematics import get_forward_kinematics
+from so101_kinematics.commands import so101_command
 from so101_kinematics.frames import ARM_JOINTS
 from so101_kinematics.hw.log import sidecar_path
 from so101_kinematics.planning.plans import FINAL_CONFIGURATION, STARTING_CONFIGURATION
@@ -49,8 +49,8 @@ def led_log(tmp_path_factory):
 
 def compare(log, tmp_path):
     report, out = tmp_path / "report.png", tmp_path / "report.json"
-    assert pick_place_sim.main(["--compare", str(log), "--report", str(report),
-                                "--json", str(out)]) == 0
+    assert so101_command.main(["compare", str(log), "--report", str(report),
+                               "--json", str(out)]) == 0
     assert report.read_bytes().startswith(b"\x89PNG")
     return json.loads(out.read_text())
 
@@ -234,8 +234,8 @@ def test_a_lab_days_logs_compare_though_the_arm_slumps_past_a_limit(tmp_path, ca
     assert past, "no start past a limit: the virtual arm no longer slumps there (see above)"
     capsys.readouterr()
     out = tmp_path / "day.json"
-    assert pick_place_sim.main(["--compare", *map(str, logs), "--report",
-                                str(tmp_path / "day.png"), "--json", str(out)]) == 0
+    assert so101_command.main(["compare", *map(str, logs), "--report",
+                               str(tmp_path / "day.png"), "--json", str(out)]) == 0
     report = json.loads(out.read_text())
     assert sum(len(runs) for runs in report["profiles"].values()) == 3
     for (name, joint), by in past.items():

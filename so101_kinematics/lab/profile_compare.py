@@ -3,7 +3,7 @@
 For the write-up of assignment 9 ("tracking performance, smoothness of motion", cubic
 against linear, in simulation and on hardware): a student runs the arm once per
 profile with a log (``pick_place_hw.py --profile cubic --log cubic.csv``) and gives the
-logs to ``pick_place_sim.py --compare``. Each log is replayed in the simulator
+logs to ``so101 compare``. Each log is replayed in the simulator
 (``lab/sim_vs_arm.py``: the run's own commands, which are its profile's samples, from its
 measured start, on its servo settings), and :func:`compare_profiles` puts, per log,
 the arm's figures and the replay's side by side (``motion_metrics.metrics`` on the

@@ -281,7 +281,7 @@ def write_sheet(plan: Plan, path: str | Path, paper: str = "a4",
     window = tuple(v / 10.0 for v in _window_mm(page))
     marks = alignment_marks(us, vs, window)
     with atomic_output(path) as temporary, PdfPages(
-            temporary, metadata=pdf_metadata("pick_place_hw.py --sheet")) as pdf:
+            temporary, metadata=pdf_metadata("so101 sheet")) as pdf:
         for r, v0 in enumerate(vs):
             for c, u0 in enumerate(us):
                 fig = _page(page, (u0, v0), window, cubes, marks, source,

@@ -143,10 +143,10 @@ def read_log(path: str | Path) -> tuple[list[dict[str, str]], dict]:
             rows = list(reader)
             missing = [c for c in COLUMNS if c not in (reader.fieldnames or ())]
     except (OSError, ValueError, csv.Error) as error:
-        raise LogError(f"--compare {path}: cannot read the log ({error}). Fix: give a CSV "
+        raise LogError(f"so101 compare {path}: cannot read the log ({error}). Fix: give a CSV "
                        "written by pick_place_hw.py --log.") from None
     if missing:
-        raise LogError(f"--compare {path}: not a log of pick_place_hw.py (no column "
+        raise LogError(f"so101 compare {path}: not a log of pick_place_hw.py (no column "
                        f"{missing[0]!r}). Fix: give a CSV written by pick_place_hw.py --log.")
     try:
         info = json.loads(sidecar_path(path).read_text(encoding="utf-8"))
@@ -291,7 +291,7 @@ def compare_run(path: str | Path) -> Comparison:
     raw, info = read_log(path)
     rows, broken = usable_rows(raw)
     if not rows:
-        raise LogError(f"--compare {path}: the log has no cycle with a measured pose (the run "
+        raise LogError(f"so101 compare {path}: the log has no cycle with a measured pose (the run "
                        "was refused before it moved?). Fix: give the log of a run that moved.")
     notes = []
     if broken:
@@ -397,6 +397,6 @@ def draw_report(result: Comparison, path: str | Path, title: str = "") -> Path:
     fig.tight_layout()
     with atomic_output(path) as temporary:
         fig.savefig(temporary, dpi=90, format="png",
-                    metadata=png_metadata("pick_place_sim.py --compare --report"))
+                    metadata=png_metadata("so101 compare --report"))
     plt.close(fig)
     return Path(path)
