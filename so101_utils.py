@@ -75,7 +75,7 @@ def setup_motors(calibration, port, offset_config=None, gravity_ff=True):
         offset_config: optional trims, joint -> [deg] added to every goal (a
             dict, a JSON/TOML trim file, or an ``offset_config(config)`` function).
         gravity_ff: offset each goal by the sag gravity causes at P = 16 (default
-            on; ``False`` shows the raw sag). README, "What the real arm does".
+            on; ``False`` shows the raw sag). See docs/servo.md.
 
     Returns:
         lerobot's ``FeetechMotorsBus``, connected, arm joints in [deg], gripper 0-100,
@@ -111,7 +111,7 @@ def move_to_pose(bus, *args, desired_position=MISSING, duration=MISSING, velocit
         velocity_ff: the week-9 workaround for a velocity on the real arm: each goal
             sent leads the plan by the servo's lag (0.1 s at P = 16 on 5 V) times the
             planned velocity, at most 10 deg, never past the move's goal
-            (``so101_kinematics/hw/lead.py``; README, "Velocity on the real arm").
+            (``so101_kinematics/hw/lead.py``; docs/trajectories.md, "Velocity on the real arm").
     """
     course_move_to_pose(bus, *args, desired_position=desired_position, duration=duration,
                         velocity_ff=velocity_ff)

@@ -117,7 +117,7 @@ course's), shown as a translucent red cube; the arm reaches it with a top-down
 grasp solved by get_inverse_kinematics, then holds. A target counts as reached
 when the object frame ends within {SERVO_POSITION_TOLERANCE * 1e3:g} mm of the cube's centre and its
 yaw within {SERVO_YAW_TOLERANCE:g} deg of the cube's (modulo 90 deg: a cube's sides are alike): the
-measured STS3215 rests anywhere in its friction band (README, "What the real arm does"); with
+measured STS3215 rests anywhere in its friction band (docs/servo.md); with
 --servo ideal, {POSITION_TOLERANCE * 1e3:g} mm and {YAW_TOLERANCE:g} deg.
 
 Modes: with a display, the interactive viewer (real time); --headless or no

@@ -202,8 +202,8 @@ Profiles: direct (the goal at once: the page's "direct position commands"), line
 course's move_to_pose), cubic (assignment 9's move_to_pose_cubic), quintic (zero end
 acceleration too; the same polynomial as minimum_jerk, this project's default).
 
-Without --velocity: the measured STS3215 at lerobot's settings (README, "What the real arm
-does"). With it: model/scene_with_velocity.xml, the course's gains, each profile's
+Without --velocity: the measured STS3215 at lerobot's settings (docs/servo.md, what
+the real arm does). With it: model/scene_with_velocity.xml, the course's gains, each profile's
 velocity fed to the velocity actuators; --velocity-scene: the same scene, velocities 0.
 
 Modes: with a display, the interactive viewer (real time); --headless or no display: no

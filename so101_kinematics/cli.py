@@ -221,8 +221,8 @@ def add_gravity_ff_argument(parser: argparse.ArgumentParser) -> None:
     """``--gravity-ff`` / ``--no-gravity-ff`` (default on): every script that moves the arm."""
     parser.add_argument("--gravity-ff", action=argparse.BooleanOptionalAction, default=True,
                         help="offset each goal by the sag gravity will cause there (the "
-                        "servo's holding error at its P and supply; README, 'What the real arm "
-                        "does'); --no-gravity-ff shows the raw sag (default on)")
+                        "servo's holding error at its P and supply; docs/servo.md); "
+                        "--no-gravity-ff shows the raw sag (default on)")
 
 
 def add_servo_arguments(parser: argparse.ArgumentParser) -> None:
@@ -230,7 +230,7 @@ def add_servo_arguments(parser: argparse.ArgumentParser) -> None:
 
     :func:`servo_from_arguments` turns them into ``use_servo``'s keywords.
     """
-    group = parser.add_argument_group("servo (README, 'What the real arm does')")
+    group = parser.add_argument_group("servo (docs/servo.md: what the real arm does)")
     group.add_argument("--servo", choices=servo.SIMULATED_SERVOS, default="sts3215",
                        help="sts3215: the measured servo at lerobot's settings (P 16, D 32, "
                        "Acceleration 254); ideal: the upstream model's kp = 998 servo, about "

@@ -53,7 +53,7 @@ DIAGRAM_DROPS = {("12", 1), ("34", 1), ("45", 2)}
 """Offsets the course's FK diagram rounds away (with the gripper mount's tilt)."""
 
 TOOL_POINTS = {
-    "this package's object frame (the centre of a held 26 mm cube, README 'The object frame')":
+    "this package's object frame (the centre of a held 26 mm cube, docs/fk.md, 'The object frame')":
         FIXED_TRANSFORMS["5t"][0],
     "the course diagram's tool point (0, 0, -0.1034)": (0.0, 0.0, -0.1034),
     "the upstream model's gripperframe site (the fixed jaw's tip)":
@@ -64,7 +64,7 @@ TOOL_POINTS = {
 _AXIS = {"x": Rx, "y": Ry, "z": Rz}
 _TILT_HINT = ("the gripper mount is tilted in the model (GRIPPER_MOUNT_TILT_DEG = "
               f"{GRIPPER_MOUNT_TILT_DEG:.2f} deg, from the upstream quaternion); see the "
-              "README's FK table")
+              "FK table in docs/fk.md")
 
 
 def rotation_angle_deg(rotation: np.ndarray) -> float:

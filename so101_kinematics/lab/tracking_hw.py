@@ -16,7 +16,8 @@ STS3215 model (``sim/sts3215.py``, lerobot's P = 16, the kit's 5 V):
 
 :func:`tracking_figures` judges every run against the same plan: the measured arm
 joints against the planned position of the same cycle, over the moves.
-``python -m so101_kinematics.lab.tracking_hw`` prints the README's table.
+``python -m so101_kinematics.lab.tracking_hw`` prints the table of docs/trajectories.md
+("Velocity on the real arm").
 """
 
 from __future__ import annotations
@@ -203,7 +204,7 @@ def measure(mode: str, plan: Plan | None = None, profile: str = "cubic",
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Print the README's table (and write ``--json PATH``)."""
+    """Print docs/trajectories.md's table (and write ``--json PATH``)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--profile", default="cubic", choices=sorted(PROFILES))
     parser.add_argument("--json", help="write the figures there too")

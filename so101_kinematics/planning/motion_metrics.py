@@ -29,7 +29,7 @@ of acceleration (a cubic's start) or of velocity (linear's) over its width, so a
 profile's peaks are read at the window's resolution: 0.4 s, a fifth of the course's
 2 s moves. On the virtual arm at 0.3 s the
 arm's peak jerk of a minimum-jerk run came out twice the simulator's (the counts); at
-0.4 s they agree within 10 % (README, "Trajectories"). Only figures taken with the same
+0.4 s they agree within 10 % (docs/trajectories.md). Only figures taken with the same
 window compare.
 """
 
