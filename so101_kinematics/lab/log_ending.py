@@ -1,6 +1,6 @@
 """How a hardware run ended, read from its log: ran its plan to the end, or aborted.
 
-``--compare`` marks an aborted run and keeps it apart from the complete ones: its
+``so101 compare`` marks an aborted run and keeps it apart from the complete ones: its
 figures end at the stop and do not measure the profile as a whole run does, so its
 spread against a complete run is not the run-to-run variation.
 

@@ -1,4 +1,4 @@
-"""The sag ``--compare`` reports at the pick and the place: the simulator's, table included.
+"""The sag ``so101 compare`` reports at the pick and the place: the simulator's, table included.
 
 Without the gravity feed-forward a joint holds its load only by erring from its goal
 (``gravity.feedforward``: the free-air figure). At a low pose the jaw comes down onto
