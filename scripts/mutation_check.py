@@ -543,6 +543,14 @@ MUTANTS: list[Mutant] = [
     m("docs_example_drifts", "a docs page's IK example calls an approach the IK does not have",
       "docs/ik.md", None, 'get_inverse_kinematics(p, approach=None)',
       'get_inverse_kinematics(p, approach="sideways")', "tests/docs/test_code_blocks.py"),
+    m("docs_command_help_drifts", "the so101 command's help changes and its page keeps the old "
+      "usage block", "so101_kinematics/commands/so101_command.py", "build_parser",
+      'help="the placement sheet of a plan (PDF, print at 100 %%); no arm needed"',
+      'help="the placement sheet of a plan (PDF); no arm needed"',
+      "tests/docs/test_so101_command_page.py::test_the_usage_block_is_the_commands_help"),
+    m("docs_module_unlisted", "a module of the package goes missing from the architecture "
+      "page's table", "docs/architecture.md", None, " `sim_arm` | MuJoCo |", " | MuJoCo |",
+      "tests/docs/test_architecture_page.py::test_every_module_is_on_the_architecture_page"),
     m("cube_sensor_stale", "the cube sensor keeps its first reading (the gripper is sent where "
       "the cube was)", "so101_kinematics/sensors/cube_reader.py", "CubeSensor.read",
       "data = self._read_block(SENSOR_ID, address(self.index), SIZE)",
