@@ -47,7 +47,7 @@ START_TOLERANCE_M = 0.0005
 (sampling and rounding), no more."""
 
 # The collision boxes of model/so101.xml: body frame -> (geom name, centre [m], half sizes [m]),
-# axis-aligned in the body frame (tests/test_clearance.py checks them against the model).
+# axis-aligned in the body frame (tests/core/test_clearance.py checks them against the model).
 LINK_BOXES = {
     "1": (("shoulder_box", (-0.0192, 0.0012, -0.0091), (0.0314, 0.0276, 0.0553)),),
     "2": (("upper_arm_box", (-0.0591, -0.0003, 0.0202), (0.0711, 0.0122, 0.0337)),

@@ -58,7 +58,7 @@ JOINT_RANGES_RAD = {
 }
 """Joint ranges [rad]: the ``range`` attributes of ``model/so101.xml`` (upstream
 ``so101_new_calib``), so that the IK and the real-arm path need no MuJoCo to know them;
-``tests/test_model.py`` checks they are the model's."""
+``tests/sim/test_model.py`` checks they are the model's."""
 
 GRIPPER_RANGE = (0.0, 100.0)
 """The gripper's user range [%]: 0 at its lower joint limit (closed), 100 at the upper (open)."""
