@@ -71,11 +71,14 @@ CAL, PICK = "so101_kinematics/calibration.py", "so101_kinematics/sim/pick_place.
 PROTOCOL = "so101_kinematics/virtual/protocol.py"
 MARKERS, OUTPUTS = "so101_kinematics/markers.py", "so101_kinematics/outputs.py"
 T_OUT = "tests/core/test_outputs.py"
-REGISTERS, T_SDK = "so101_kinematics/virtual/registers.py", "tests/virtual/test_virtual_feetech_sdk.py"
+REGISTERS = "so101_kinematics/virtual/registers.py"
+T_SDK = "tests/virtual/test_virtual_feetech_sdk.py"
 READINGS = "so101_kinematics/virtual/sensor_registers.py"
 T_CONTROL, T_RUN = "tests/hw/test_control.py", "tests/hw/test_hw_run.py"
-T_HW, T_IK = "tests/course_files/test_pick_place_hw.py", "tests/course_files/test_so101_inverse_kinematics.py"
-T_FK, T_SIM = "tests/course_files/test_so101_forward_kinematics.py", "tests/course_files/test_pick_place_sim.py"
+T_HW = "tests/course_files/test_pick_place_hw.py"
+T_IK = "tests/course_files/test_so101_inverse_kinematics.py"
+T_FK = "tests/course_files/test_so101_forward_kinematics.py"
+T_SIM = "tests/course_files/test_pick_place_sim.py"
 T_PROFILES = "tests/lab/test_profile_compare.py"
 T_LINE = "tests/planning/test_straight_line.py"
 LEAD, T_LEAD = "so101_kinematics/hw/lead.py", "tests/hw/test_lead.py"
@@ -161,7 +164,8 @@ MUTANTS: list[Mutant] = [
       "tests/course_files/test_so101_mujoco_utils.py"),
     m("sim_gripper_inverted", "the simulator's gripper 0-100 mapping inverted, both ways",
       SCENE, "gripper_to_radians", "return float(lower + (upper - lower) * percent / 100.0)",
-      "return float(upper - (upper - lower) * percent / 100.0)", "tests/course_files/test_so101_mujoco_utils.py",
+      "return float(upper - (upper - lower) * percent / 100.0)",
+      "tests/course_files/test_so101_mujoco_utils.py",
       more=(Edit(SCENE, "gripper_from_radians",
                  "return float((angle - lower) / (upper - lower) * 100.0)",
                  "return float((upper - angle) / (upper - lower) * 100.0)"),)),
@@ -514,7 +518,8 @@ MUTANTS: list[Mutant] = [
       "test_the_step_from_rest_does_not_overshoot_and_stops_short_as_the_arm_did"),
     m("c001_on_12_v_accepted", "a supply above the variant's Max_Voltage_Limit accepted",
       "so101_kinematics/servo.py", "supply_problem", "if volts <= chosen.max_volts:",
-      "if True:", "tests/core/test_cli_servo_options.py::test_a_c001_on_12_v_is_refused_with_the_fix"),
+      "if True:",
+      "tests/core/test_cli_servo_options.py::test_a_c001_on_12_v_is_refused_with_the_fix"),
     m("ideal_ignores_options", "--servo ideal silently ignores --supply/--variant/--p-coefficient",
       "so101_kinematics/cli.py", "servo_from_arguments", 'if args.servo == "ideal" and given:',
       "if False:",

@@ -90,7 +90,7 @@ def closure(seeds: set[str]) -> set[str]:
 
 
 def has_quick_tests(path: Path) -> bool:
-    """True when a test of the file is not marked ``slow`` (by itself or the module's pytestmark)."""
+    """True when a test of the file is not marked ``slow`` (itself or by its ``pytestmark``)."""
     body = ast.parse(path.read_text()).body
     for node in body:
         if isinstance(node, ast.Assign) and any(getattr(t, "id", "") == "pytestmark"
