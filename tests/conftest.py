@@ -107,3 +107,17 @@ def course_arm():
         yield virtual
         for run in list(course._RUNS.values()):
             course.end_at_start(run, "test teardown")
+
+
+def pytest_collection_modifyitems(config, items):
+    """One real-time virtual arm at a time under pytest-xdist (dev.sh: -n auto --dist loadgroup).
+
+    A virtual arm steps its MuJoCo arm on the wall clock in its own process, and lerobot's
+    bus waits on it in real time: two of them beside two test workers on two cores starve
+    each other (measured: broadcast pings that miss servos, holds read as drops). So every
+    test that runs one (marked hw, or in tests/virtual/) goes to one worker, in turn, while
+    the other workers run the simulated and fake-bus tests.
+    """
+    for item in items:
+        if item.get_closest_marker("hw") or item.path.parent.name == "virtual":
+            item.add_marker(pytest.mark.xdist_group("virtual_arm"))
