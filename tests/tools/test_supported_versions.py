@@ -114,8 +114,8 @@ def test_dev_sh_says_when_the_interpreter_cannot_run(tmp_path):
         "Python >=3.10,<3.14. Fix: install one and set PYTHON=python3.x"]
 
 
-def environment_key(tmp_path: Path, pyproject: str) -> str:
-    """The environment dev.sh would set up for ``pyproject`` (a copy of dev.sh beside it).
+def environment_key(tmp_path: Path, pyproject: str, job: str = "sim") -> str:
+    """The environment dev.sh's ``job`` would set up for ``pyproject`` (a copy of dev.sh beside it).
 
     A stand-in Python answers ``-V`` and the version check, then cannot build the
     environment: dev.sh names it ("Setting up ...") and stops there.
@@ -129,11 +129,11 @@ def environment_key(tmp_path: Path, pyproject: str) -> str:
     python.write_text('#!/bin/sh\n[ "$1" = "-V" ] && { echo "Python 3.11.7"; exit 0; }\n'
                       f'[ "$1" = "-c" ] && exec {sys.executable} "$@"\nexit 3\n')
     python.chmod(0o755)
-    run = subprocess.run([str(folder / "dev.sh"), "sim"], capture_output=True, text=True,
+    run = subprocess.run([str(folder / "dev.sh"), job], capture_output=True, text=True,
                          timeout=60, env={"PATH": "/usr/bin:/bin", "HOME": str(tmp_path),
                                           "PYTHON": str(python),
                                           "SO101_VENV_ROOT": str(tmp_path / "venvs")})
-    (name,) = re.findall(r"Setting up \S*/(venv-[0-9a-f]{16}-base) ", run.stderr)
+    (name,) = re.findall(r"Setting up \S*/(venv-[0-9a-f]{16}-[a-z,]+) ", run.stderr)
     return name
 
 
@@ -150,4 +150,8 @@ def test_the_environment_is_keyed_by_the_dependencies_only(tmp_path):
     added = pyproject.replace('    "numpy>=1.24",\n', '    "numpy>=1.24",\n    "scipy",\n')
     extra = pyproject.replace('    "pytest>=8",\n', '    "pytest>=8",\n    "pytest-xdist",\n')
     assert added != pyproject and extra != pyproject
-    assert len({key, environment_key(tmp_path, added), environment_key(tmp_path, extra)}) == 3
+    assert environment_key(tmp_path, added) != key
+    # an extra's list rebuilds the environments with that extra only (the dev extra's
+    # pytest-xdist rebuilds ./dev.sh lint's, not the simulation's)
+    assert environment_key(tmp_path, extra) == key
+    assert environment_key(tmp_path, extra, "lint") != environment_key(tmp_path, pyproject, "lint")
