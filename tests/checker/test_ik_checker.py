@@ -258,6 +258,7 @@ def test_bad_options_are_one_line_and_exit_2(tmp_path, capsys):
     assert main([str(SUBMISSIONS / "correct.py"), "--json", str(tmp_path)]) == 2
 
 
+@pytest.mark.slow
 def test_the_console_script_is_declared_and_runs_as_a_module():
     scripts = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["scripts"]
     assert scripts["so101-check-ik"] == "so101_kinematics.checker.ik:main"

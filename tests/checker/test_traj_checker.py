@@ -169,6 +169,7 @@ def test_seconds_taken_as_ms_end_after_one_step(checks):
         assert test["steps"] == 1  # T / 1000 = 2 ms is within the first 4 ms step
 
 
+@pytest.mark.slow
 def test_a_loop_that_never_steps_is_stopped_by_the_clock_or_the_wall(tmp_path):
     for body, ended in (("while time.time() - start < duration:\n        pass", "clock"),
                         ("while True:\n        pass", "wall")):

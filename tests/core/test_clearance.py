@@ -46,6 +46,7 @@ def mujoco_lowest(cfg, base_height=0.0):
     return lowest + base_height
 
 
+@pytest.mark.slow
 def test_the_check_places_every_collision_box_as_the_model_does():
     rng = np.random.default_rng(7)
     from so101_kinematics.frames import JOINT_LIMITS
@@ -135,6 +136,7 @@ def sent_lift(arm, count):
     return sum(1 for _, servo, _ in arm.goal_log()[:count] if servo == 2)
 
 
+@pytest.mark.slow
 @pytest.mark.hw
 def test_move_to_pose_into_the_table_is_refused_before_anything_moves(course_arm, capsys):
     import so101_kinematics.hw.course_helpers as course

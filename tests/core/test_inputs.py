@@ -91,6 +91,7 @@ def test_move_duration_1e9_is_refused_on_the_command_line(capsys):
     assert "--move-duration" in one_line_error(err) and "[0, 600] s" in err
 
 
+@pytest.mark.slow
 def test_a_long_move_keeps_its_memory_bounded(model):
     # 120 s = 30000 steps; the old up-front table of commands was 30000 x 6 floats
     # (1.4 MB) plus as many temporaries; blocks of 4096 steps need about a tenth.

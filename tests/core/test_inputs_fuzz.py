@@ -86,6 +86,7 @@ def check_plan_error(error: PlanError, path: Path) -> None:
     assert str(path) in message, message  # the file named; the field follows in the message
 
 
+@pytest.mark.slow
 @settings(FUZZ, max_examples=300)
 @given(plan=st.one_of(valid_plans, plans), encoding=encodings, noise=st.binary(max_size=40),
        nan_literal=st.booleans())
@@ -206,6 +207,7 @@ SHORT_PLAN = json.dumps({"steps": [{"name": "up", "configuration": dict(
     "return_to_start": False})
 
 
+@pytest.mark.slow
 @settings(FUZZ, max_examples=250)
 @given(argv=sim_arguments)
 def test_simulator_command_lines_run_or_name_the_problem(argv):
@@ -269,6 +271,7 @@ def small_frames_picture(path, *args, **kwargs):
     return write_text_atomic(path, "a stand-in for the 1200x900 picture")
 
 
+@pytest.mark.slow
 @settings(FUZZ, max_examples=40)
 @given(argv=fk_arguments)
 def test_fk_script_command_lines_run_or_name_the_problem(argv):
@@ -398,6 +401,7 @@ hold_arguments = st.lists(st.one_of(valid_configuration, any_configuration,
                                     st.floats(0.0, 0.05), nasty_values), max_size=3)
 
 
+@pytest.mark.slow
 @settings(FUZZ, max_examples=200)
 @given(args=hold_arguments)
 def test_hold_position_holds_or_names_the_shapes(model, args):

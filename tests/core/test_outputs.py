@@ -160,6 +160,7 @@ def test_ik_demo_record_refuses_a_file_that_is_not_a_video(tmp_path):
     assert_refused(done, "--record", video, video.read_bytes())
 
 
+@pytest.mark.slow
 def test_trajectory_test_json_and_plot_refuse_a_source_file(student_file, tmp_path):
     before = student_file.read_bytes()
     done = run("test_trajectory_mujoco.py", "--headless", "--json", student_file)
@@ -170,6 +171,7 @@ def test_trajectory_test_json_and_plot_refuse_a_source_file(student_file, tmp_pa
     assert_refused(done, "--plot", plot, plot.read_bytes())
 
 
+@pytest.mark.slow
 def test_ik_demo_replaces_its_own_old_report(tmp_path):
     report = tmp_path / "ik.json"
     first = run("test_ik_mujoco.py", "--headless", "--no-progress", "--json", report,
@@ -254,6 +256,7 @@ def test_hw_log_sidecar_is_checked_too(tmp_path):
     assert sidecar.read_text() == '{"my": "notes"}'
 
 
+@pytest.mark.slow
 def test_hw_sheet_replaces_its_own_pdf_and_nothing_else(tmp_path):
     sheet = tmp_path / "sheet.pdf"
     assert run("pick_place_hw.py", "--sheet", sheet).returncode == 0
@@ -317,6 +320,7 @@ def test_check_ik_refuses_a_source_file(student_file, option):
     assert_refused(done, option, student_file, before)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("option", ["--json", "--gradescope"])
 def test_check_traj_refuses_a_source_file_and_replaces_its_own(student_file, tmp_path, option):
     before = student_file.read_bytes()
@@ -384,6 +388,7 @@ def test_sim_json_keeps_another_scripts_report(tmp_path):
     assert_refused(done, "--json", checker_report, checker_report.read_bytes())
 
 
+@pytest.mark.slow
 def test_an_output_through_a_symlink_is_refused_and_overwrite_replaces_the_link(tmp_path):
     own = tmp_path / "elsewhere" / "report.json"
     own.parent.mkdir()
@@ -403,6 +408,7 @@ def test_an_output_through_a_symlink_is_refused_and_overwrite_replaces_the_link(
     assert own.read_bytes() == before  # the file the link pointed to: untouched
 
 
+@pytest.mark.slow
 def test_the_markers_are_written(tmp_path):
     """Each writer's file carries its marker: a second run replaces the first's file (the sheet's
     PDF: test_hw_sheet_replaces_its_own_pdf_and_nothing_else)."""
@@ -497,6 +503,7 @@ def refusal(done: subprocess.CompletedProcess) -> list[str]:
     return [line for line in done.stderr.strip().splitlines() if not line.startswith("INFO:")]
 
 
+@pytest.mark.slow
 @pytest.mark.hw
 def test_hw_log_and_sidecar_of_an_earlier_run_are_never_replaced(arm, tmp_path):
     log, plot = tmp_path / "run1.csv", tmp_path / "run1.png"
@@ -527,6 +534,7 @@ def test_hw_unwritable_output_is_refused_before_the_port_opens(arm, tmp_path, op
 
 
 # --- virtual_so101.py --link ------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.hw
 def test_link_never_replaces_or_deletes_a_users_symlink(tmp_path):
     pytest.importorskip("lerobot")

@@ -166,6 +166,7 @@ PLAN = {"steps": [{"name": "pick", "configuration": dict(HOME, shoulder_lift=-40
                    "hold": 0.5}], "return_duration": 1.5}
 
 
+@pytest.mark.slow
 @pytest.mark.hw
 def test_trims_reach_the_wire_the_log_and_the_report(arm, tmp_path, capsys):
     import pick_place_hw as cli
@@ -220,6 +221,7 @@ def test_trims_reach_the_wire_the_log_and_the_report(arm, tmp_path, capsys):
            "-4.0 deg" in report.summary()
 
 
+@pytest.mark.slow
 @pytest.mark.hw
 def test_so101_utils_takes_the_course_offset_config(arm, capsys):
     from so101_utils import load_calibration as course_load
@@ -237,6 +239,7 @@ def test_so101_utils_takes_the_course_offset_config(arm, capsys):
     bus.disconnect(disable_torque=False)
 
 
+@pytest.mark.slow
 @pytest.mark.hw
 def test_home_check_goes_home_slowly_prints_the_fk_and_ends_released(arm, monkeypatch,
                                                                      capsys):

@@ -93,6 +93,7 @@ def test_week8_converters_behave_as_the_utils_do():
     assert "starting configuration is" not in done.stderr  # the measured start is no jump
 
 
+@pytest.mark.slow
 def test_week8_stacks_two_blocks_with_the_page_s_helpers():
     done = run("sim_week8_stack_blocks.py")
     assert "stacked in 21.0 s; gripper 50" in done.stdout  # 4 x (2 + 1 + 1 + 1) + 1 s

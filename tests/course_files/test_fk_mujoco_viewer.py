@@ -103,6 +103,7 @@ def finish(process: subprocess.Popen, timeout: float = 60.0) -> tuple[int, str]:
     return process.returncode, out + err
 
 
+@pytest.mark.slow
 def test_the_viewer_camera_frames_like_the_scene_camera(model):
     # The free camera the viewer starts with renders the same picture as the named camera.
     camera = mujoco.MjvCamera()

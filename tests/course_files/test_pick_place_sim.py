@@ -186,6 +186,7 @@ def arm_path(timestep):
     return samples
 
 
+@pytest.mark.slow
 def test_model_timestep_follows_the_same_arm_path_as_half_of_it():
     # The model's 4 ms step is converged: halving it moves no joint by more than 0.5 deg
     # anywhere along the 18 s plan (measured 0.23 deg: where in its +-0.5 deg friction band
@@ -206,6 +207,7 @@ def test_cube_is_placed_alike_with_half_the_timestep(nominal):
     assert math.dist(fine.cube_final_position_m, nominal.cube_final_position_m) < 0.001
 
 
+@pytest.mark.slow
 def test_held_cube_does_not_creep_in_the_jaws_or_sink_into_the_table():
     # MuJoCo's soft friction lets a held object creep. With the model's
     # impratio 100 the cube moves at most 0.78 mm in the jaws while in the air
@@ -309,6 +311,7 @@ def test_mode_follows_options_and_display(tmp_path):
     assert choose_mode(True, video, display=True) == ("record", video)
 
 
+@pytest.mark.slow
 def test_short_recording_is_a_valid_mp4_matching_its_duration(tmp_path):
     imageio = pytest.importorskip("imageio.v3")
     up = dict(STARTING_CONFIGURATION, shoulder_lift=0.0)

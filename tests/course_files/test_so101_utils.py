@@ -76,6 +76,7 @@ def last_line(text: str) -> str:
     return text.strip().splitlines()[-1]
 
 
+@pytest.mark.slow
 @pytest.mark.hw
 def test_assignment_8_example_runs_as_written(arm, lerobot_calibrations, capsys):
     from so101_inverse_kinematics import get_inverse_kinematics
@@ -111,6 +112,7 @@ def test_assignment_8_example_runs_as_written(arm, lerobot_calibrations, capsys)
     bus.disconnect()  # lerobot's own call after the release: no second release, no error
 
 
+@pytest.mark.slow
 @pytest.mark.hw
 def test_assignment_8_starting_position_form_never_jumps(arm, capsys, caplog):
     """The course's suggested ``move_to_pose(bus, starting_position, desired_position,
@@ -139,6 +141,7 @@ def test_assignment_8_starting_position_form_never_jumps(arm, capsys, caplog):
     bus.disconnect(disable_torque=False)
 
 
+@pytest.mark.slow
 @pytest.mark.hw
 def test_assignment_8_pick_up_block_call_without_a_target_ends_at_the_start(arm, capsys):
     """The course's ``pick_up_block`` calls ``move_to_pose(bus, move_to_duration)``."""
@@ -157,6 +160,7 @@ def test_assignment_8_pick_up_block_call_without_a_target_ends_at_the_start(arm,
     bus.disconnect(disable_torque=False)
 
 
+@pytest.mark.slow
 @pytest.mark.hw
 def test_disable_torque_away_from_the_start_returns_there_first(arm, capsys, caplog):
     from so101_utils import load_calibration, move_to_pose, setup_motors
@@ -176,6 +180,7 @@ def test_disable_torque_away_from_the_start_returns_there_first(arm, capsys, cap
     bus.disconnect(disable_torque=False)
 
 
+@pytest.mark.slow
 @pytest.mark.hw
 def test_an_outage_inside_move_to_pose_ends_back_at_the_start_released(arm, capsys):
     from so101_utils import load_calibration, move_to_pose, setup_motors
@@ -198,6 +203,7 @@ def test_an_outage_inside_move_to_pose_ends_back_at_the_start_released(arm, caps
     bus.disconnect(disable_torque=False)
 
 
+@pytest.mark.slow
 @pytest.mark.hw
 def test_a_short_outage_inside_move_to_pose_is_ridden_through(arm, capsys):
     from so101_utils import hold_position, load_calibration, move_to_pose, setup_motors
@@ -216,6 +222,7 @@ def test_a_short_outage_inside_move_to_pose_is_ridden_through(arm, capsys):
     bus.disconnect(disable_torque=False)
 
 
+@pytest.mark.slow
 @pytest.mark.hw
 def test_a_configuration_outside_the_calibration_ends_the_script_released(arm, capsys):
     from so101_utils import load_calibration, move_to_pose, setup_motors

@@ -311,6 +311,7 @@ def test_a_new_segment_continues_the_grid_after_a_late_cycle(clock):
     assert loop.resume() == pytest.approx(clock.now, abs=1e-5)
 
 
+@pytest.mark.slow
 def test_garbage_collector_is_frozen_during_the_motion(calibration, clock):
     import gc
 

@@ -34,6 +34,7 @@ def setup(arm):
     return setup_motors(course_load(str(CALIBRATION_PATH)), arm.port)
 
 
+@pytest.mark.slow
 def test_a_students_goal_write_is_ramped_at_the_speed_cap_not_jumped(course_arm, caplog):
     bus = setup(course_arm)
     start = bus.sync_read("Present_Position")
@@ -59,6 +60,7 @@ def test_a_students_goal_write_is_ramped_at_the_speed_cap_not_jumped(course_arm,
     assert not any(course_arm.torque_enabled().values())
 
 
+@pytest.mark.slow
 def test_a_goal_write_into_the_table_is_refused_and_ends_at_the_start(course_arm, capsys):
     from so101_utils import move_to_pose
 
@@ -71,6 +73,7 @@ def test_a_goal_write_into_the_table_is_refused_and_ends_at_the_start(course_arm
     assert err.strip().splitlines()[-1] == "Back at the starting pose, torque off."
 
 
+@pytest.mark.slow
 def test_a_goal_outside_the_calibration_is_refused(course_arm, capsys):
     bus = setup(course_arm)
     from so101_kinematics.calibration import calibrated_limits
@@ -93,6 +96,7 @@ def test_raw_ticks_are_refused_in_one_line_and_raw_lerobot_is_bus_raw(course_arm
     assert "normalize=False" in capsys.readouterr().err and "bus.raw" in str(ended.value.line)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("how", ["guarded", "raw"])
 def test_move_to_pose_after_a_students_own_write_starts_where_the_arm_is(course_arm, capsys,
                                                                           how):

@@ -156,6 +156,7 @@ def test_an_unknown_instruction_is_ignored_without_a_reply(raw):
 
 
 # --- two servos with one ID ---------------------------------------------------------------
+@pytest.mark.slow
 def test_two_servos_with_one_id_both_answer_garbled_and_both_obey(raw, arm):
     assert ask(raw, 2, fp.INST_WRITE, [5, 1]) == [(2, 0, b"")]  # shoulder_lift becomes ID 1
     assert {arm.registers(j)["ID"] for j in ("shoulder_pan", "shoulder_lift")} == {1}
