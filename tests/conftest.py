@@ -110,14 +110,18 @@ def course_arm():
 
 
 def pytest_collection_modifyitems(config, items):
-    """One real-time virtual arm at a time under pytest-xdist (dev.sh: -n auto --dist loadgroup).
+    """Under pytest-xdist (dev.sh: -n auto --dist loadgroup), a file whose tests share a
+    module-scoped fixture of its own (a virtual arm started once, a whole run on it, a checker
+    run over every submission) goes to one worker: the fixture's 10-40 s are paid once, not on
+    every worker. The rest spread over the workers one test at a time.
 
-    A virtual arm steps its MuJoCo arm on the wall clock in its own process, and lerobot's
-    bus waits on it in real time: two of them beside two test workers on two cores starve
-    each other (measured: broadcast pings that miss servos, holds read as drops). So every
-    test that runs one (marked hw, or in tests/virtual/) goes to one worker, in turn, while
-    the other workers run the simulated and fake-bus tests.
+    The real-time virtual arms do run side by side (one per worker): 98 of the heaviest
+    quick ones (lerobot's bus, the guarded registers, the course's helpers, the hardware
+    script) passed with two arms at once on 2 cores at load 2-3; at load 8-11 (six other
+    jobs) they miss servos and read holds as drops with or without xdist.
     """
     for item in items:
-        if item.get_closest_marker("hw") or item.path.parent.name == "virtual":
-            item.add_marker(pytest.mark.xdist_group("virtual_arm"))
+        module = item.nodeid.split("::")[0]
+        defs = getattr(getattr(item, "_fixtureinfo", None), "name2fixturedefs", {})
+        if any(d.scope == "module" and d.baseid == module for fds in defs.values() for d in fds):
+            item.add_marker(pytest.mark.xdist_group(module))
