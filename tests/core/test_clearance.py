@@ -137,6 +137,7 @@ def sent_lift(arm, count):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_move_to_pose_into_the_table_is_refused_before_anything_moves(course_arm, capsys):
     import so101_kinematics.hw.course_helpers as course

@@ -504,6 +504,7 @@ def refusal(done: subprocess.CompletedProcess) -> list[str]:
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_hw_log_and_sidecar_of_an_earlier_run_are_never_replaced(arm, tmp_path):
     log, plot = tmp_path / "run1.csv", tmp_path / "run1.png"
@@ -535,6 +536,7 @@ def test_hw_unwritable_output_is_refused_before_the_port_opens(arm, tmp_path, op
 
 # --- virtual_so101.py --link ------------------------------------------------------------------
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_link_never_replaces_or_deletes_a_users_symlink(tmp_path):
     pytest.importorskip("lerobot")

@@ -69,6 +69,7 @@ def test_the_simulator_s_move_to_pose_warns_before_moving(caplog):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_so101_utils_move_to_pose_warns_before_the_move(course_arm, caplog):
     from so101_utils import load_calibration, move_to_pose, setup_motors

@@ -167,6 +167,7 @@ PLAN = {"steps": [{"name": "pick", "configuration": dict(HOME, shoulder_lift=-40
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_trims_reach_the_wire_the_log_and_the_report(arm, tmp_path, capsys):
     import pick_place_hw as cli
@@ -222,6 +223,7 @@ def test_trims_reach_the_wire_the_log_and_the_report(arm, tmp_path, capsys):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_so101_utils_takes_the_course_offset_config(arm, capsys):
     from so101_utils import load_calibration as course_load
@@ -240,6 +242,7 @@ def test_so101_utils_takes_the_course_offset_config(arm, capsys):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_home_check_goes_home_slowly_prints_the_fk_and_ends_released(arm, monkeypatch,
                                                                      capsys):

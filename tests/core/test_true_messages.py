@@ -93,6 +93,7 @@ def test_the_approach_hint_suggests_only_an_approach_that_is_accepted(given):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_raw_ticks_refused_after_a_move_do_not_claim_nothing_moved(course_arm, capsys):
     """The arm moved before the refused write: the refusal says that write moved nothing, and

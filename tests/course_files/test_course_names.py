@@ -219,6 +219,7 @@ def test_the_course_names_import():
 # --- on the real arm's path (the virtual arm) ---------------------------------------------------
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_offset_config_reads_the_trims_given_to_setup_motors(course_arm):
     import so101_utils
@@ -235,6 +236,7 @@ def test_offset_config_reads_the_trims_given_to_setup_motors(course_arm):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_an_unreachable_block_on_the_arm_ends_the_script_before_it_moves(course_arm, capsys):
     import so101_kinematics.hw.course_helpers as course

@@ -96,6 +96,7 @@ def full_run():
 
 # --- the full sequence ------------------------------------------------------------------
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_full_sequence_completes_and_ends_at_the_starting_pose(full_run):
     result = full_run["result"]
     assert result.aborted is None
@@ -107,6 +108,7 @@ def test_full_sequence_completes_and_ends_at_the_starting_pose(full_run):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_every_goal_received_stays_within_the_calibrated_limits(full_run):
     goals = full_run["goals"]
     cycles = full_run["result"].cycles
@@ -117,6 +119,7 @@ def test_every_goal_received_stays_within_the_calibrated_limits(full_run):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_waypoints_are_reached(full_run):
     """Each held waypoint's last measured pose is within 2 deg of it (gripper: no cube, 3 %).
 
@@ -132,6 +135,7 @@ def test_waypoints_are_reached(full_run):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_the_loop_holds_its_rate(full_run):
     """Loose, not a benchmark: the median period is within 10 % of 10 ms."""
     wall = np.array([c.wall_s for c in full_run["result"].cycles])
@@ -204,6 +208,7 @@ def sim_comparison(full_run):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_measured_trajectory_follows_the_simulator(sim_comparison):
     """Always (even on a loaded host): the median error is below 1.5 deg on every joint.
 
@@ -218,6 +223,7 @@ def test_measured_trajectory_follows_the_simulator(sim_comparison):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_measured_trajectory_matches_the_simulator(full_run, sim_comparison):
     """Sim-to-"real": the virtual arm's measured joints follow the simulator's within 3 deg.
 
@@ -248,6 +254,7 @@ def test_measured_trajectory_matches_the_simulator(full_run, sim_comparison):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_cli_run_writes_log_and_plot(arm, tmp_path, capsys):
     plan = {"steps": [{"name": "nod", "configuration": dict(HOME, wrist_flex=50.0),
                        "duration": 0.5, "hold": 0.1}], "return_duration": 0.5}
@@ -299,6 +306,7 @@ def slowest_return_s(goal_log, since: float) -> tuple[float, float]:
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_ctrl_c_mid_motion_returns_to_the_start_and_releases(arm):
     # A real Ctrl-C, handled at the cycle boundary.
     def ctrl_c(session):
@@ -348,6 +356,7 @@ def test_a_second_run_from_where_the_released_arm_slumped_ends_as_the_first(arm)
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_interrupt_inside_a_bus_transaction_is_recovered(arm):
     """KeyboardInterrupt with a reply still on the wire: the port is flushed before the return."""
     def interrupt_mid_transaction(session):
@@ -364,6 +373,7 @@ def test_interrupt_inside_a_bus_transaction_is_recovered(arm):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_a_late_reply_is_dropped_not_taken_for_the_next_one(arm):
     """A reply left on the port (late, as after a timeout) must not poison the next read.
 
@@ -384,6 +394,7 @@ def test_a_late_reply_is_dropped_not_taken_for_the_next_one(arm):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_stalled_joint_aborts_returns_and_releases(arm):
     arm.inject("stall:elbow_flex")  # blocked where it stands (90 deg); swing_left asks for 70
     start = arm.joint_positions()
@@ -401,6 +412,7 @@ def test_stalled_joint_aborts_returns_and_releases(arm):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_stall_that_also_blocks_the_way_back_holds_with_torque_on(arm):
     # Stuck near +30 deg, asked to go to -30, then 0: the way back is blocked too.
     on_cycle = once_in_swing_right(lambda session: arm.inject("stall:shoulder_pan"))
@@ -421,6 +433,7 @@ def test_stall_that_also_blocks_the_way_back_holds_with_torque_on(arm):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_servo_that_stops_answering_leaves_the_others_holding(arm):
     on_cycle = once_in_swing_right(lambda session: arm.inject("remove:wrist_flex"))
     with pytest.raises(hw.MotionAborted) as info:
@@ -437,6 +450,7 @@ def test_servo_that_stops_answering_leaves_the_others_holding(arm):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_a_dropped_reply_is_retried_within_the_cycle(arm):
     # one lost reply: the retry in the same cycle gets it; two: one cycle is blind
     on_cycle = once_in_swing_right(lambda session: arm.inject("drop:3:1"))
@@ -466,6 +480,7 @@ def test_calibration_that_does_not_match_the_servos_is_refused(arm, tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_write_calibration_puts_the_file_into_the_servos(arm, tmp_path):
     data = json.loads(DEFAULT_CALIBRATION_PATH.read_text())
     data["wrist_roll"]["homing_offset"] += 40
@@ -506,6 +521,7 @@ def test_bad_waypoints_refuse_to_start(arm, tmp_path, capsys):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_missing_port_and_silent_arm_are_refused(arm, tmp_path):
     with pytest.raises(ConnectionFailed, match="does not exist.*lerobot-find-port"):
         hw.run_on_arm(str(tmp_path / "ttyACM9"), CALIBRATION, short_plan())
@@ -581,6 +597,7 @@ def test_teach_from_the_main_script_stops_on_ctrl_c(arm, capsys):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_loop_timing_measurement_runs():
     """Smoke test of the benchmark helper (the figures are benchmarks, not asserted)."""
     stats = measure_loop_timing(rates_hz=(100.0, 200.0), seconds=0.6, wire_timing=True)

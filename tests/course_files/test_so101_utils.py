@@ -77,6 +77,7 @@ def last_line(text: str) -> str:
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_assignment_8_example_runs_as_written(arm, lerobot_calibrations, capsys):
     from so101_inverse_kinematics import get_inverse_kinematics
@@ -113,6 +114,7 @@ def test_assignment_8_example_runs_as_written(arm, lerobot_calibrations, capsys)
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_assignment_8_starting_position_form_never_jumps(arm, capsys, caplog):
     """The course's suggested ``move_to_pose(bus, starting_position, desired_position,
@@ -142,6 +144,7 @@ def test_assignment_8_starting_position_form_never_jumps(arm, capsys, caplog):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_assignment_8_pick_up_block_call_without_a_target_ends_at_the_start(arm, capsys):
     """The course's ``pick_up_block`` calls ``move_to_pose(bus, move_to_duration)``."""
@@ -161,6 +164,7 @@ def test_assignment_8_pick_up_block_call_without_a_target_ends_at_the_start(arm,
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_disable_torque_away_from_the_start_returns_there_first(arm, capsys, caplog):
     from so101_utils import load_calibration, move_to_pose, setup_motors
@@ -181,6 +185,7 @@ def test_disable_torque_away_from_the_start_returns_there_first(arm, capsys, cap
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_an_outage_inside_move_to_pose_ends_back_at_the_start_released(arm, capsys):
     from so101_utils import load_calibration, move_to_pose, setup_motors
@@ -204,6 +209,7 @@ def test_an_outage_inside_move_to_pose_ends_back_at_the_start_released(arm, caps
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_a_short_outage_inside_move_to_pose_is_ridden_through(arm, capsys):
     from so101_utils import hold_position, load_calibration, move_to_pose, setup_motors
@@ -223,6 +229,7 @@ def test_a_short_outage_inside_move_to_pose_is_ridden_through(arm, capsys):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_a_configuration_outside_the_calibration_ends_the_script_released(arm, capsys):
     from so101_utils import load_calibration, move_to_pose, setup_motors

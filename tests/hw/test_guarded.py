@@ -35,6 +35,7 @@ def setup(arm):
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_a_students_goal_write_is_ramped_at_the_speed_cap_not_jumped(course_arm, caplog):
     bus = setup(course_arm)
     start = bus.sync_read("Present_Position")
@@ -61,6 +62,7 @@ def test_a_students_goal_write_is_ramped_at_the_speed_cap_not_jumped(course_arm,
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_a_goal_write_into_the_table_is_refused_and_ends_at_the_start(course_arm, capsys):
     from so101_utils import move_to_pose
 
@@ -74,6 +76,7 @@ def test_a_goal_write_into_the_table_is_refused_and_ends_at_the_start(course_arm
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_a_goal_outside_the_calibration_is_refused(course_arm, capsys):
     bus = setup(course_arm)
     from so101_kinematics.calibration import calibrated_limits
@@ -97,6 +100,7 @@ def test_raw_ticks_are_refused_in_one_line_and_raw_lerobot_is_bus_raw(course_arm
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.parametrize("how", ["guarded", "raw"])
 def test_move_to_pose_after_a_students_own_write_starts_where_the_arm_is(course_arm, capsys,
                                                                           how):

@@ -55,6 +55,7 @@ def near(actual, expected, tol):
 
 # --- the unsafe rows -----------------------------------------------------------------------
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_torque_enable_0_is_the_guarded_release_not_a_drop(course_arm, capsys, caplog):
     bus = stretched_out(course_arm)
@@ -74,6 +75,7 @@ def test_torque_enable_0_is_the_guarded_release_not_a_drop(course_arm, capsys, c
     (("write", "Goal_Velocity", "wrist_roll", 500), "Goal_Velocity", "wrist_roll", 0),
 ])
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 def test_a_write_that_weakens_or_spins_the_arm_is_refused_naming_bus_raw(
         course_arm, capsys, write, register, joint, kept):
     bus = stretched_out(course_arm)
@@ -94,6 +96,7 @@ def test_a_write_that_weakens_or_spins_the_arm_is_refused_naming_bus_raw(
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_the_courses_own_values_pass_and_lerobots_torque_disabled_is_refused(course_arm,
                                                                             capsys):
@@ -110,6 +113,7 @@ def test_the_courses_own_values_pass_and_lerobots_torque_disabled_is_refused(cou
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_setup_motors_puts_back_what_an_earlier_program_left_and_says_so(course_arm, caplog):
     """The issue's poor row: a Goal_Velocity (or Torque_Limit, P, ...) left behind made the
@@ -199,6 +203,7 @@ def test_the_last_line_says_which_servo_cannot_hold_read_back(course_arm, capsys
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_the_hardware_scripts_ending_reads_back_too(course_arm):
     """pick_place_hw.py's run: a servo weakened on the bus mid-run (another program) is named."""

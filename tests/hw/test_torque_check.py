@@ -52,6 +52,7 @@ def test_the_last_line_says_the_torque_the_servos_report():
 
 
 @pytest.mark.slow
+@pytest.mark.newest_lerobot
 @pytest.mark.hw
 def test_a_servo_released_during_hold_position_ends_by_the_policy(course_arm, capsys):
     """The issue's case: another program releases elbow_flex during hold_position; the
