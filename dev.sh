@@ -3,11 +3,17 @@
 #
 #   ./dev.sh sim [ARGS]   the simulated pick-and-place (headless + video when
 #                         there is no display); ARGS go to pick_place_sim.py
-#   ./dev.sh test [ARGS]  the whole test suite (installs the hw extra: lerobot)
+#   ./dev.sh test [ARGS]  the quick tier: every test not marked slow (-m "not slow"),
+#                         on every core (pytest-xdist -n auto); it reaches every
+#                         module of the package (tests/tools/test_suite_layout.py)
+#                         in minutes. Installs the hw extra (lerobot)
+#   ./dev.sh test-all [ARGS]
+#                         every test, on every core, and the 25 slowest named
 #   ./dev.sh test-base [ARGS]
-#                         the tests that need no lerobot (-m "not hw"), in an
-#                         environment with the dev extra only: minutes, not
-#                         the hw extra's PyTorch (CI's leg per Python version)
+#                         the tests that need no lerobot (-m "not hw"), on every
+#                         core, in an environment with the dev extra only:
+#                         minutes, not the hw extra's PyTorch (CI's Python 3.10 leg)
+#   ./dev.sh docs [ARGS]  the docs site (Sphinx, warnings as errors) into docs/_build/html
 #   ./dev.sh lint         ruff check (the dev extra only)
 #   ./dev.sh bench [ARGS] the benchmarks (benchmarks/run.py)
 #   ./dev.sh shell        a shell inside the environment
@@ -86,15 +92,22 @@ if [ -z "${DISPLAY:-}${WAYLAND_DISPLAY:-}" ]; then
   export MUJOCO_GL="${MUJOCO_GL:-egl}"
 fi
 
+# The test jobs run on every core (-n auto; ARGS after it win: -n 0 runs in this
+# process, -m replaces the tier's marker). --dist loadgroup keeps the tests of one
+# xdist_group on one worker (tests/conftest.py groups the real-time virtual arms).
+# pytest's exit 5 (no test collected) fails the job as any other failure.
+parallel=(-n auto --dist loadgroup)
 case "$job" in
-  sim) exec "$venv/bin/python" pick_place_sim.py "$@" ;;
-  test)
+  test|test-all)
     # Which lerobot line this run checks (0.4.x on 3.10/3.11, 0.6.x on 3.12+).
     "$venv/bin/python" -c 'import importlib.metadata as m, platform
-print("Python", platform.python_version() + ", lerobot", m.version("lerobot"))' >&2 || true
-    exec "$venv/bin/python" -m pytest "$@" ;;
-  test-all) exec "$venv/bin/python" -m pytest --durations=25 "$@" ;;
-  test-base) exec "$venv/bin/python" -m pytest -m "not hw" "$@" ;;
+print("Python", platform.python_version() + ", lerobot", m.version("lerobot"))' >&2 || true ;;
+esac
+case "$job" in
+  sim) exec "$venv/bin/python" pick_place_sim.py "$@" ;;
+  test) exec "$venv/bin/python" -m pytest "${parallel[@]}" -m "not slow" "$@" ;;
+  test-all) exec "$venv/bin/python" -m pytest "${parallel[@]}" --durations=25 "$@" ;;
+  test-base) exec "$venv/bin/python" -m pytest "${parallel[@]}" -m "not hw" "$@" ;;
   docs) exec "$venv/bin/python" -m sphinx -W --keep-going -q -b html docs docs/_build/html "$@" ;;
   lint) exec "$venv/bin/python" -m ruff check "$@" . ;;
   bench) exec "$venv/bin/python" benchmarks/run.py "$@" ;;

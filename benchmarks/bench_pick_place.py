@@ -10,7 +10,7 @@ Figures (medians over repeats, with spread):
   - pick_place_us_per_step: the same as wall time per physics step (the
     model's timestep, 4 ms);
   - sim_realtime_factor_half_step: reference, the same run with a 2 ms step
-    (MuJoCo's default, which the model's 4 ms matches: tests/test_pick_place_sim.py);
+    (MuJoCo's default, which the model's 4 ms matches: tests/course_files/test_pick_place_sim.py);
   - mujoco_arm_step_us: reference measured in the same run, one mj_step of the
     arm alone at rest (no cube, no contacts), and pick_place_step_vs_arm_step,
     the ratio (load on a shared machine slows both alike);

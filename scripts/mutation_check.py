@@ -71,42 +71,45 @@ FRAMES, SCENE = "so101_kinematics/frames.py", "so101_kinematics/sim/scene.py"
 CAL, PICK = "so101_kinematics/calibration.py", "so101_kinematics/sim/pick_place.py"
 PROTOCOL = "so101_kinematics/virtual/protocol.py"
 MARKERS, OUTPUTS = "so101_kinematics/markers.py", "so101_kinematics/outputs.py"
-T_OUT = "tests/test_output_ownership.py"
-REGISTERS, T_SDK = "so101_kinematics/virtual/registers.py", "tests/test_virtual_feetech_sdk.py"
+T_OUT = "tests/core/test_outputs.py"
+REGISTERS = "so101_kinematics/virtual/registers.py"
+T_SDK = "tests/virtual/test_virtual_feetech_sdk.py"
 READINGS = "so101_kinematics/virtual/sensor_registers.py"
-T_CONTROL, T_RUN = "tests/test_control.py", "tests/test_hw_run.py"
-T_HW, T_IK = "tests/test_pick_place_hw.py", "tests/test_inverse_kinematics.py"
-T_FK, T_SIM = "tests/test_forward_kinematics.py", "tests/test_pick_place_sim.py"
-T_PROFILES = "tests/test_profile_compare.py"
-T_LINE = "tests/test_straight_line.py"
-LEAD, T_LEAD = "so101_kinematics/hw/lead.py", "tests/test_velocity_ff.py"
-GUARDED, T_GUARD = "so101_kinematics/hw/guarded.py", "tests/test_guarded_registers.py"
+T_CONTROL, T_RUN = "tests/hw/test_control.py", "tests/hw/test_hw_run.py"
+T_HW = "tests/course_files/test_pick_place_hw.py"
+T_IK = "tests/course_files/test_so101_inverse_kinematics.py"
+T_FK = "tests/course_files/test_so101_forward_kinematics.py"
+T_SIM = "tests/course_files/test_pick_place_sim.py"
+T_PROFILES = "tests/lab/test_profile_compare.py"
+T_LINE = "tests/planning/test_straight_line.py"
+LEAD, T_LEAD = "so101_kinematics/hw/lead.py", "tests/hw/test_lead.py"
+GUARDED, T_GUARD = "so101_kinematics/hw/guarded.py", "tests/hw/test_guarded_registers.py"
 
 MUTANTS: list[Mutant] = [
     # --- the servo model (issue 25) --------------------------------------------------------
     m("servo_no_dead_zone", "the firmware's dead zone left out of the duty law",
       "so101_kinematics/servo.py", "duty", "if size <= settings.dead_zone:", "if size < 0:",
-      "tests/test_servo_model.py"),
+      "tests/sim/test_sts3215.py"),
     m("servo_slope_doubled", "the loop's P/4 per count taken as P/2 (twice as stiff)",
       "so101_kinematics/sim/sts3215.py", "ServoBank._derive", "[p / 4.0 for p in self.p]",
-      "[p / 2.0 for p in self.p]", "tests/test_servo_model.py"),
+      "[p / 2.0 for p in self.p]", "tests/sim/test_sts3215.py"),
     m("servo_no_acceleration_ramp", "the Acceleration register ignored (the target jumps)",
       "so101_kinematics/sim/sts3215.py", "ServoBank._derive",
       "[a * servo.ACCELERATION_UNIT or math.inf for a in self.acceleration]",
-      "[math.inf for a in self.acceleration]", "tests/test_servo_model.py"),
+      "[math.inf for a in self.acceleration]", "tests/sim/test_sts3215.py"),
     m("servo_supply_ignored", "the torque taken at the nominal voltage, not the supply's",
       "so101_kinematics/sim/sts3215.py", "ServoBank.torques",
       "newtons = self.variant.torque_per_volt * self.volts / 1000.0",
       "newtons = self.variant.torque_per_volt * self.variant.nominal_volts / 1000.0",
-      "tests/test_servo_model.py"),
+      "tests/sim/test_sts3215.py"),
     m("servo_torque_limit_ignored", "Torque_Limit does not cap the duty",
       "so101_kinematics/sim/sts3215.py", "ServoBank._derive",
       "[min(t, servo.DUTY_MAX) for t in self.torque_limit]",
-      "[servo.DUTY_MAX for t in self.torque_limit]", "tests/test_servo_model.py"),
+      "[servo.DUTY_MAX for t in self.torque_limit]", "tests/sim/test_sts3215.py"),
     m("gravity_sign", "the holding torque's sign flipped (the feed-forward doubles the sag)",
       "so101_kinematics/gravity.py", "holding_torques_rad",
       "torques.append(float(GRAVITY *", "torques.append(float(-GRAVITY *",
-      "tests/test_servo_model.py"),
+      "tests/sim/test_sts3215.py"),
     m("feedforward_friction_backwards", "the friction offset against the direction of motion",
       "so101_kinematics/gravity.py", "Feedforward.apply",
       "direction[joint] = 1.0 if change > 0 else -1.0",
@@ -123,7 +126,7 @@ MUTANTS: list[Mutant] = [
       T_FK),
     m("object_frame_half_turned", "the object frame half a turn about y (z down, before the "
       "course's IK assignment redrew it)", FRAMES, None, 'site_position("object_frame"), ()),',
-      'site_position("object_frame"), (("y", 180.0),)),', T_FK, "tests/test_ik_course_shapes.py",
+      'site_position("object_frame"), (("y", 180.0),)),', T_FK, "tests/ik/test_call_shapes.py",
       more=(Edit("so101_kinematics/fast_fk.py", "_closed_form_assumptions", '"5t": np.eye(3),',
                  '"5t": Ry(180.0),'),
             Edit("so101_kinematics/fast_fk.py", None, "    Rx,\n", "    Rx,\n    Ry,\n"))),
@@ -133,46 +136,48 @@ MUTANTS: list[Mutant] = [
       '                                  min_height=min_height, exact_yaw=True)',
       'return solve_keywords(position, "down", 0.0, initial=initial, gripper=gripper,\n'
       '                                  min_height=min_height, exact_yaw=False)',
-      "tests/test_ik_course_shapes.py",
+      "tests/ik/test_call_shapes.py",
       more=(Edit("so101_kinematics/ik/call_shapes.py", "_solve_rotation",
                  'return solve_keywords(position, "down", yaw, exact_yaw=True, **solve)',
                  'return solve_keywords(position, "down", yaw, exact_yaw=False, **solve)'),)),
     m("ik_tilted_yaw_uncorrected", "a tilted orientation solved once, its yaw never corrected",
       "so101_kinematics/ik/call_shapes.py", "_solve_rotation", "        yaw += turn",
       "        break",
-      "tests/test_ik_course_shapes.py"),
+      "tests/ik/test_call_shapes.py"),
     m("hold_ignores_cfg", "hold_position(m, d, viewer, cfg, duration) holds the old command",
       "so101_kinematics/sim/stepping.py", "hold_position", "d.ctrl[act] = angles[name]", "pass",
-      "tests/test_mujoco_utils.py", "tests/test_ik_demo.py"),
+      "tests/course_files/test_so101_mujoco_utils.py", "tests/sim/test_ik_demo.py"),
     m("sim_move_jumps_to_start", "move_to_pose's starting_cfg used as the path's start (a jump)",
       "so101_kinematics/sim/stepping.py", "move_to_pose",
       "path = Trajectory(command, goal, duration, profile)",
       "path = Trajectory(dict(command, **(start or {})), goal, duration, profile)",
-      "tests/test_mujoco_utils.py"),
+      "tests/course_files/test_so101_mujoco_utils.py"),
     m("hw_move_jumps_to_start", "the arm's move_to_pose jumps to the starting_position given",
       "so101_kinematics/hw/course_helpers.py", "course_move_to_pose",
       "        session.move(target, seconds, profile=profile, velocity_ff=velocity_ff)",
       "        session.command.update(start or {})\n"
       "        session.move(target, seconds, profile=profile, velocity_ff=velocity_ff)",
-      "tests/test_so101_utils.py"),
+      "tests/course_files/test_so101_utils.py"),
     m("start_mismatch_silent", "a starting configuration far from the last command not named",
       "so101_kinematics/inputs.py", "start_mismatch",
       "if gap <= START_MISMATCH + allowance.get(joint, 0.0):", "if True:",
-      "tests/test_mujoco_utils.py", "tests/test_so101_utils.py"),
+      "tests/course_files/test_so101_mujoco_utils.py",
+      "tests/course_files/test_so101_utils.py"),
     m("degrees_off_5", "one joint's degree conversion off by 5 deg (elbow_flex)",
       SCENE, "to_radians", "else math.radians(value)",
       'else math.radians(value + (5.0 if name == "elbow_flex" else 0.0))',
-      "tests/test_mujoco_utils.py"),
+      "tests/course_files/test_so101_mujoco_utils.py"),
     m("sim_gripper_inverted", "the simulator's gripper 0-100 mapping inverted, both ways",
       SCENE, "gripper_to_radians", "return float(lower + (upper - lower) * percent / 100.0)",
-      "return float(upper - (upper - lower) * percent / 100.0)", "tests/test_mujoco_utils.py",
+      "return float(upper - (upper - lower) * percent / 100.0)",
+      "tests/course_files/test_so101_mujoco_utils.py",
       more=(Edit(SCENE, "gripper_from_radians",
                  "return float((angle - lower) / (upper - lower) * 100.0)",
                  "return float((upper - angle) / (upper - lower) * 100.0)"),)),
     m("lerobot_gripper_inverted", "the gripper's ticks <-> 0-100 mapping inverted, both ways",
       CAL, "ticks_to_user", "return 100.0 - value if cal.drive_mode else value",
       "return value if cal.drive_mode else 100.0 - value",
-      "tests/test_calibration_files.py",
+      "tests/core/test_calibration_files.py",
       more=(Edit(CAL, "user_to_ticks", "value = 100.0 - value if cal.drive_mode else value",
                  "value = value if cal.drive_mode else 100.0 - value"),)),
     m("calibration_ranges_swapped", "range_min and range_max swapped in the calibrated limits",
@@ -180,12 +185,12 @@ MUTANTS: list[Mutant] = [
       "                             ticks_to_user(joint, cal.range_max, cal))",
       "(ticks_to_user(joint, cal.range_max, cal),\n"
       "                             ticks_to_user(joint, cal.range_min, cal))",
-      "tests/test_calibration_files.py"),
+      "tests/core/test_calibration_files.py"),
     m("frame_axes_uncoloured", "the FK frames picture draws its axes without their colours",
       "so101_kinematics/sim/fk_pictures.py", None,
       "AXIS_RGBA = ((0.9, 0.1, 0.1, 1.0), (0.1, 0.7, 0.1, 1.0), (0.1, 0.3, 0.95, 1.0))",
       "AXIS_RGBA = ((0.5, 0.5, 0.5, 1.0),) * 3",
-      "tests/test_fk_screenshot.py::test_frames_picture_renders"),
+      "tests/course_files/test_fk_mujoco_screenshot.py::test_frames_picture_renders"),
     # --- motion and the simulation ---------------------------------------------------------
     m("minimum_jerk_linear", "minimum jerk replaced by linear time scaling",
       "so101_kinematics/planning/profiles.py", "minimum_jerk",
@@ -196,7 +201,7 @@ MUTANTS: list[Mutant] = [
       f"{T_IK}::test_every_reachable_top_down_target_is_solved"),
     m("friction_min", "contact-pair friction mixed with min instead of MuJoCo's max",
       "so101_kinematics/sim/contact_pairs.py", "mixed_contact_parameters",
-      "friction = np.maximum(", "friction = np.minimum(", "tests/test_contact_pairs.py"),
+      "friction = np.maximum(", "friction = np.minimum(", "tests/sim/test_contact_pairs.py"),
     m("placement_tolerance_10cm", "the placement tolerance 10 cm instead of 1 cm",
       PICK, None, "PLACEMENT_TOLERANCE = 0.010", "PLACEMENT_TOLERANCE = 0.100",
       f"{T_SIM}::test_success_is_within_10_mm_and_10_deg"),
@@ -226,10 +231,10 @@ MUTANTS: list[Mutant] = [
     # --- the bus and the protocol ------------------------------------------------------------
     m("checksum_without_id", "the Feetech checksum leaves out the servo id",
       PROTOCOL, "checksum", "return ~sum(body) & 0xFF", "return ~sum(body[1:]) & 0xFF",
-      "tests/test_feetech_protocol.py"),
+      "tests/virtual/test_protocol.py"),
     m("homing_offset_sign_bit_15", "Homing_Offset's sign bit at 15 instead of 11",
       PROTOCOL, None, 'SIGN_BITS = {"Homing_Offset": 11,', 'SIGN_BITS = {"Homing_Offset": 15,',
-      "tests/test_feetech_protocol.py"),
+      "tests/virtual/test_protocol.py"),
     m("virtual_torque_limit_ignored", "the virtual servo's duty capped by Max_Torque_Limit "
       "only: Torque_Limit (48) written through the bus ignored", REGISTERS, "servo_settings",
       'cap = min(servo.get("Torque_Limit"), servo.get("Max_Torque_Limit"))',
@@ -244,7 +249,7 @@ MUTANTS: list[Mutant] = [
     m("misread_acted_on", "a reading outside the calibrated range taken as the arm's pose",
       "so101_kinematics/hw/misreads.py", "ReadingCheck.__call__",
       "if not (lower - RANGE_MARGIN <= value <= upper + RANGE_MARGIN):", "if False:",
-      "tests/test_readings.py"),
+      "tests/hw/test_misreads.py"),
     m("speed_cap_ignored", "the speed cap ignored: a move never stretched",
       TIMING, "capped_duration", "return max(float(duration), needed)",
       "return float(duration)", T_CONTROL),
@@ -322,11 +327,11 @@ MUTANTS: list[Mutant] = [
       f"{T_LEAD}::test_the_goal_written_leads_the_plan_and_pauses_with_it"),
     m("log_not_flushed", "the run's log not flushed as the run goes",
       LOG, "CycleLog.__call__", "            self._handle.flush()\n", "            pass\n",
-      "tests/test_hw_log.py"),
+      "tests/hw/test_hw_log.py"),
     m("traj_clipping_unchecked", "so101-check-traj never looks past the duration (a cubic "
       "whose time is not clipped goes unnamed)", "so101_kinematics/checker/traj_compare.py",
       "move_causes", "after = t > duration + timestep / 2", "after = t > math.inf",
-      "tests/test_traj_checker.py"),
+      "tests/checker/test_traj_checker.py"),
     # --- the write-up's comparison of profiles from real runs (issue 27, Deliver 8) -------
     m("fitted_jerk_factor", "the fitted cubic's third derivative taken as 2 c3 (not 3! c3)",
       "so101_kinematics/planning/motion_metrics.py", "fitted_derivatives",
@@ -337,53 +342,53 @@ MUTANTS: list[Mutant] = [
     m("return_refused_at_rest", "the return to where the released arm slumped refused (the "
       "clearance margin applied to the arm's own rest)", "so101_kinematics/clearance.py",
       "check_path", "    if rest is not None:\n", "    if False:\n",
-      "tests/test_clearance.py::test_the_return_may_come_down_to_where_the_arm_stood_no_lower"),
+      "tests/core/test_clearance.py::test_the_return_may_come_down_to_where_the_arm_stood_no_lower"),
     # --- the checkers are honest (issue 33, Deliver 6) ------------------------------------
     m("standin_qposadr_an_int", "the checker's stand-in gives m.joint(...).qposadr as an int "
       "(MuJoCo: an array; the project's own utils scored 0/100)",
       "so101_kinematics/checker/traj_standin.py", "_View.__init__",
       "array[index:index + 1] if array.ndim == 1 else", "array[index] if array.ndim == 1 else",
-      "tests/test_checker_honesty.py::test_the_projects_own_cubic_utils_scores_100_through_the_"
+      "tests/checker/test_checker_honesty.py::test_the_projects_own_cubic_utils_scores_100_through_the_"
       "console_script"),
     m("sandbox_not_confined", "the submission's writes not audited (one writing outside its "
       "folder scored 100)", "so101_kinematics/checker/probe.py", "main",
       "    confine(os.getcwd(), own_files(result_path))\n", "    pass\n",
-      "tests/test_checker_honesty.py::test_a_submission_cannot_write_outside_its_temporary_"
+      "tests/checker/test_checker_honesty.py::test_a_submission_cannot_write_outside_its_temporary_"
       "folder"),
     m("sandbox_parent_allowed", "the confinement allows the temporary folder's parent (../ "
       "reaches the probe's own results)", "so101_kinematics/checker/probe.py", "confine",
       "root = os.path.realpath(folder)", "root = os.path.dirname(os.path.realpath(folder))",
-      "tests/test_checker_honesty.py::test_a_submission_cannot_write_outside_its_temporary_"
+      "tests/checker/test_checker_honesty.py::test_a_submission_cannot_write_outside_its_temporary_"
       "folder"),
     m("fk_input_change_unseen", "the FK probe calls the student's FK on a dict it never looks at "
       "again (a changed input reads as a wrong product order)",
       "so101_kinematics/checker/probe.py", "fk_call", "        if after != before:\n",
       "        if False:\n",
-      "tests/test_checker_honesty.py::test_an_fk_that_changes_its_input_is_named_not_a_product_"
+      "tests/checker/test_checker_honesty.py::test_an_fk_that_changes_its_input_is_named_not_a_product_"
       "order"),
     m("feedforward_line_at_zero", "the feed-forward's line shows the all-zero pose's offsets as "
       "the arm's", "so101_kinematics/hw/feedforward.py", "describe_at_pose",
       "pose, where = read_pose(bus), \"the arm's pose as read now\"",
       "pose, where = dict.fromkeys(JOINTS, 0.0), \"the arm's pose as read now\"",
-      "tests/test_true_messages.py::test_the_feedforward_line_gives_the_offsets_at_the_arms_pose_"
+      "tests/core/test_true_messages.py::test_the_feedforward_line_gives_the_offsets_at_the_arms_pose_"
       "and_says_so"),
     m("timing_options_ignored_with_plan", "--move-duration/--hold silently ignored with --plan",
       "so101_kinematics/cli.py", "ignored_with_plan",
       "    if not given or getattr(args, \"plan\", None) is None:\n", "    if True:\n",
-      "tests/test_true_messages.py::test_timing_options_given_with_a_plan_are_refused_not_ignored"),
+      "tests/core/test_true_messages.py::test_timing_options_given_with_a_plan_are_refused_not_ignored"),
     m("hand_check_holds_the_bus", "the virtual hand's table check holds the bus for the whole "
       "path (lerobot-calibrate's 1-try reads time out)", "so101_kinematics/virtual/hand.py",
       None, 'between=getattr(self, "serve_serial", None),', "between=None,",
-      "tests/test_virtual_fidelity.py::test_the_bus_is_answered_while_the_hand_checks_a_long_path"),
+      "tests/virtual/test_virtual_fidelity.py::test_the_bus_is_answered_while_the_hand_checks_a_long_path"),
     m("replay_drops_the_lead", "the --compare replay sends the plan, not the led goals the "
       "servos got (--velocity-ff)", "so101_kinematics/lab/sim_vs_arm.py", "compare_run",
       'commanded[j] + np.array([r[f"lead_{j}"] for r in rows])', "commanded[j] + 0.0",
-      "tests/test_sim_vs_arm.py::test_a_led_run_is_replayed_with_the_goals_the_servos_got"),
+      "tests/lab/test_sim_vs_arm.py::test_a_led_run_is_replayed_with_the_goals_the_servos_got"),
     m("replay_on_schedule", "the --compare replay sends each goal at its scheduled time, not "
       "when the late cycle sent it", "so101_kinematics/lab/sim_vs_arm.py", "compare_run",
       "simulated = replay(read_s, commands_inside_limits(",
       "simulated = replay(t, commands_inside_limits(",
-      "tests/test_sim_vs_arm.py::test_the_replay_sends_each_goal_when_the_arm_got_it"),
+      "tests/lab/test_sim_vs_arm.py::test_the_replay_sends_each_goal_when_the_arm_got_it"),
     m("replay_refuses_past_limit", "--compare sends the return to a slumped start (just past a "
       "model limit) as logged: the replay refuses it and stops every log's comparison",
       "so101_kinematics/lab/sim_vs_arm.py", "compare_run",
@@ -409,7 +414,7 @@ MUTANTS: list[Mutant] = [
     m("table_contact_unseen", "the week-9 log does not record the jaw on the table: the "
       "profiles are ranked on the impact's figures", "so101_kinematics/sim/tracking.py",
       "StepLog.sync", "if touching:", "if False:",
-      "tests/test_trajectories.py::"
+      "tests/planning/test_trajectories.py::"
       "test_a_jaw_on_the_table_is_reported_and_the_profiles_not_ranked"),
     # --- the virtual STS3215's readings and the rest of its table (issue 34) -------------------
     m("virtual_overload_keeps_the_output", "overload protection sets the bit but never drops "
@@ -440,7 +445,7 @@ MUTANTS: list[Mutant] = [
     m("output_written_in_place", "an output file written in place (lost if the run fails)",
       "so101_kinematics/outputs.py", "atomic_output", "temporary = temporary_beside(target)",
       "temporary = target",
-      "tests/test_inputs.py::test_atomic_output_keeps_the_old_file_on_an_error"),
+      "tests/core/test_inputs.py::test_atomic_output_keeps_the_old_file_on_an_error"),
     # issue 33: outputs recognised by their content (markers.py), never by their type
     m("png_recognised_by_type", "any PNG taken for one of ours (no Software marker needed)",
       MARKERS, "png_ours", 'head[4:] == b"IEND":\n                    return False',
@@ -478,21 +483,21 @@ MUTANTS: list[Mutant] = [
     m("plot_data_closes_its_figure", "plot_data closes its figure (plt.savefig after it: blank)",
       "so101_kinematics/planning/trajectory_log.py", "plot_data", "    return fig\n",
       "    plt.close(fig)\n    return fig\n",
-      "tests/test_trajectories.py::test_plot_data_leaves_the_figure_to_the_caller"),
+      "tests/planning/test_trajectories.py::test_plot_data_leaves_the_figure_to_the_caller"),
     m("put_down_skipped", "a stop with a cube in the jaws returns with it (the gripper squeezes "
       "it at the rest; issue 33)", RUN, "after_abort",
       "session.return_slowly(put_down(session, plan, held, error, start_pose))",
       "session.return_slowly(start_pose)",
-      "tests/test_stop_with_cube.py::"
+      "tests/hw/test_stop_with_cube.py::"
       "test_ctrl_c_after_the_grasp_puts_the_cube_down_at_the_place_then_returns"),
     m("held_while_closing", "jaws still closing in free air taken for a held cube (every stop "
       "at a grasp would then put down nothing)", "so101_kinematics/hw/putdown.py", "held_grip",
       "if max(recent) - min(recent) > SETTLED_PCT:", "if False:",
-      "tests/test_putdown.py::test_jaws_closed_on_nothing_or_still_closing_hold_nothing"),
+      "tests/hw/test_putdown.py::test_jaws_closed_on_nothing_or_still_closing_hold_nothing"),
     m("held_cube_squeezed", "a cube that cannot be put down is squeezed by the return to the "
       "start's narrower gripper", "so101_kinematics/hw/putdown.py", "put_down",
       'target["gripper"] = max(start["gripper"], width)', 'target["gripper"] = start["gripper"]',
-      "tests/test_putdown.py::test_a_cube_that_cannot_be_put_down_is_not_squeezed_by_the_return"),
+      "tests/hw/test_putdown.py::test_a_cube_that_cannot_be_put_down_is_not_squeezed_by_the_return"),
     # --- every register a student writes is guarded, the last line read back (issue 33) --
     m("torque_limit_passed_through", "the guarded bus passes a motion register at any value "
       "(Torque_Limit 0 drops the arm with torque on)", GUARDED, "register_refusal",
@@ -515,24 +520,25 @@ MUTANTS: list[Mutant] = [
     m("d_scale_one_period", "the D term's scale back to one 1 ms loop period (underdamped: "
       "steps overshoot where the recorded arms do not)", "so101_kinematics/servo.py", None,
       "D_SCALE_S = 0.03\n", "D_SCALE_S = 0.001\n",
-      "tests/test_replay_fidelity.py::"
+      "tests/lab/test_replay.py::"
       "test_the_step_from_rest_does_not_overshoot_and_stops_short_as_the_arm_did"),
     m("c001_on_12_v_accepted", "a supply above the variant's Max_Voltage_Limit accepted",
       "so101_kinematics/servo.py", "supply_problem", "if volts <= chosen.max_volts:",
-      "if True:", "tests/test_servo_options.py::test_a_c001_on_12_v_is_refused_with_the_fix"),
+      "if True:",
+      "tests/core/test_cli_servo_options.py::test_a_c001_on_12_v_is_refused_with_the_fix"),
     m("ideal_ignores_options", "--servo ideal silently ignores --supply/--variant/--p-coefficient",
       "so101_kinematics/cli.py", "servo_from_arguments", 'if args.servo == "ideal" and given:',
       "if False:",
-      "tests/test_servo_options.py::test_the_ideal_servo_refuses_the_options_it_would_ignore"),
+      "tests/core/test_cli_servo_options.py::test_the_ideal_servo_refuses_the_options_it_would_ignore"),
     m("virtual_arm_kit_default", "the virtual arm powers up on the kit's 5 V, not as the "
       "course's 12 V C018 follower", "so101_kinematics/virtual/electrical.py", None,
       "SUPPLY_V = DEFAULT_SUPPLY_V\n", "SUPPLY_V = 5.0\n",
-      "tests/test_virtual_feetech_sdk.py::"
+      "tests/virtual/test_virtual_feetech_sdk.py::"
       "test_the_default_virtual_arm_is_the_courses_12_v_c018_follower"),
     m("unread_supply_kit", "with no Present_Voltage read the feed-forward guesses the kit's 5 V",
       "so101_kinematics/hw/feedforward.py", "read_feedforward",
       "if volts else servo.DEFAULT_SUPPLY_V", "if volts else servo.KIT_SUPPLY_V",
-      "tests/test_velocity_ff.py::"
+      "tests/hw/test_lead.py::"
       "test_nothing_read_the_feedforward_and_lead_assume_the_courses_12_v_c018"),
     # --- the docs (issue 35): every block runs or says why not -----------------------------
     m("docs_block_unmarked", "a README block that needs an arm loses its not-run marker",
@@ -577,7 +583,7 @@ MUTANTS: list[Mutant] = [
       "collision_boxes", 'if geom.get("class") in BOX_CLASSES',
       'if geom.get("class") == "collision"',
       "tests/core/test_facts.py",
-      "tests/test_clearance.py::test_the_check_places_every_collision_box_as_the_model_does"),
+      "tests/core/test_clearance.py::test_the_check_places_every_collision_box_as_the_model_does"),
     m("encoder_resolution_copied", "the encoder's resolution written a second time (lerobot's "
       "max_res back as a literal in calibration.py)", CAL, None,
       "TICKS_PER_TURN = COUNTS_PER_TURN - 1", "TICKS_PER_TURN = 4095",

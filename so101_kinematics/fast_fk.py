@@ -36,7 +36,7 @@ __all__ = ["_closed_form_assumptions", "forward_kinematics", "forward_kinematics
 #
 # The product gw1 @ g12 @ g23 @ g34 @ g45 @ g5t simplifies because of two
 # facts about the SO-101 (checked below at import, and against MuJoCo and the
-# product itself in tests/test_forward_kinematics.py):
+# product itself in tests/course_files/test_so101_forward_kinematics.py):
 #   1. shoulder_lift, elbow_flex and wrist_flex turn about parallel axes: the
 #      fixed rotations of g23 and g34 are Rz(+90) and Rz(-90), so
 #      Rz(th2) Rz(90) Rz(th3) Rz(-90) Rz(th4) = Rz(phi), phi = th2 + th3 + th4.

@@ -63,7 +63,8 @@ narrower (:data:`JOINT_LIMITS`).
 
 JOINT_RANGES_RAD = {joint: model_facts.joint_range(joint) for joint in JOINTS}
 """Joint ranges [rad]: the ``range`` attributes of ``model/so101.xml`` (upstream
-``so101_new_calib``), read without MuJoCo so that the IK and the real-arm path know them."""
+``so101_new_calib``), read without MuJoCo so that the IK and the real-arm path know them
+(``tests/sim/test_model.py`` checks them against the compiled model)."""
 
 GRIPPER_RANGE = (0.0, 100.0)
 """The gripper's user range [%]: 0 at its lower joint limit (closed), 100 at the upper (open)."""

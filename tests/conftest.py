@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -107,3 +108,49 @@ def course_arm():
         yield virtual
         for run in list(course._RUNS.values()):
             course.end_at_start(run, "test teardown")
+
+
+def pytest_collection_modifyitems(config, items):
+    """Under pytest-xdist (dev.sh: -n auto --dist loadgroup), a file whose tests share a
+    module-scoped fixture of its own (a virtual arm started once, a whole run on it, a checker
+    run over every submission) goes to one worker: the fixture's 10-40 s are paid once, not on
+    every worker. The rest spread over the workers one test at a time.
+
+    The real-time virtual arms do run side by side (one per worker): 98 of the heaviest
+    quick ones (lerobot's bus, the guarded registers, the course's helpers, the hardware
+    script) passed with two arms at once on 2 cores at load 2-3; at load 8-11 (six other
+    jobs) they miss servos and read holds as drops with or without xdist.
+    """
+    for item in items:
+        module = item.nodeid.split("::")[0]
+        defs = getattr(getattr(item, "_fixtureinfo", None), "name2fixturedefs", {})
+        if any(d.scope == "module" and d.baseid == module for fds in defs.values() for d in fds):
+            item.add_marker(pytest.mark.xdist_group(module))
+
+
+# Raw-protocol tests (Feetech's SDK and bare packets with its ~35 ms reply timeout): beside
+# another virtual arm on 2 cores a reply came late (a -n 2 run: 3 of 56 failed; alone: 35 of
+# 35 passed). Each of their tests takes the arms' lock exclusively; every other test that runs
+# a virtual arm (marked hw, or in tests/virtual/) takes it shared. Only under xdist.
+EXCLUSIVE_ARM_FILES = {"test_virtual_feetech_sdk.py", "test_virtual_protocol.py",
+                       "test_virtual_fidelity.py", "test_virtual_so101.py"}
+
+
+@pytest.fixture(autouse=True)
+def _virtual_arm_turn(request, tmp_path_factory):
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    node = request.node
+    exclusive = node.path.name in EXCLUSIVE_ARM_FILES
+    if run is None or not (exclusive or node.get_closest_marker("hw")
+                           or node.path.parent.name == "virtual"):
+        yield
+        return
+    import fcntl
+
+    lock_path = tmp_path_factory.getbasetemp().parent / f"virtual-arms-{run}.lock"
+    with open(lock_path, "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
+        try:
+            yield
+        finally:
+            fcntl.flock(lock, fcntl.LOCK_UN)
