@@ -225,7 +225,10 @@ def test_a_missing_name_is_refused_with_the_fix():
 
 # --- the servo variants: data files, their sources, the registry ----------------------------
 def test_every_variant_file_names_its_source_and_is_package_data():
-    import tomllib
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10: the tomli backport (a dependency there)
+        import tomli as tomllib
 
     from so101_kinematics import servo
 
