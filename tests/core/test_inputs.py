@@ -7,7 +7,6 @@ import math
 import os
 import subprocess
 import sys
-import tracemalloc
 from pathlib import Path
 
 import mujoco
@@ -93,20 +92,39 @@ def test_move_duration_1e9_is_refused_on_the_command_line(capsys):
     assert "--move-duration" in one_line_error(err) and "[0, 600] s" in err
 
 
+MEMORY_PROBE = """
+import json, sys, tracemalloc
+import mujoco
+import so101_mujoco_utils as utils
+from so101_kinematics.planning.plans import STARTING_CONFIGURATION
+up = json.loads(sys.argv[1])
+model = utils.load_model()
+d = mujoco.MjData(model)
+utils.set_initial_pose(d, STARTING_CONFIGURATION)
+tracemalloc.start()
+utils.move_to_pose(model, d, None, up, 120.0)
+_, peak = tracemalloc.get_traced_memory()
+tracemalloc.stop()
+print(json.dumps([peak, utils.get_command(model, d)["shoulder_lift"]]))
+"""
+
+
 @pytest.mark.slow
-def test_a_long_move_keeps_its_memory_bounded(model):
+def test_a_long_move_keeps_its_memory_bounded():
     # 120 s = 30000 steps; the old up-front table of commands was 30000 x 6 floats
-    # (1.4 MB) plus as many temporaries; blocks of 4096 steps need about a tenth.
-    d = mujoco.MjData(model)
-    utils.set_initial_pose(d, STARTING_CONFIGURATION)
-    tracemalloc.start()
-    try:
-        utils.move_to_pose(model, d, None, UP, 120.0)
-        _, peak = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
-    assert peak < 30000 * 6 * 8 / 2, f"peak {peak / 1e6:.2f} MB"
-    assert utils.get_command(model, d)["shoulder_lift"] == pytest.approx(0.0, abs=1e-9)
+    # (1.44 MB) plus its temporaries: 3.19 MB peak measured with one block for the whole move,
+    # 0.72 MB with blocks of 4096 steps (2026-12-03, Python 3.11). The bound is the table
+    # alone: the blocks pass it by half, the table cannot. Measured in a child process:
+    # tracemalloc counts every thread's allocations, and under pytest-xdist the worker's own
+    # messaging thread allocated beside the move (0.76 MB).
+    path = os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])
+    env = {**os.environ, "PYTHONPATH": path}
+    run = subprocess.run([sys.executable, "-c", MEMORY_PROBE, json.dumps(UP)], cwd=REPO, env=env,
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    peak, lift = json.loads(run.stdout.strip().splitlines()[-1])
+    assert peak < 30000 * 6 * 8, f"peak {peak / 1e6:.2f} MB"
+    assert lift == pytest.approx(0.0, abs=1e-9)
 
 
 def test_commands_in_blocks_are_the_same_physics(model, monkeypatch):
