@@ -41,6 +41,7 @@ from so101_kinematics.planning.plans import default_plan  # noqa: E402
 from so101_kinematics.sim import actuation  # noqa: E402
 from so101_kinematics.virtual.arm import VirtualSO101  # noqa: E402
 from so101_kinematics.virtual.electrical import SUPPLY_V  # noqa: E402
+from so101_kinematics.virtual.protocol import ERR_OVERLOAD as OVERLOAD_BIT  # noqa: E402
 from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH  # noqa: E402
 
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
@@ -60,6 +61,16 @@ def assert_near(actual, expected, tol_deg=1.5, tol_gripper=3.0, label=""):
         tol = tol_gripper if joint == "gripper" else tol_deg
         assert abs(actual[joint] - expected[joint]) <= tol, (
             f"{label} {joint}: {actual[joint]:.2f} vs {expected[joint]:.2f} (tol {tol})")
+
+
+def status_bit_within(arm, joint, bit, timeout_s):
+    """Whether ``joint``'s servo sets ``bit`` in its Status register (65) within ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while not arm.registers(joint)["Status"] & bit:
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.05)
+    return True
 
 
 def goals_outside_calibration(goal_log):
@@ -428,8 +439,18 @@ def test_stall_that_also_blocks_the_way_back_holds_with_torque_on(arm):
     time.sleep(0.5)
     assert_near(arm.joint_positions(), before, tol_deg=0.5, label="holding")
     # what the servo reads back: its overload bit set (a real STS3215 unloads on it with the
-    # factory Unloading_Condition): named as unable to hold, the arm to be supported (issue 33)
+    # factory Unloading_Condition): named as unable to hold, the arm to be supported (issue 33).
+    # Whether the bit comes depends on where the run's hold goal lands: 0.2-0.4 deg from the
+    # stuck joint, one encoder tick either side of the servo's dead band (measured under load:
+    # goal 29.80 deg -> no load, no bit; 29.89 or 29.98 -> load 100 %, the bit). Beside other
+    # jobs the run stops on another cycle and both happen (a 3.12 leg at -n 2; 4 of 6 runs
+    # beside three busy loops). Either way the ending says what the servo reads back.
+    tripped = status_bit_within(arm, "shoulder_pan", OVERLOAD_BIT, timeout_s=3.0)
     line = hw.ending(result, "R")
+    if not tripped:
+        assert line.startswith("The arm is holding where it stopped"), line
+        assert "torque ON" in line and "UNABLE" not in line, line
+        return
     assert line.startswith("The arm is NOT holding where it stopped"), line
     assert "UNABLE TO HOLD (read back): shoulder_pan (status: overloaded)" in line
 
