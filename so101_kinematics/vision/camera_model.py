@@ -19,7 +19,7 @@ Frames follow the FK's convention: ``g_ab`` is the pose (4x4) of frame b in fram
 
 Example:
     >>> K = intrinsics_from_fovy(90.0, 640, 480)
-    >>> float(K[1, 1]), float(K[0, 2]), float(K[1, 2])  # fy = 240 / tan(45 deg)
+    >>> round(float(K[1, 1]), 9), float(K[0, 2]), float(K[1, 2])  # fy = 240 / tan(45 deg)
     (240.0, 319.5, 239.5)
 """
 
