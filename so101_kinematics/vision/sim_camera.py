@@ -74,17 +74,14 @@ def _gaussian_kernel(sigma: float) -> np.ndarray:
 
 
 def _blur(image: np.ndarray, sigma: float) -> np.ndarray:
-    """Separable Gaussian blur of an H x W x 3 float image, edges repeated."""
-    kernel = _gaussian_kernel(sigma)
+    """Separable Gaussian blur of an H x W x 3 float32 image, edges repeated."""
+    kernel = _gaussian_kernel(sigma).astype(np.float32)
     radius = len(kernel) // 2
-    for axis in (0, 1):
-        pad = [(0, 0)] * 3
-        pad[axis] = (radius, radius)
-        padded = np.pad(image, pad, mode="edge")
-        length = image.shape[axis]
-        image = sum(weight * np.take(padded, np.arange(i, i + length), axis=axis)
-                    for i, weight in enumerate(kernel))
-    return image
+    height, width = image.shape[:2]
+    padded = np.pad(image, ((radius, radius), (0, 0), (0, 0)), mode="edge")
+    image = sum(weight * padded[i:i + height] for i, weight in enumerate(kernel))
+    padded = np.pad(image, ((0, 0), (radius, radius), (0, 0)), mode="edge")
+    return sum(weight * padded[:, i:i + width] for i, weight in enumerate(kernel))
 
 
 def apply_effects(image: np.ndarray, effects: ImageEffects,
@@ -99,13 +96,16 @@ def apply_effects(image: np.ndarray, effects: ImageEffects,
     Returns:
         A new H x W x 3 uint8 RGB image.
     """
-    out = image.astype(float)
+    out = image.astype(np.float32)
     if effects.blur_px > 0.0:
         out = _blur(out, effects.blur_px)
-    out *= effects.exposure
+    out *= np.float32(effects.exposure)
     if effects.noise_levels > 0.0:
-        out += rng.normal(0.0, effects.noise_levels, out.shape)
-    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+        noise = rng.standard_normal(out.shape, dtype=np.float32)
+        noise *= np.float32(effects.noise_levels)
+        out += noise
+    np.rint(out, out=out)
+    return np.clip(out, 0, 255, out=out).astype(np.uint8)
 
 
 class SimCamera:
