@@ -41,7 +41,7 @@ from so101_kinematics.vision.opencv_import import require_opencv
 __all__ = [
     "CUBE_TAG", "MARKER_CELLS", "TAGS", "TAG_DICTIONARY", "TAG_THICKNESS", "TARGET_TAG", "Tag",
     "add_cube_tag", "add_target_tag", "get_tag_pose_base", "tag_face_image", "tag_geom_name",
-    "write_tag_sheet",
+    "tag_page", "write_tag_sheet",
 ]
 
 TAG_DICTIONARY = "DICT_4X4_50"
@@ -166,6 +166,34 @@ SCALE_BAR_MM = 50.0  # [mm] to check the print with a ruler
 MM_PER_INCH = 25.4
 
 
+def tag_page(tags: Iterable[Tag] = (CUBE_TAG, TARGET_TAG)):
+    """The A4 page of :func:`write_tag_sheet` as a matplotlib ``Figure`` (1 unit = 1 mm)."""
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Rectangle
+
+    figure = Figure(figsize=(A4_MM[0] / MM_PER_INCH, A4_MM[1] / MM_PER_INCH))
+    axes = figure.add_axes((0, 0, 1, 1))
+    axes.set_axis_off()
+    top = A4_MM[1] - 25.0
+    axes.text(15, top + 8, f"so101-kinematics ArUco tags ({TAG_DICTIONARY}). Print at 100 % "
+              f"(actual size); the bar below must measure {SCALE_BAR_MM:.0f} mm.", fontsize=8)
+    for tag in tags:
+        face_mm = tag.face * 1000.0
+        axes.imshow(tag_face_image(tag), cmap="gray", vmin=0, vmax=255, interpolation="nearest",
+                    extent=(15, 15 + face_mm, top - face_mm, top))
+        axes.add_patch(Rectangle((15, top - face_mm), face_mm, face_mm, fill=False,
+                                 linewidth=0.2, color="0.6"))
+        axes.text(20 + face_mm, top - 5, f"{tag.name}: id {tag.tag_id}, black square "
+                  f"{tag.size * 1000:.1f} mm (cut on the grey line: {face_mm:.1f} mm)",
+                  fontsize=8)
+        top -= face_mm + 12.0
+    axes.plot([15, 15 + SCALE_BAR_MM], [top, top], color="k", linewidth=1.5)
+    axes.text(15, top - 5, f"{SCALE_BAR_MM:.0f} mm", fontsize=8)
+    axes.set_xlim(0, A4_MM[0])  # imshow moved them to its extents: the page, 1 unit = 1 mm
+    axes.set_ylim(0, A4_MM[1])
+    return figure
+
+
 def write_tag_sheet(path: str | Path, tags: Iterable[Tag] = (CUBE_TAG, TARGET_TAG)) -> Path:
     """A PDF page (A4) with each tag at its true size, to print at 100 %.
 
@@ -176,33 +204,9 @@ def write_tag_sheet(path: str | Path, tags: Iterable[Tag] = (CUBE_TAG, TARGET_TA
     Returns:
         The path written.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
     from matplotlib.backends.backend_pdf import PdfPages
-    from matplotlib.figure import Figure
-    from matplotlib.patches import Rectangle
 
-    figure = Figure(figsize=(A4_MM[0] / MM_PER_INCH, A4_MM[1] / MM_PER_INCH))
-    axes = figure.add_axes((0, 0, 1, 1), xlim=(0, A4_MM[0]), ylim=(0, A4_MM[1]))
-    axes.set_axis_off()
-    top = A4_MM[1] - 25.0
-    axes.text(15, top + 8, f"so101-kinematics ArUco tags ({TAG_DICTIONARY}). Print at 100 % "
-              f"(actual size); the bar below must measure {SCALE_BAR_MM:.0f} mm.", fontsize=8)
-    for tag in tags:
-        face_mm = tag.face * 1000.0
-        axes.imshow(tag_face_image(tag), cmap="gray", vmin=0, vmax=255, interpolation="nearest",
-                    extent=(15, 15 + face_mm, top - face_mm, top))
-        axes.add_patch(Rectangle((15, top - face_mm), face_mm, face_mm,
-                               fill=False, linewidth=0.2, color="0.6"))
-        axes.text(20 + face_mm, top - 5, f"{tag.name}: id {tag.tag_id}, black square "
-                  f"{tag.size * 1000:.1f} mm (cut on the grey line: {face_mm:.1f} mm)",
-                  fontsize=8)
-        top -= face_mm + 12.0
-    axes.plot([15, 15 + SCALE_BAR_MM], [top, top], color="k", linewidth=1.5)
-    axes.text(15, top - 5, f"{SCALE_BAR_MM:.0f} mm", fontsize=8)
-    axes.set_xlim(0, A4_MM[0])  # imshow moved them to its extents: the page, 1 unit = 1 mm
-    axes.set_ylim(0, A4_MM[1])
+    figure = tag_page(tags)
     with atomic_output(path) as temporary, PdfPages(temporary, metadata=pdf_metadata(
             "ArUco tags")) as pdf:
         pdf.savefig(figure)

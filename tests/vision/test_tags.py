@@ -20,6 +20,7 @@ from so101_kinematics.vision.tags import (
     add_cube_tag,
     add_target_tag,
     tag_face_image,
+    tag_page,
     write_tag_sheet,
 )
 
@@ -51,6 +52,21 @@ def test_the_printed_sheet_is_an_a4_pdf_of_ours(tmp_path):
     assert pdf_ours(path)
     box = re.search(rb"/MediaBox \[\s*0 0 ([\d.]+) ([\d.]+)\s*\]", path.read_bytes())
     assert (float(box[1]), float(box[2])) == pytest.approx((595.28, 841.89), abs=0.01)
+
+
+def test_the_printed_tags_are_true_to_size_and_readable(tmp_path):
+    """The page rastered at 10 px/mm: each black square is its size, and the detector reads it."""
+    import cv2
+
+    from so101_kinematics.vision.detect import detect_tags
+
+    tag_page().savefig(tmp_path / "page.png", dpi=254)  # 254 dpi = 10 px/mm
+    page = cv2.imread(str(tmp_path / "page.png"))[:, :, ::-1].copy()
+    seen = detect_tags(page, np.eye(3))
+    assert sorted(s.tag.tag_id for s in seen) == sorted(TAGS)
+    for s in seen:
+        side_mm = np.linalg.norm(s.corners[1] - s.corners[0]) / 10.0
+        assert side_mm == pytest.approx(s.tag.size * 1000, abs=0.2), s.tag.name
 
 
 def _run(with_tags: bool) -> np.ndarray:
