@@ -35,8 +35,8 @@ from so101_kinematics.errors import VisionError
 from so101_kinematics.vision.opencv_import import require_opencv
 from so101_kinematics.vision.tags import TAG_DICTIONARY, TAGS, Tag
 
-__all__ = ["TagSighting", "detect_tags", "find_tag", "no_tag_message", "refine_corners",
-           "tag_corners"]
+__all__ = ["TagSighting", "detect_tags", "find_tag", "flat_pose", "no_tag_message",
+           "refine_corners", "tag_corners"]
 
 
 def tag_corners(size: float) -> np.ndarray:
@@ -225,6 +225,51 @@ def find_tag(image: np.ndarray, K: np.ndarray, tag: Tag, dist=None,
     """
     found = detect_tags(image, K, dist, g_bc, {tag.tag_id: tag})
     return min(found, key=lambda s: s.reprojection_px) if found else None
+
+
+def flat_pose(sighting: TagSighting, K: np.ndarray, g_bc: np.ndarray, height: float,
+              dist=None) -> np.ndarray:
+    """``g_bt`` of a tag known to lie face up at ``height``: its corners' rays met by that plane.
+
+    A tag on the table or on a cube resting there lies flat at a known height; what a camera
+    far above it measures poorly (its tilt, its distance: a few pixels of outline) is then
+    given, and what it measures well (where the corners are in the image) fixes the rest:
+    each corner's ray meets the plane ``z = height`` of the base frame, the tag's centre is
+    the mean of the four points, its yaw the direction of its top and bottom edges.
+
+    Args:
+        sighting: the tag as :func:`detect_tags` found it.
+        K: the camera matrix [px].
+        g_bc: the camera's OpenCV frame in the base frame [m].
+        height: the tag's printed surface above the base frame's origin [m] (a cube's tag:
+            the table's z + ``CUBE_SIZE`` + ``tags.TAG_THICKNESS``).
+        dist: OpenCV's distortion coefficients (None: none).
+
+    Returns:
+        4x4 pose [m]: z up, x and y the tag's own (as printed).
+
+    Raises:
+        VisionError: a corner's ray that does not meet the plane in front of the camera.
+    """
+    cv2 = require_opencv()
+    g_bc = np.asarray(g_bc, dtype=float)
+    corners = np.asarray(sighting.corners, dtype=np.float64).reshape(-1, 1, 2)
+    normalised = cv2.undistortPoints(corners, np.asarray(K, dtype=float),
+                                     np.zeros(5) if dist is None else np.asarray(dist, float))
+    rays_b = np.column_stack([normalised.reshape(-1, 2), np.ones(4)]) @ g_bc[:3, :3].T
+    scale = (height - g_bc[2, 3]) / rays_b[:, 2]
+    if np.any(~np.isfinite(scale)) or np.any(scale <= 0.0):
+        raise VisionError(f"The {sighting.tag.name} tag's corners do not look down onto the "
+                          f"plane z = {height:.3f} m. Fix: give the height of the tag's surface "
+                          "in the base frame, for a camera above it.")
+    points = g_bc[:3, 3] + scale[:, None] * rays_b  # TL, TR, BR, BL on the plane
+    across = (points[1] - points[0]) + (points[2] - points[3])  # the tag's +x
+    yaw = np.arctan2(across[1], across[0])
+    g_bt = np.eye(4)
+    g_bt[:3, :3] = [[np.cos(yaw), -np.sin(yaw), 0.0], [np.sin(yaw), np.cos(yaw), 0.0],
+                    [0.0, 0.0, 1.0]]
+    g_bt[:3, 3] = points.mean(axis=0)
+    return g_bt
 
 
 def no_tag_message(tag: Tag, camera: str) -> str:

@@ -10,16 +10,18 @@ import mujoco
 import numpy as np
 import pytest
 
+from so101_kinematics.constants import CUBE_SIZE
 from so101_kinematics.errors import VisionError
 from so101_kinematics.paths import SCENE_PATH
 from so101_kinematics.sim.cube import add_cube, cube_on_table
 from so101_kinematics.sim.render import use_render_meshes
 from so101_kinematics.vision.camera_model import project_points
-from so101_kinematics.vision.detect import detect_tags, find_tag, no_tag_message
+from so101_kinematics.vision.detect import detect_tags, find_tag, flat_pose, no_tag_message
 from so101_kinematics.vision.opencv_import import require_opencv
 from so101_kinematics.vision.sim_camera import WEBCAM, SimCamera
 from so101_kinematics.vision.tags import (
     CUBE_TAG,
+    TAG_THICKNESS,
     TARGET_TAG,
     add_cube_tag,
     add_target_tag,
@@ -88,6 +90,22 @@ def test_the_overhead_camera_finds_the_target_tag(tagged):
     seen, _, _ = sighting(m, d, "overhead", TARGET_TAG)
     position_mm, rotation_deg = errors(seen.g_bt, get_tag_pose_base(m, d, "target_tag"))
     assert position_mm <= 3.0 and rotation_deg <= 1.5, (position_mm, rotation_deg)
+
+
+@pytest.mark.parametrize(("tag", "height", "yaw_deg"), [
+    (CUBE_TAG, CUBE_SIZE + TAG_THICKNESS, 3.0), (TARGET_TAG, TAG_THICKNESS, 1.0)],
+    ids=["cube", "target"])
+def test_a_flat_tags_pose_from_the_overhead_camera_at_640x480(tagged, tag, height, yaw_deg):
+    """Known to lie flat: from 55 cm, 16 px of cube tag still place it within 2 mm."""
+    m, d = tagged
+    with SimCamera(m, d, "overhead", effects=WEBCAM) as camera:
+        K, g_bc = camera.intrinsics(), camera.pose()
+        seen = find_tag(camera.read(), K, tag, g_bc=g_bc)
+    position_mm, rotation_deg = errors(flat_pose(seen, K, g_bc, height),
+                                       get_tag_pose_base(m, d, f"{tag.name}_tag"))
+    assert position_mm <= 2.0 and rotation_deg <= yaw_deg, (position_mm, rotation_deg)
+    with pytest.raises(VisionError, match="do not look down onto the plane.*Fix"):
+        flat_pose(seen, K, g_bc, 1.0)  # a plane above the camera
 
 
 def test_the_corners_come_in_the_tags_order(tagged):
