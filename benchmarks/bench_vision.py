@@ -42,18 +42,12 @@ def _scene():
     """The course's scene with the tagged cube, the target tag and a camera 30 cm away."""
     import mujoco
 
-    from so101_kinematics.paths import SCENE_PATH
-    from so101_kinematics.sim.cube import add_cube, cube_on_table
-    from so101_kinematics.sim.render import use_render_meshes
-    from so101_kinematics.vision.tags import add_cube_tag, add_target_tag
+    from so101_kinematics.vision.tagged_scene import build_tagged_model, tagged_spec
 
-    spec = use_render_meshes(mujoco.MjSpec.from_file(str(SCENE_PATH)))
-    add_cube(spec, *cube_on_table(0.25, 0.10, 30.0))
-    add_cube_tag(spec)
-    add_target_tag(spec, 0.25, -0.12, -20.0)
+    spec = tagged_spec((0.25, 0.10, 30.0), (0.25, -0.12, -20.0))
     spec.worldbody.add_camera(name="probe", pos=[0.10, -0.01, 0.27],
                               xyaxes=[0, -1, 0, 0.866025, 0, 0.5], fovy=58.0)
-    m = spec.compile()
+    m = build_tagged_model(spec=spec)
     d = mujoco.MjData(m)
     mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
     mujoco.mj_forward(m, d)

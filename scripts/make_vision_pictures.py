@@ -20,18 +20,15 @@ from so101_kinematics.constants import CUBE_HALF_SIZE  # noqa: E402
 from so101_kinematics.errors import SO101Error  # noqa: E402
 from so101_kinematics.fast_fk import forward_kinematics  # noqa: E402
 from so101_kinematics.ik.call_shapes import get_inverse_kinematics  # noqa: E402
-from so101_kinematics.paths import SCENE_PATH  # noqa: E402
 from so101_kinematics.planning.plans import (  # noqa: E402
     FINAL_CONFIGURATION,
     STARTING_CONFIGURATION,
 )
-from so101_kinematics.sim.cube import add_cube, cube_on_table  # noqa: E402
-from so101_kinematics.sim.render import use_render_meshes  # noqa: E402
 from so101_kinematics.sim.scene import to_radians  # noqa: E402
 from so101_kinematics.vision.detect import detect_tags  # noqa: E402
 from so101_kinematics.vision.opencv_import import require_opencv  # noqa: E402
 from so101_kinematics.vision.sim_camera import WEBCAM, ImageEffects, SimCamera  # noqa: E402
-from so101_kinematics.vision.tags import add_cube_tag, add_target_tag  # noqa: E402
+from so101_kinematics.vision.tagged_scene import build_tagged_model  # noqa: E402
 
 PNG_PATH = REPO / "docs" / "final_project_cameras.png"
 SIZE = (640, 480)  # [px] each camera's image
@@ -46,13 +43,9 @@ AXIS_LENGTH = 0.02  # [m] the drawn tag axes
 
 def tagged_scene() -> tuple[mujoco.MjModel, mujoco.MjData]:
     """The course's cube (tagged) at its pick position, the target tag at the place position."""
-    spec = use_render_meshes(mujoco.MjSpec.from_file(str(SCENE_PATH)))
     pick, _ = forward_kinematics(STARTING_CONFIGURATION)
     place, _ = forward_kinematics(FINAL_CONFIGURATION)
-    add_cube(spec, *cube_on_table(pick[0], pick[1], 0.0))
-    add_cube_tag(spec)
-    add_target_tag(spec, place[0], place[1])
-    m = spec.compile()
+    m = build_tagged_model((pick[0], pick[1]), (place[0], place[1]))
     d = mujoco.MjData(m)
     mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
     cube = np.array([pick[0], pick[1], CUBE_HALF_SIZE])

@@ -12,19 +12,15 @@ import pytest
 
 from so101_kinematics.constants import CUBE_SIZE
 from so101_kinematics.errors import VisionError
-from so101_kinematics.paths import SCENE_PATH
-from so101_kinematics.sim.cube import add_cube, cube_on_table
-from so101_kinematics.sim.render import use_render_meshes
 from so101_kinematics.vision.camera_model import project_points
 from so101_kinematics.vision.detect import detect_tags, find_tag, flat_pose, no_tag_message
 from so101_kinematics.vision.opencv_import import require_opencv
 from so101_kinematics.vision.sim_camera import WEBCAM, SimCamera
+from so101_kinematics.vision.tagged_scene import build_tagged_model, tagged_spec
 from so101_kinematics.vision.tags import (
     CUBE_TAG,
     TAG_THICKNESS,
     TARGET_TAG,
-    add_cube_tag,
-    add_target_tag,
     get_tag_pose_base,
 )
 
@@ -48,17 +44,14 @@ def errors(g, truth) -> tuple[float, float]:
 def tagged():
     """The course's scene with a tagged cube, the target tag, a movable cover, two probes."""
     require_opencv()
-    spec = use_render_meshes(mujoco.MjSpec.from_file(str(SCENE_PATH)))
-    add_cube(spec, *cube_on_table(*CUBE_AT))
-    add_cube_tag(spec)
-    add_target_tag(spec, *TARGET_AT)
+    spec = tagged_spec(CUBE_AT, TARGET_AT)
     for name, pos in PROBE_30CM.items():
         spec.worldbody.add_camera(name=f"probe_{name}", pos=list(pos), xyaxes=PROBE_AXES,
                                   fovy=58.0)
     cover = spec.worldbody.add_body(name="cover", mocap=True, pos=list(COVER_AWAY))
     cover.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.02, 0.04, 0.001], contype=0,
                    conaffinity=0, rgba=[0.3, 0.3, 0.3, 1])
-    m = spec.compile()
+    m = build_tagged_model(spec=spec)
     d = mujoco.MjData(m)
     mujoco.mj_resetDataKeyframe(m, d, m.key("home").id)
     mujoco.mj_forward(m, d)
