@@ -12,6 +12,8 @@ import pytest
 
 from so101_kinematics.constants import CUBE_SIZE
 from so101_kinematics.errors import VisionError
+from so101_kinematics.ik.call_shapes import get_inverse_kinematics
+from so101_kinematics.sim.scene import to_radians
 from so101_kinematics.vision.camera_model import project_points
 from so101_kinematics.vision.detect import detect_tags, find_tag, flat_pose, no_tag_message
 from so101_kinematics.vision.opencv_import import require_opencv
@@ -74,6 +76,27 @@ def test_a_tags_pose_at_30_cm_is_within_2_mm_and_1_deg(tagged, tag):
     assert seen is not None, "the tag was not found"
     assert abs(np.linalg.norm(seen.g_ct[:3, 3]) - 0.30) < 0.01, "the probe is at about 30 cm"
     position_mm, rotation_deg = errors(seen.g_bt, get_tag_pose_base(m, d, f"{tag.name}_tag"))
+    assert position_mm <= 2.0 and rotation_deg <= 1.0, (position_mm, rotation_deg)
+
+
+def test_the_wrist_camera_over_the_cube_finds_its_pose(tagged):
+    """The model's own wrist camera, the arm by IK 6 cm short of the cube, 15 cm up, fingers 60 deg down."""
+    m, d = tagged
+    cube = np.array(CUBE_AT[:2])
+    above = [*(cube - 0.06 * cube / np.linalg.norm(cube)), 0.15]
+    qpos = d.qpos.copy()
+    try:
+        for joint, angle in to_radians(m, get_inverse_kinematics(
+                above, approach="pitch", pitch_deg=60.0, yaw_deg=None)).items():
+            d.qpos[m.joint(joint).qposadr[0]] = angle
+        mujoco.mj_forward(m, d)
+        seen, _, _ = sighting(m, d, "wrist", CUBE_TAG)
+        truth = get_tag_pose_base(m, d, "cube_tag")
+    finally:
+        d.qpos[:] = qpos
+        mujoco.mj_forward(m, d)
+    assert 0.15 < np.linalg.norm(seen.g_ct[:3, 3]) < 0.30
+    position_mm, rotation_deg = errors(seen.g_bt, truth)
     assert position_mm <= 2.0 and rotation_deg <= 1.0, (position_mm, rotation_deg)
 
 
