@@ -80,7 +80,7 @@ def test_a_tags_pose_at_30_cm_is_within_2_mm_and_1_deg(tagged, tag):
 
 
 def test_the_wrist_camera_over_the_cube_finds_its_pose(tagged):
-    """The model's own wrist camera, the arm by IK 6 cm short of the cube, 15 cm up, fingers 60 deg down."""
+    """The model's own wrist camera; the arm by IK 6 cm short of the cube, 15 cm up, 60 deg down."""
     m, d = tagged
     cube = np.array(CUBE_AT[:2])
     above = [*(cube - 0.06 * cube / np.linalg.norm(cube)), 0.15]
