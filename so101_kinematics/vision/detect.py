@@ -5,14 +5,17 @@ same three steps:
 
 1. **detect**: ``cv2.aruco.ArucoDetector`` (OpenCV 4.7 and newer, 5.0 included; never the
    old free functions ``cv2.aruco.detectMarkers`` / ``estimatePoseSingleMarkers``, gone
-   from the main package), with sub-pixel corner refinement, on the grey image of the
-   ``interfaces.Camera``'s RGB (the RGB -> grey conversion is here, once);
+   from the main package), on the grey image of the ``interfaces.Camera``'s RGB (the
+   RGB -> grey conversion is here, once); the corners then refined on the marker's edges
+   (:func:`refine_corners`);
 2. **pose in the camera**: ``cv2.solvePnP`` with ``SOLVEPNP_IPPE_SQUARE``, the marker's four
    corners in the order the detector gives them (top-left, top-right, bottom-right,
    bottom-left as drawn) matched to the square's corners in the tag frame
    (:func:`tag_corners`, OpenCV's documented order for that method); ``g_ct``;
 3. **pose in the base**: ``g_bt = g_bc @ g_ct`` through the camera's pose in the base frame
-   (the simulator's truth, or a calibration).
+   (the simulator's truth, or a calibration); for a tag known to lie flat at a known height
+   (on the table, on a resting cube), :func:`flat_pose` instead meets the corners' rays with
+   that plane: far better from a camera high above a small tag.
 
 A tag that is not found, or only partly visible (a hidden corner: ArUco does not decode
 it), gives ``None``: never a guessed pose. :func:`no_tag_message` says it in one line.
