@@ -10,9 +10,11 @@
 #   ./dev.sh test-all [ARGS]
 #                         every test, on every core, and the 25 slowest named
 #   ./dev.sh test-base [ARGS]
-#                         the tests that need no lerobot (-m "not hw"), on every
-#                         core, in an environment with the dev extra only:
-#                         minutes, not the hw extra's PyTorch (CI's Python 3.10 leg)
+#                         the tests that need no lerobot and no OpenCV
+#                         (-m "not hw and not vision"), on every core, in an
+#                         environment with the dev extra only: minutes, not the
+#                         hw extra's PyTorch (CI's Python 3.10 leg; OpenCV comes
+#                         with lerobot)
 #   ./dev.sh docs [ARGS]  the docs site (Sphinx, warnings as errors) into docs/_build/html
 #   ./dev.sh lint         ruff check (the dev extra only)
 #   ./dev.sh bench [ARGS] the benchmarks (benchmarks/run.py)
@@ -107,7 +109,7 @@ case "$job" in
   sim) exec "$venv/bin/python" pick_place_sim.py "$@" ;;
   test) exec "$venv/bin/python" -m pytest "${parallel[@]}" -m "not slow" "$@" ;;
   test-all) exec "$venv/bin/python" -m pytest "${parallel[@]}" --durations=25 "$@" ;;
-  test-base) exec "$venv/bin/python" -m pytest "${parallel[@]}" -m "not hw" "$@" ;;
+  test-base) exec "$venv/bin/python" -m pytest "${parallel[@]}" -m "not hw and not vision" "$@" ;;
   docs) exec "$venv/bin/python" -m sphinx -W --keep-going -q -b html docs docs/_build/html "$@" ;;
   lint) exec "$venv/bin/python" -m ruff check "$@" . ;;
   bench) exec "$venv/bin/python" benchmarks/run.py "$@" ;;

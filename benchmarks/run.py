@@ -33,6 +33,7 @@ from benchmarks.bench_fk import bench_fk  # noqa: E402
 from benchmarks.bench_hw import bench_hw  # noqa: E402
 from benchmarks.bench_ik import bench_ik  # noqa: E402
 from benchmarks.bench_pick_place import bench_pick_place  # noqa: E402
+from benchmarks.bench_vision import bench_vision  # noqa: E402
 from so101_kinematics.outputs import (  # noqa: E402
     add_overwrite_argument,
     check_output_path,
@@ -48,6 +49,7 @@ BENCHMARKS: dict[str, Callable[[bool], dict]] = {
     "ik": bench_ik,
     "pick_place": bench_pick_place,
     "hw": bench_hw,
+    "vision": bench_vision,
 }
 
 GOALS = {
@@ -62,6 +64,7 @@ GOALS = {
     "hw_period_p99_error_ms_100hz": ("<", 1.0, "100 Hz loop: p99 period error < 1 ms"),
     "hw_period_p99_error_ms_200hz": ("<", 1.0, "200 Hz loop: p99 period error < 1 ms"),
     "wire_cycle_emulator_added_ms": ("<", 0.3, "virtual arm adds < 0.3 ms to a cycle"),
+    "render_fps_640x480": (">=", 30.0, "a camera renders >= 30 frames/s at 640x480 headless"),
 }
 
 

@@ -15,10 +15,11 @@ __all__ = [
     "BusError", "CalibrationError", "CallShapeError", "ClearanceError", "ConnectionFailed",
     "CubePositionError", "FaultSpecError", "FreezeRequested", "HardwareError", "InputError",
     "JointLimitError", "KinematicsInputError", "KinematicsTypeError", "LerobotMissing",
-    "MeshError", "NotConfirmed", "OutputPathError", "PlanError", "PortInUse", "PortLost",
+    "MeshError", "NotConfirmed", "OpenCVMissing", "OutputPathError", "PlanError", "PortInUse",
+    "PortLost",
     "RenderError", "RenderSettingError", "SO101Error", "ServoFault", "StopRequested",
     "TorqueLost", "TrackingError", "TrimError", "UnreachableError", "ViewerClosed",
-    "VirtualSO101Error",
+    "VirtualSO101Error", "VisionError",
 ]
 
 
@@ -102,6 +103,15 @@ class RenderSettingError(RenderError, ValueError):
 
 class MeshError(SO101Error, RuntimeError):
     """The SO-101 meshes are missing or do not match their pinned hashes."""
+
+
+# --- vision (issue 36) -------------------------------------------------------------------
+class VisionError(SO101Error, RuntimeError):
+    """A camera, a tag or an image cannot be used (``so101_kinematics/vision/``)."""
+
+
+class OpenCVMissing(VisionError):
+    """OpenCV (``cv2``, with its ``aruco`` module) is not installed: the hw extra brings it."""
 
 
 # --- the real arm -------------------------------------------------------------------------

@@ -5,6 +5,7 @@ assignment; the tools that work on their outputs live here::
 
     so101 compare run.csv --report report.png      # a hardware log replayed in the simulator
     so101 sheet sheet.pdf --paper letter           # the placement sheet (print at 100 %)
+    so101 tags tags.pdf                            # the ArUco tags, true size (print at 100 %)
     so101 check-fk my_fk.py                        # the checkers (as so101-check-fk/ik/traj)
     so101 virtual-calibration my_arm.json          # the virtual arm's calibration file
 
@@ -21,7 +22,7 @@ from pathlib import Path
 
 from so101_kinematics import outputs
 from so101_kinematics.cli import ArgumentParser, run_script
-from so101_kinematics.errors import InputError
+from so101_kinematics.errors import InputError, OpenCVMissing
 
 __all__ = ["COMPARE_REPORT", "MOVED_FROM_HW", "MOVED_FROM_SIM", "MOVED_FROM_VIRTUAL", "main"]
 
@@ -89,6 +90,12 @@ def build_parser() -> argparse.ArgumentParser:
     from so101_kinematics.planning.stacking import add_stack_arguments
     add_cartesian_arguments(sheet)
     add_stack_arguments(sheet)
+    tags = sub.add_parser(
+        "tags", help="the ArUco tags of the cube and the target (PDF, print at 100 %%)",
+        description="Write the ArUco tags (the cube's and the target's) at their true size on "
+                    "an A4 page, the same images as the simulator's textures. Needs OpenCV "
+                    "(the hw extra).")
+    tags.add_argument("tags", type=Path, metavar="PATH.pdf")
     calibration = sub.add_parser(
         "virtual-calibration", help="write the virtual arm's calibration (from the model)",
         description="Write the lerobot calibration the virtual SO-101 ships with, derived from "
@@ -96,7 +103,7 @@ def build_parser() -> argparse.ArgumentParser:
     calibration.add_argument("path", type=Path, metavar="PATH")
     for name, (_, text) in CHECKERS.items():
         sub.add_parser(name, help=text, add_help=False)
-    for command in (compare, sheet, calibration):
+    for command in (compare, sheet, tags, calibration):
         outputs.add_overwrite_argument(command)
         command.add_argument("-v", "--verbose", action="store_true", help="log details (and "
                              "show the traceback of an unexpected error)")
@@ -112,9 +119,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         except SystemExit as stop:  # its one-line refusal (or --help): the exit code
             return stop.code
     parser = build_parser()
-    work = {"compare": _compare, "sheet": _sheet, "virtual-calibration": _virtual_calibration}
+    work = {"compare": _compare, "sheet": _sheet, "tags": _tags,
+            "virtual-calibration": _virtual_calibration}
     return run_script(parser, argv, lambda args: work[args.command](args),
-                      refused=(InputError,),
+                      refused=(InputError, OpenCVMissing),
                       interrupted="nothing was written; existing output files are as they were.")
 
 
@@ -167,6 +175,21 @@ def _sheet(args: argparse.Namespace) -> int:
     origin = args.plan or ("--pick/--place" if args.pick else "the course's plan")
     print(write_sheet(plan, path, args.paper, source=str(origin), stack=stack,
                       base_height=args.base_height).summary())
+    return 0
+
+
+def _tags(args: argparse.Namespace) -> int:
+    """The printable ArUco tags (vision/tags.py), true to size."""
+    from so101_kinematics.vision.opencv_import import require_opencv
+    from so101_kinematics.vision.tags import TAG_DICTIONARY, TAGS, write_tag_sheet
+
+    require_opencv()  # before the output is touched: one line naming the fix
+    path = outputs.check_output_path(args.tags, "so101 tags", suffixes=(".pdf",),
+                                     kind=outputs.PDF, overwrite=args.overwrite)
+    write_tag_sheet(path)
+    names = ", ".join(f"{t.name} id {t.tag_id} ({t.size * 1000:.0f} mm)" for t in TAGS.values())
+    print(f"Tags ({TAG_DICTIONARY}: {names}) written to {path}; print at 100 % and check the "
+          "50 mm bar with a ruler.")
     return 0
 
 

@@ -32,7 +32,8 @@ from so101_kinematics.sim.meshes import ensure_meshes
 from so101_kinematics.sim.render import use_render_meshes
 
 __all__ = [
-    "CUBE_OFFSET_RANGE_MM", "CubeMonitor", "CubeStart", "build_model", "check_cube_start",
+    "CUBE_OFFSET_RANGE_MM", "CubeMonitor", "CubeStart", "add_cube", "build_model",
+    "check_cube_start",
     "cube_name", "cube_names", "cube_on_table", "cube_state", "scene_limits", "scene_model",
 ]
 

@@ -48,7 +48,8 @@ from so101_kinematics.sim.meshes import ensure_render_meshes
 __all__ = [
     "DEFAULT_CAMERA", "DEFAULT_FPS", "DEFAULT_SIZE", "FINAL_RGBA", "FRAME_EDGE_RANGE",
     "FrameRenderer", "MIN_FPS", "Overlay", "QUALITY", "RenderQuality", "START_RGBA",
-    "VIDEO_CODEC", "VIDEO_PARAMS", "add_overlays", "check_fps", "check_frame_size", "max_fps",
+    "VIDEO_CODEC", "VIDEO_PARAMS", "add_overlays", "check_camera", "check_fps",
+    "check_frame_size", "max_fps",
     "target_cubes", "use_render_meshes",
 ]
 

@@ -18,13 +18,15 @@ MAY_IMPORT = {
     "sim": {"core", "ik", "sensors", "sim"},
     "hw": {"core", "ik", "sensors", "hw"},
     "virtual": {"core", "sensors", "sim", "virtual"},
-    "lab": {"core", "ik", "sensors", "sim", "hw", "virtual", "lab"},
-    "commands": {"core", "ik", "sensors", "sim", "hw", "virtual", "lab", "commands"},
+    "vision": {"core", "ik", "sensors", "sim", "vision"},
+    "lab": {"core", "ik", "sensors", "sim", "hw", "virtual", "vision", "lab"},
+    "commands": {"core", "ik", "sensors", "sim", "hw", "virtual", "vision", "lab", "commands"},
 }
 """Layer -> the layers it may import. hw and virtual are interchangeable backends: neither
 imports the other; the core imports no backend; sensors sit beside the core, under every
-backend (a sensor rides on a backend's transport, passed in); nothing imports the course's
-files."""
+backend (a sensor rides on a backend's transport, passed in); vision (cameras, tags, their
+poses) sits on the simulator, and neither backend imports it: the lab and the commands may;
+nothing imports the course's files."""
 
 
 def layer(module: str) -> str:

@@ -81,6 +81,21 @@ def test_sheet_writes_the_course_plan_with_no_arm(tmp_path, capsys):
     assert "letter" in capsys.readouterr().out
 
 
+@pytest.mark.vision
+def test_tags_writes_the_printable_tags(tmp_path, capsys):
+    tags = tmp_path / "tags.pdf"
+    assert so101_command.main(["tags", str(tags)]) == 0
+    assert tags.read_bytes().startswith(b"%PDF-")
+    assert "DICT_4X4_50" in capsys.readouterr().out
+
+
+def test_tags_without_opencv_is_one_line_exit_2(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(sys.modules, "cv2", None)  # import cv2 raises ImportError
+    assert so101_command.main(["tags", str(tmp_path / "tags.pdf")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "pip install" in err[0] and not (tmp_path / "tags.pdf").exists()
+
+
 def test_virtual_calibration_writes_the_shipped_file_and_keeps_an_existing_one(tmp_path, capsys):
     """The file the virtual arm ships with (calibration/), derived again from the model."""
     path = tmp_path / "virtual.json"

@@ -80,7 +80,7 @@ def test_the_marker_reader_finds_a_block():
     assert output_blocks(text) == [("python -m so101_kinematics --help", "a\nb")]
 
 
-@pytest.mark.parametrize("subcommand", ["compare", "sheet", "virtual-calibration"])
+@pytest.mark.parametrize("subcommand", ["compare", "sheet", "tags", "virtual-calibration"])
 def test_every_option_of_a_tool_is_on_the_page(subcommand):
     help_text = run(f"python -m so101_kinematics {subcommand} --help")
     options = set(re.findall(r"(?<![\w-])--[a-z][\w-]*(?![\w-])", help_text)) - {"--help"}

@@ -16,6 +16,7 @@ EXPECTED_KEYS = [
     "hw_loop_hz_100hz", "hw_period_p50_ms_100hz", "hw_period_p99_error_ms_100hz",
     "hw_loop_hz_200hz", "hw_period_p50_ms_200hz", "hw_period_p99_error_ms_200hz",
     "wire_cycle_ms", "wire_time_ms", "wire_cycle_emulator_added_ms",
+    "render_fps_640x480", "render_reference_fps_640x480", "detect_pose_ms",
 ]
 
 
