@@ -81,6 +81,8 @@ line; nothing moved), 130 interrupted.""")
     parser.add_argument("--target", type=number(), nargs=3, metavar=("X", "Y", "YAW"),
                         help="the target tag's X Y [m] and YAW [deg] (default: the course's "
                         "place position)")
+    parser.add_argument("--random-target", action="store_true",
+                        help="each trial's target tag at a seeded random pose in reach too")
     parser.add_argument("--clean-images", action="store_true",
                         help="the camera's images as rendered (no webcam blur and noise)")
     parser.add_argument("--video", type=Path, metavar="PATH.mp4",
@@ -135,6 +137,10 @@ def _run(args: argparse.Namespace) -> int:
     """Check the outputs, run, report (see :func:`main`)."""
     video, json_path = _check_outputs(args)
     cube, target = _on_table(args.cube, "--cube"), _on_table(args.target, "--target")
+    if args.target is not None and args.random_target:
+        print("error: --target puts the target tag at one pose, --random-target at random "
+              "ones. Fix: give one of them.", file=sys.stderr)
+        return EXIT_BAD_INPUT
     if args.cube is not None and (args.trials or 1) > 1:
         print("error: --cube puts every trial's cube at one pose; --trials N repeats it. Fix: "
               "leave out --cube for random poses, or --trials.", file=sys.stderr)
@@ -143,6 +149,7 @@ def _run(args: argparse.Namespace) -> int:
     try:
         report = run_trials(args.trials or 1, args.seed, cube_at=cube,
                             target_at=target or course_target(), effects=effects,
+                            random_target=args.random_target,
                             video=video, on_trial=_print_trial)
     except VisionError as error:  # a stale pose: nothing moved
         print(f"error: {error}", file=sys.stderr)

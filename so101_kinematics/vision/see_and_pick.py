@@ -2,14 +2,14 @@
 
 One trial (:func:`run_trial`) in the simulator, with the measured STS3215 servos:
 
-1. **look**: the ``overhead`` camera's image (webcam-like: blur and noise) goes through
-   ``detect.py``'s one path; each tag lies flat at a known height (the cube's on the top of
-   a cube resting on the table, the target's on the table), so :func:`look` takes its pose
-   from ``detect.flat_pose`` (the full 6-D pose of a 20 mm tag 55 cm away is centimetres
-   off; its corners' rays met with the known plane are within 2 mm). The result is a
-   :class:`Sighting` stamped with the clock of its image; no tag, no sighting
-   (``TagNotInView``, one line);
-   The arm first folds out of the camera's way (:data:`LOOK_POSE`).
+1. **look**: the arm turns its gripper up, out of the camera's way (:data:`LOOK_POSE`); the
+   ``overhead`` camera's image (webcam-like: blur and noise) goes through ``detect.py``'s
+   one path; each tag lies flat at a known height (the cube's on the top of a cube resting
+   on the table, the target's on the table), so :func:`look` takes its pose from
+   ``detect.flat_pose`` (the full 6-D pose of a 20 mm tag 55 cm away is centimetres off;
+   its corners' rays met with the known plane are within 2 mm). The result is a
+   :class:`Sighting` stamped with the clock of its image; no tag in
+   :data:`LOOK_FRAMES` frames, no sighting (``TagNotInView``, one line);
 2. **plan**: ``cartesian_plan``, the course's pick-and-place waypoints solved by the IK,
    with the cube's yaw from its tag (a cube repeats every 90 deg: the IK picks the wrist
    roll) and the target tag's yaw at the place;
@@ -215,14 +215,15 @@ class TrialResult:
     """One trial's outcome; the JSON's ``trials`` items (lengths [mm], angles [deg]).
 
     ``placed_error_mm`` is always measured (from the simulator's truth): a cube never
-    moved is as far from the target as it started.
+    moved is as far from the target as it started. ``refused``: nothing moved (no tag in
+    view, or the cube out of reach; ``reason`` says which).
     """
 
     picked: bool
     placed_error_mm: float
     success: bool
     reason: str | None
-    refused: bool  # nothing moved: no tag in view, or out of reach (the reason says which)
+    refused: bool
     cube_true: list[float]
     target_true: list[float]
     cube_seen_error_mm: float | None = None
@@ -342,6 +343,7 @@ def _stats(values) -> dict | None:
 
 
 def run_trials(trials: int, seed: int, *, cube_at=None, target_at=None,
+               random_target: bool = False,
                effects: ImageEffects | None = WEBCAM, video: str | Path | None = None,
                progress: bool = False, on_trial=None) -> dict:
     """``trials`` see-and-picks, each cube at a seeded random pose (or at ``cube_at``).
@@ -351,6 +353,8 @@ def run_trials(trials: int, seed: int, *, cube_at=None, target_at=None,
         seed: the random poses' and the camera noise's seed.
         cube_at: every trial's cube (x [m], y [m], yaw [deg]) instead of random ones.
         target_at: the target tag's (x, y, yaw); default :func:`course_target`.
+        random_target: each trial's target at a seeded random pose in the reach too
+            (:func:`random_cube`'s region; the cube then at least 8 cm from it).
         effects: the camera's webcam effects (each trial's noise seeded from ``seed``).
         video: an MP4 of the first trial (the camera's view inset).
         progress: a progress bar while recording.
@@ -360,10 +364,11 @@ def run_trials(trials: int, seed: int, *, cube_at=None, target_at=None,
         The report: ``success_rate``, ``trials`` (each :meth:`TrialResult.as_dict`), and
         the placement and sighting errors' mean and worst [mm].
     """
-    target_at = tuple(target_at) if target_at is not None else course_target()
+    fixed_target = tuple(target_at) if target_at is not None else course_target()
     rng = np.random.default_rng(seed)
     results = []
     for index in range(trials):
+        target_at = random_cube(rng, (math.inf, math.inf)) if random_target else fixed_target
         cube = tuple(cube_at) if cube_at is not None else random_cube(rng, target_at)
         noise = None if effects is None else replace(effects, seed=seed * 1000 + index)
         result = run_trial(cube, target_at, effects=noise,
@@ -376,6 +381,7 @@ def run_trials(trials: int, seed: int, *, cube_at=None, target_at=None,
         "success_rate": sum(r.success for r in results) / trials,
         "trials": [r.as_dict() for r in results],
         "seed": seed,
+        "random_target": random_target,
         "picked": len(picked),
         "placed": sum(r.success for r in results),
         "place_tolerance_mm": PLACE_TOLERANCE * 1000,
