@@ -57,7 +57,27 @@ def test_two_seeded_trials_pick_and_place_within_5_mm(tmp_path, capsys):
     assert "Placed 2 of 2 within 5 mm" in capsys.readouterr().out
 
 
-def test_the_same_seed_gives_the_same_cubes(tmp_path):
+def test_a_cube_under_the_rest_pose_s_gripper_is_seen_once_the_arm_turns_it_up(tmp_path):
+    # at rest (the "home" keyframe) the gripper hides (0.21, 0) m from the overhead camera
+    report_path = tmp_path / "under_the_gripper.json"
+    assert see_and_pick.main(["--headless", "--cube", "0.21", "0.0", "45", "--json",
+                              str(report_path)]) == 0
+    trial = json.loads(report_path.read_text())["trials"][0]
+    assert trial["success"] is True and trial["placed_error_mm"] <= PLACED_MM
+
+
+def test_a_random_target_is_found_and_reached_too(tmp_path):
+    report_path = tmp_path / "random_target.json"
+    assert see_and_pick.main(["--headless", "--trials", "1", "--seed", "5", "--random-target",
+                              "--json", str(report_path)]) == 0
+    report = json.loads(report_path.read_text())
+    trial = report["trials"][0]
+    assert report["random_target"] is True and trial["success"] is True
+    assert tuple(trial["target_true"]) != course_target()
+    assert trial["placed_error_mm"] <= PLACED_MM and trial["target_seen_error_mm"] < 2.0
+
+
+def test_the_same_seed_gives_the_same_cubes():
     first = [random_cube(np.random.default_rng(11), course_target()) for _ in range(2)]
     assert first[0] == first[1]
     target = course_target()
@@ -117,6 +137,10 @@ def test_the_sighting_reads_the_cube_tag_s_yaw():
     (["--seed", "abc"], "--seed"),
     (["--cube", "0.2", "0.9", "0"], "--cube"),
     (["--video", "run.avi"], "--video"),
+    (["--target", "0.2", "-0.6", "0"], "--target Y"),
+    (["--cube", "0.2", "0.1", "270"], "--cube YAW"),
+    (["--target", "0.2", "-0.1", "0", "--random-target"], "--random-target"),
+    (["--cube", "0.2", "0.1", "0", "--trials", "2"], "--cube"),
 ])
 def test_bad_arguments_are_one_line_and_exit_2(argv, named, capsys):
     assert see_and_pick.main(["--headless", *argv]) == 2
