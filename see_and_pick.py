@@ -50,17 +50,19 @@ SEED_RANGE = (0, 2**32 - 1)
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Parse the command line, run the trials, print and write the report; the exit code."""
+    radius, bearing = (f"{low:g} to {high:g}" for low, high in (PICK_RADIUS, PICK_BEARING))
     parser = ArgumentParser(
         description=__doc__.splitlines()[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=f"""Each trial: the tagged cube at a seeded random pose in reach
-({PICK_RADIUS[0]:g} to {PICK_RADIUS[1]:g} m from the shoulder_pan axis, bearing
-{PICK_BEARING[0]:g} to {PICK_BEARING[1]:g} deg, any yaw), the target tag at the
-course's place position. The overhead camera's image (640x480, a webcam's
-blur and noise) alone gives both poses; the IK plans the course's
-pick-and-place; the measured STS3215 servos move the arm, which starts only on
-a sighting at most {MAX_POSE_AGE:g} s old. Placed: the cube's centre within
-{PLACE_TOLERANCE * 1000:g} mm of the target tag's centre (the simulator's truth).
+({radius} m from the shoulder_pan axis, bearing {bearing} deg, any
+yaw), the target tag at the course's place position (or at random too:
+--random-target). The arm turns its gripper up, out of the camera's view;
+the overhead camera's image (640x480, a webcam's blur and noise) alone
+gives both poses; the IK plans the course's pick-and-place; the measured
+STS3215 servos move the arm, which starts only on a sighting at most
+{MAX_POSE_AGE:g} s old. Placed: the cube's centre within {PLACE_TOLERANCE * 1000:g} mm of the target
+tag's centre (the simulator's truth).
 
 Exit code: 0 done (even if a cube was not placed: the report says why;
 unless --strict), 1 a cube not placed (with --strict) or an unexpected error,
@@ -93,8 +95,8 @@ line; nothing moved), 130 interrupted.""")
                         help="exit 1 unless every trial placed its cube")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
-    return run_script(parser, argv, _run, refused=(OutputPathError, PlanError, RenderError,
-                                                          CubePositionError),
+    refused = (OutputPathError, PlanError, RenderError, CubePositionError)
+    return run_script(parser, argv, _run, refused=refused,
                       interrupted="nothing was written; existing output files are as they were.")
 
 
