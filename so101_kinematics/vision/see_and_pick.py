@@ -282,12 +282,12 @@ def run_trial(cube_at, target_at, *, effects: ImageEffects | None = WEBCAM,
     stepping.move_to_pose(m, d, None, dict(rest, **LOOK_POSE), LOOK_MOVE[0])
     stepping.hold_position(m, d, None, LOOK_MOVE[1])
     truth = dict(cube_true=[float(v) for v in cube_at], target_true=[float(v) for v in target_at])
-    start_error = 1000 * math.dist(d.body("cube").xpos[:2], _target_centre(m, d))
     with SimCamera(m, d, CAMERA, effects=effects) as camera:
         try:
             sighting = look_in_sim(m, d, camera)
             plan = plan_from_sighting(sighting, rest)
-        except (TagNotInView, UnreachableError) as error:
+        except (TagNotInView, UnreachableError) as error:  # nothing moved: score it as it is
+            start_error = 1000 * math.dist(d.body("cube").xpos[:2], _target_centre(m, d))
             return TrialResult(False, start_error, False, str(error), True, **truth,
                                wall_time_s=time.perf_counter() - wall0)
     seen = _seen_errors(m, d, sighting)
