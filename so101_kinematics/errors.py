@@ -17,9 +17,9 @@ __all__ = [
     "JointLimitError", "KinematicsInputError", "KinematicsTypeError", "LerobotMissing",
     "MeshError", "NotConfirmed", "OpenCVMissing", "OutputPathError", "PlanError", "PortInUse",
     "PortLost",
-    "RenderError", "RenderSettingError", "SO101Error", "ServoFault", "StopRequested",
-    "TorqueLost", "TrackingError", "TrimError", "UnreachableError", "ViewerClosed",
-    "VirtualSO101Error", "VisionError",
+    "RenderError", "RenderSettingError", "SO101Error", "ServoFault", "StalePoseError",
+    "StopRequested", "TagNotInView", "TorqueLost", "TrackingError", "TrimError",
+    "UnreachableError", "ViewerClosed", "VirtualSO101Error", "VisionError",
 ]
 
 
@@ -112,6 +112,14 @@ class VisionError(SO101Error, RuntimeError):
 
 class OpenCVMissing(VisionError):
     """OpenCV (``cv2``, with its ``aruco`` module) is not installed: the hw extra brings it."""
+
+
+class TagNotInView(VisionError):
+    """A tag the program needs is not (wholly) in the camera's image: nothing moves."""
+
+
+class StalePoseError(VisionError):
+    """A seen pose is older than the age the arm may move on: look again before moving."""
 
 
 # --- the real arm -------------------------------------------------------------------------

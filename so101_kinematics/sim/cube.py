@@ -35,6 +35,7 @@ __all__ = [
     "CUBE_OFFSET_RANGE_MM", "CubeMonitor", "CubeStart", "add_cube", "build_model",
     "check_cube_start",
     "cube_name", "cube_names", "cube_on_table", "cube_state", "scene_limits", "scene_model",
+    "table_extent",
 ]
 
 # The free cube: a 26 mm hardwood cube (17.6 cm^3 at ~0.7 g/cm^3 = 12 g).

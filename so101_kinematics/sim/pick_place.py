@@ -49,8 +49,8 @@ from so101_kinematics.sim.render import (
 from so101_kinematics.sim.video import VideoRecorder
 
 __all__ = [
-    "DEFAULT_VIDEO", "INITIAL_KEYFRAME", "PLACEMENT_TOLERANCE", "RunReport", "TILT_TOLERANCE",
-    "TIMESTEP_RANGE", "_report", "choose_mode", "execute_plan", "run_pick_place",
+    "DEFAULT_VIDEO", "INITIAL_KEYFRAME", "MIN_LIFT", "PLACEMENT_TOLERANCE", "RunReport",
+    "TILT_TOLERANCE", "TIMESTEP_RANGE", "_report", "choose_mode", "execute_plan", "run_pick_place",
     "total_duration",
 ]
 

@@ -6,10 +6,11 @@ import logging
 import os
 import queue
 import threading
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 import mujoco
+import numpy as np
 
 from so101_kinematics.errors import RenderError, RenderSettingError
 from so101_kinematics.sim.render import (
@@ -60,6 +61,8 @@ class VideoRecorder:
         render_model: model to draw with (see :class:`FrameRenderer`).
         total_time: expected simulated duration [s], for the progress bar.
         progress: show a progress bar (tqdm, on stderr).
+        compose: makes each rendered frame into the one written (e.g. a camera's view
+            inset in a corner); it returns a new H x W x 3 uint8 image of the same size.
 
     Raises:
         RenderSettingError: bad size, fps, path or camera (nothing is written).
@@ -73,7 +76,8 @@ class VideoRecorder:
                  camera: str = DEFAULT_CAMERA, overlays: Iterable[Overlay] = (),
                  quality: RenderQuality = QUALITY["fast"],
                  render_model: mujoco.MjModel | None = None,
-                 total_time: float | None = None, progress: bool = True):
+                 total_time: float | None = None, progress: bool = True,
+                 compose: Callable[[np.ndarray], np.ndarray] | None = None):
         import imageio.v2 as imageio
         from tqdm import tqdm
 
@@ -93,6 +97,7 @@ class VideoRecorder:
             raise RenderSettingError(str(error)) from None
         self.d, self.fps, self.path = d, fps, path
         self.frames_written = 0
+        self._compose = compose
         self._half_step = 0.5 * m.opt.timestep
         self._t0 = d.time
         self._frames = FrameRenderer(m, d, (width, height), camera, overlays, quality, render_model)
@@ -138,7 +143,8 @@ class VideoRecorder:
         """Render the current state and append it to the video."""
         if self._write_error is not None:
             raise RenderError(f"Writing '{self.path}' failed: {self._write_error}")
-        self._queue.put(self._frames.render())
+        frame = self._frames.render()
+        self._queue.put(frame if self._compose is None else self._compose(frame))
         self.frames_written += 1
         self._bar.update(1)
 
