@@ -137,7 +137,8 @@ def pytest_collection_modifyitems(config, items):
 # rehearsal's 3.12 leg at -n 2 it was not yet set when the ending read it back (the 3.11 legs
 # passed it). Each of their tests takes the arms'
 # lock exclusively; every other test that runs a virtual arm (marked hw, or in tests/virtual/)
-# takes it shared. Only under xdist.
+# takes it shared. Under xdist, or across processes when SO101_ARMS_LOCK names a lock file
+# (.ci/run: its slow leg and its Python 3.12 leg run side by side and share one).
 EXCLUSIVE_ARM_FILES = {"test_virtual_feetech_sdk.py", "test_virtual_protocol.py",
                        "test_virtual_fidelity.py", "test_virtual_so101.py",
                        "test_stop_with_cube.py", "test_pick_place_hw.py"}
@@ -146,15 +147,16 @@ EXCLUSIVE_ARM_FILES = {"test_virtual_feetech_sdk.py", "test_virtual_protocol.py"
 @pytest.fixture(autouse=True)
 def _virtual_arm_turn(request, tmp_path_factory):
     run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    shared_lock = os.environ.get("SO101_ARMS_LOCK")
     node = request.node
     exclusive = node.path.name in EXCLUSIVE_ARM_FILES
-    if run is None or not (exclusive or node.get_closest_marker("hw")
-                           or node.path.parent.name == "virtual"):
+    if (run is None and not shared_lock) or not (exclusive or node.get_closest_marker("hw")
+                                                 or node.path.parent.name == "virtual"):
         yield
         return
     import fcntl
 
-    lock_path = tmp_path_factory.getbasetemp().parent / f"virtual-arms-{run}.lock"
+    lock_path = shared_lock or tmp_path_factory.getbasetemp().parent / f"virtual-arms-{run}.lock"
     with open(lock_path, "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
         try:
