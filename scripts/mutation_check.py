@@ -74,6 +74,8 @@ MARKERS, OUTPUTS = "so101_kinematics/markers.py", "so101_kinematics/outputs.py"
 T_OUT = "tests/core/test_outputs.py"
 REGISTERS = "so101_kinematics/virtual/registers.py"
 T_SDK = "tests/virtual/test_virtual_feetech_sdk.py"
+VISION_MODEL = "so101_kinematics/vision/camera_model.py"
+VISION_DETECT = "so101_kinematics/vision/detect.py"
 READINGS = "so101_kinematics/virtual/sensor_registers.py"
 T_CONTROL, T_RUN = "tests/hw/test_control.py", "tests/hw/test_hw_run.py"
 T_HW = "tests/course_files/test_pick_place_hw.py"
@@ -602,6 +604,25 @@ MUTANTS: list[Mutant] = [
       "        parser.exit(EXIT_BAD_INPUT, f", "        return None and parser.exit(2, f",
       "tests/course_files/test_moved_options.py::"
       "test_an_old_option_is_refused_in_one_line_with_its_new_spelling"),
+    # --- the camera pipeline (issue 36) ----------------------------------------------------------
+    m("fovy_taken_as_horizontal", "the focal length from the image's width: MuJoCo's fovy is the "
+      "vertical field of view", VISION_MODEL, "intrinsics_from_fovy",
+      "focal = (height / 2.0)", "focal = (width / 2.0)",
+      "tests/vision/test_camera_model.py::test_intrinsics_are_the_hand_calculation_from_fovy",
+      "tests/vision/test_camera_model.py::test_a_projected_point_lands_where_mujoco_draws_it"),
+    m("principal_point_half_a_pixel_off", "the principal point at width / 2: OpenCV's pixel "
+      "centres are whole numbers, the image's middle is (width - 1) / 2", VISION_MODEL,
+      "intrinsics_from_fovy", "[focal, 0.0, (width - 1) / 2.0]", "[focal, 0.0, width / 2.0]",
+      "tests/vision/test_camera_model.py::test_a_projected_point_lands_where_mujoco_draws_it"),
+    m("mujoco_camera_axes_kept", "the camera's pose in MuJoCo's axes (-z forward, y up) where "
+      "OpenCV's are meant: the half turn about x forgotten", VISION_MODEL,
+      "get_camera_pose_base", "@ R_MUJOCO_OPENCV)", ")",
+      "tests/vision/test_camera_model.py::test_a_projected_point_lands_where_mujoco_draws_it",
+      "tests/vision/test_detect.py::test_a_tags_pose_at_30_cm_is_within_2_mm_and_1_deg"),
+    m("flat_tag_yaw_mirrored", "a flat tag's yaw from its edge with y mirrored", VISION_DETECT,
+      "flat_pose", "yaw = np.arctan2(across[1], across[0])",
+      "yaw = np.arctan2(-across[1], across[0])",
+      "tests/vision/test_detect.py::test_a_flat_tags_pose_from_the_overhead_camera_at_640x480"),
 ]
 
 
