@@ -104,7 +104,7 @@ from so101_kinematics.paths import REPO
 from so101_kinematics.sensors.cube_wire import CubeReading
 from so101_kinematics.servo import KIT_SUPPLY_V
 from so101_kinematics.sim.render import check_frame_size
-from so101_kinematics.virtual.camera_server import CAMERA_FPS, require_cv2
+from so101_kinematics.virtual.camera_server import CAMERA_FPS, check_camera_fps, require_cv2
 from so101_kinematics.virtual.cubes import check_base_height, check_cube_position, check_cubes
 from so101_kinematics.virtual.electrical import SUPPLY_V, THERMAL_TIME_S
 from so101_kinematics.virtual.faults import parse_faults
@@ -196,7 +196,7 @@ class VirtualSO101:
                    "cubes": cubes, "base_height": base_height, "variant": variant,
                    "rules": chosen_rules, "cameras": list(cameras),
                    "camera_size": check_frame_size(camera_size, "camera size", even=False),
-                   "camera_fps": float(camera_fps)}
+                   "camera_fps": check_camera_fps(camera_fps)}
         env = dict(os.environ)
         if cameras:
             require_cv2()  # one line before a start-up, not a traceback from the child

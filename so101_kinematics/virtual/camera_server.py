@@ -29,7 +29,7 @@ import mujoco
 from so101_kinematics.errors import OpenCVMissing, RenderSettingError
 from so101_kinematics.sim.render import FrameRenderer, check_camera
 
-__all__ = ["CAMERA_FPS", "CameraServer", "JPEG_QUALITY", "require_cv2"]
+__all__ = ["CAMERA_FPS", "CameraServer", "JPEG_QUALITY", "check_camera_fps", "require_cv2"]
 
 logger = logging.getLogger("virtual_so101")
 
@@ -39,6 +39,18 @@ JPEG_QUALITY = 90
 """cv2.imencode's JPEG quality (0-100): a webcam's MJPG mode looks about like this."""
 BOUNDARY = "so101frame"
 STALL_S = 5.0  # [s] a stream with no new frame for this long ends (the emulator stopped)
+
+
+def check_camera_fps(fps) -> float:
+    """The served frame rate [frames/s], 1..60.
+
+    Raises:
+        RenderSettingError: one line with the range and the fix.
+    """
+    if not (isinstance(fps, (int, float)) and 1.0 <= fps <= 60.0):
+        raise RenderSettingError(f"camera fps {fps!r}: outside 1..60 frames/s (a webcam's "
+                                 "rates). Fix: e.g. --camera-fps 30.")
+    return float(fps)
 
 
 def require_cv2():
@@ -76,8 +88,7 @@ class CameraServer:
                  host: str = "127.0.0.1"):
         for name in cameras:
             check_camera(m, name)
-        if not 1.0 <= fps <= 60.0:
-            raise RenderSettingError(f"camera fps {fps:g}: outside 1..60 frames/s. Fix: e.g. 30.")
+        check_camera_fps(fps)
         self._cv2 = require_cv2()
         self.m, self.render_model = m, render_model
         self.names, self.size, self.period = list(dict.fromkeys(cameras)), tuple(size), 1.0 / fps
