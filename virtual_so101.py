@@ -38,8 +38,8 @@ from so101_kinematics.errors import (
     RenderSettingError,
     VirtualSO101Error,
 )
-from so101_kinematics.sim.render import check_frame_size
 from so101_kinematics.servo import KIT_SUPPLY_V, VARIANTS
+from so101_kinematics.sim.render import check_frame_size
 from so101_kinematics.virtual import shell
 from so101_kinematics.virtual.arm import VirtualSO101
 from so101_kinematics.virtual.camera_server import CAMERA_FPS

@@ -11,8 +11,10 @@ __all__ = ["SO101VirtualCamera"]
 
 
 class SO101VirtualCamera(OpenCVCamera):
-    """lerobot's ``OpenCVCamera`` on the stream (its reader thread, colour order, rotation),
-    except that the size is checked, not set, and the rate is the server's."""
+    """lerobot's ``OpenCVCamera`` on the stream: its reader thread, colour order, rotation.
+
+    Only the settings differ: the size is checked, not set, and the rate is the server's.
+    """
 
     def __init__(self, config: SO101VirtualCameraConfig):
         super().__init__(config)

@@ -32,7 +32,7 @@ import threading
 from collections.abc import Callable, Iterator, MutableMapping
 
 __all__ = [
-    "close_viewer", "frame_camera", "guard_viewer_exit", "has_display", "launch_viewer",
+    "choose_gl_backend", "close_viewer", "frame_camera", "guard_viewer_exit", "has_display", "launch_viewer",
     "open_viewer",
 ]
 

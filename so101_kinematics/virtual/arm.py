@@ -374,9 +374,12 @@ class VirtualSO101:
         return self._call("reply_stats")
 
     def camera_stats(self) -> dict[str, float]:
-        """The served cameras: ``frames`` drawn, ``skipped`` (the renderer was busy), mean
-        ``render_ms`` (all watched cameras, with the JPEG encoding) and ``latency_ms`` (from the
-        state's copy to the frame ready to send); empty without cameras."""
+        """The served cameras' figures; empty without cameras.
+
+        Keys: ``frames`` drawn, ``skipped`` (the renderer was busy), mean ``render_ms`` (all
+        watched cameras, with the JPEG encoding) and ``latency_ms`` (from the state's copy to
+        the frame ready to send).
+        """
         return self._call("camera_stats")
 
     def clear_stats(self) -> None:

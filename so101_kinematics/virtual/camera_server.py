@@ -140,7 +140,7 @@ class CameraServer:
         self._renderer_thread.join(5)
 
     def camera_stats(self) -> dict[str, float]:
-        """Frames drawn, mean render + encode time [ms], skipped frames, mean state-to-frame latency [ms]."""
+        """Frames drawn and skipped, mean render + encode time and state-to-frame latency [ms]."""
         frames = max(1, self.stats["frames"])
         return {"frames": self.stats["frames"], "skipped": self.stats["skipped"],
                 "render_ms": 1000.0 * self.stats["render_s"] / frames,
