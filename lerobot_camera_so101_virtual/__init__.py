@@ -4,7 +4,8 @@ lerobot's own ``OpenCVCamera`` cannot open the virtual arm's stream as given on 
 line: its ``index_or_path`` is typed ``int | Path``, and ``Path("http://127.0.0.1:PORT/x")``
 turns the ``//`` into ``/``; given in Python it opens, but only without ``width``,
 ``height`` and ``fps`` (which a robot's recording needs): it sets them on the capture, which a
-network stream refuses ("failed to set capture_width=640 (actual_width=640)"). This type takes the address as a string and checks the stream's size instead of setting it::
+network stream refuses ("failed to set capture_width=640 (actual_width=640)"). This type
+takes the address as a string and checks the stream's size instead of setting it::
 
     lerobot-record --robot.type=so101_follower --robot.port=/dev/pts/3 ...
         --robot.discover_packages_path=lerobot_camera_so101_virtual
