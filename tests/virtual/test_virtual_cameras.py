@@ -161,3 +161,31 @@ def test_without_opencv_one_line_names_the_fix(monkeypatch):
     with pytest.raises(OpenCVMissing) as error:
         require_cv2()
     assert "\n" not in str(error.value) and "pip install" in str(error.value)
+
+
+def test_lerobot_s_command_line_parser_finds_the_type_through_discover_packages_path(monkeypatch):
+    """The parser lerobot-record (and every lerobot command) runs its arguments through."""
+    from dataclasses import make_dataclass
+
+    from lerobot.configs import parser
+    from lerobot.robots.config import RobotConfig
+    from lerobot.robots.so_follower.config_so_follower import SOFollowerRobotConfig  # noqa: F401
+
+    # lerobot-record's config has its robot here (a class, not this module's string)
+    command = make_dataclass("Command", [("robot", RobotConfig)])
+    address = "http://127.0.0.1:8000/overhead.mjpg"
+    monkeypatch.setattr(sys, "argv", [
+        "lerobot-record", "--robot.type=so101_follower", "--robot.port=/dev/null",
+        "--robot.discover_packages_path=lerobot_camera_so101_virtual",
+        f"--robot.cameras={{front: {{type: so101_virtual, address: '{address}', width: 640, "
+        "height: 480, fps: 30}}"])
+    parsed = []
+
+    def record(cfg) -> None:
+        parsed.append(cfg)
+
+    record.__annotations__["cfg"] = command
+    parser.wrap()(record)()
+    camera = parsed[0].robot.cameras["front"]
+    assert camera.type == "so101_virtual" and camera.address == address
+    assert (camera.width, camera.height, camera.fps) == (640, 480, 30)
