@@ -164,24 +164,32 @@ class CameraServer:
                 if self._stop.is_set() or self._qpos is None:
                     self._busy.clear()
                     continue
-                qpos, taken = self._qpos
-                start = time.perf_counter()
-                self._snapshot.qpos[:] = qpos
-                for name in [n for n in self.names if self._watchers[n]]:
-                    rgb = renderers[name].render()
-                    ok, jpeg = cv2.imencode(".jpg", rgb[:, :, ::-1], params)
-                    with self._cond:
-                        number = self._frames.get(name, (0, b""))[0] + 1
-                        self._frames[name] = (number, jpeg.tobytes())
-                        self._cond.notify_all()
-                done = time.perf_counter()
-                self.stats["frames"] += 1
-                self.stats["render_s"] += done - start
-                self.stats["latency_s"] += done - taken
-                self._busy.clear()
+                try:
+                    self._draw(renderers, *self._qpos, cv2, params)
+                except Exception:  # noqa: BLE001 - logged; the clients' streams then end
+                    logger.exception("the virtual arm's cameras stopped drawing")
+                    return
+                finally:
+                    self._busy.clear()
         finally:
             for renderer in renderers.values():
                 renderer.close()
+
+    def _draw(self, renderers: dict, qpos, taken: float, cv2, params) -> None:
+        """Draw and encode every watched camera at ``qpos``; publish the frames."""
+        start = time.perf_counter()
+        self._snapshot.qpos[:] = qpos
+        for name in [n for n in self.names if self._watchers[n]]:
+            rgb = renderers[name].render()
+            _, jpeg = cv2.imencode(".jpg", rgb[:, :, ::-1], params)
+            with self._cond:
+                number = self._frames.get(name, (0, b""))[0] + 1
+                self._frames[name] = (number, jpeg.tobytes())
+                self._cond.notify_all()
+        done = time.perf_counter()
+        self.stats["frames"] += 1
+        self.stats["render_s"] += done - start
+        self.stats["latency_s"] += done - taken
 
     # --- the clients' threads --------------------------------------------------------------
     def next_frame(self, name: str, after: int) -> tuple[int, bytes] | None:

@@ -85,6 +85,21 @@ def test_opencv_opens_each_camera_and_the_image_follows_the_arm(arm):
         arm.set_pose(POSE_A)
 
 
+def test_one_frame_as_jpeg_and_an_unknown_path_answered_with_the_streams(arm):
+    import urllib.error
+    import urllib.request
+
+    address = arm.camera_addresses["wrist"]
+    with urllib.request.urlopen(address.replace(".mjpg", ".jpg"), timeout=10) as answer:
+        assert answer.headers["Content-Type"] == "image/jpeg"
+        image = cv2.imdecode(np.frombuffer(answer.read(), np.uint8), cv2.IMREAD_COLOR)
+    assert image.shape == (480, 640, 3)
+    with pytest.raises(urllib.error.HTTPError) as refused:
+        urllib.request.urlopen(address.replace("wrist", "gripper_closeup"), timeout=10)
+    assert refused.value.code == 404
+    assert "/overhead.mjpg" in refused.value.read().decode()
+
+
 def test_the_physics_keeps_real_time_while_both_cameras_are_read(arm):
     captures = [cv2.VideoCapture(address) for address in arm.camera_addresses.values()]
     try:
