@@ -152,6 +152,12 @@ def main(argv: list[str] | None = None) -> int:
         print("error: --viewer needs a display (DISPLAY or WAYLAND_DISPLAY is not set); "
               "run without --viewer.", file=sys.stderr)
         return 2
+    words = sys.argv[1:] if argv is None else argv
+    given = [o for o in ("--camera-size", "--camera-fps") if any(w.startswith(o) for w in words)]
+    if given and not args.camera:
+        print(f"error: {given[0]} sets the served cameras, but none is served; add --camera NAME "
+              "(e.g. --camera overhead).", file=sys.stderr)
+        return 2
     if args.supply is not None and not 0.0 <= args.supply <= 25.0:
         print(f"error: --supply {args.supply:g}: outside 0..25 V; use e.g. --supply 12.",
               file=sys.stderr)

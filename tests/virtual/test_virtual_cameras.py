@@ -171,6 +171,14 @@ def test_the_script_prints_one_line_per_camera_and_refuses_an_unknown_one():
             served.wait(10)
 
 
+def test_a_camera_size_without_a_camera_is_refused(capsys):
+    import virtual_so101
+
+    assert virtual_so101.main(["--camera-size", "320x240"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert "\n" not in error and "--camera NAME" in error
+
+
 def test_without_opencv_one_line_names_the_fix(monkeypatch):
     monkeypatch.setitem(sys.modules, "cv2", None)  # import cv2 -> ImportError
     with pytest.raises(OpenCVMissing) as error:
