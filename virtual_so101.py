@@ -4,8 +4,10 @@ The course's files at the root are the project's one facade; ``so101_kinematics`
 
     python virtual_so101.py [--calibration PATH] [--factory | --leader] [--link PATH]
                             [--viewer] [--wire-timing] [--faults SPEC] [--supply VOLTS]
+                            [--camera NAME ... [--camera-size WxH] [--camera-fps FPS]]
 
-prints the pty path as the first line of stdout (give it to ``pick_place_hw.py
+prints the pty path as the first line of stdout, then ``camera NAME: ADDRESS`` for each
+served camera (``cv2.VideoCapture(ADDRESS)`` opens it), (give it to ``pick_place_hw.py
 --port``, ``lerobot-calibrate``, ``lerobot-teleoperate``, ...), then reads
 commands on stdin, one a line, each answered with one line on stdout (``ok
 ...`` / ``error ...``): ``pose JOINT=DEG ...``, ``sweep [JOINT ...]``,
@@ -18,6 +20,7 @@ emulator, its faults and its deviations from a real arm are described in
 
 from __future__ import annotations
 
+import argparse
 import logging
 import os
 import signal
@@ -31,11 +34,15 @@ from so101_kinematics.errors import (
     CalibrationError,
     CubePositionError,
     FaultSpecError,
+    OpenCVMissing,
+    RenderSettingError,
     VirtualSO101Error,
 )
 from so101_kinematics.servo import KIT_SUPPLY_V, VARIANTS
+from so101_kinematics.sim.render import check_frame_size
 from so101_kinematics.virtual import shell
 from so101_kinematics.virtual.arm import VirtualSO101
+from so101_kinematics.virtual.camera_server import CAMERA_FPS
 from so101_kinematics.virtual.cubes import CUBE_REACH_M
 from so101_kinematics.virtual.electrical import SUPPLY_V
 from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
@@ -75,6 +82,18 @@ def remove_link(link: Path, port: str) -> None:
         pass
 
 
+def camera_size(text: str) -> tuple[int, int]:
+    """``--camera-size WxH`` -> (width, height) [px]."""
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+        return check_frame_size((width, height), "--camera-size", even=False)
+    except RenderSettingError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not WIDTHxHEIGHT [px]. Fix: e.g. "
+                                         "--camera-size 640x480.") from None
+
+
 def main(argv: list[str] | None = None) -> int:
     """Serve a virtual SO-101 until ``quit`` or Ctrl-C."""
     parser = ArgumentParser(description=__doc__.splitlines()[0])
@@ -111,6 +130,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--base-height", type=float, default=0.0, metavar="M",
                         help="the table is M [m] below the robot's base frame, 0 to 0.05 "
                              "(default 0; the lab's mount: 0.015)")
+    parser.add_argument("--camera", action="append", default=[], metavar="NAME",
+                        help="serve the model's camera NAME (overhead, wrist, ...) rendered live "
+                             "as an MJPEG stream cv2.VideoCapture opens; repeat for more; prints "
+                             "`camera NAME: ADDRESS` for each (needs OpenCV)")
+    parser.add_argument("--camera-size", type=camera_size, default=(640, 480), metavar="WxH",
+                        help="the cameras' frame size [px] (default 640x480)")
+    parser.add_argument("--camera-fps", type=float, default=CAMERA_FPS, metavar="FPS",
+                        help="frames per second served while a client watches, 1..60 "
+                             "(default %(default)g)")
     add_moved_options(parser, MOVED_FROM_VIRTUAL)
     parser.add_argument("-v", "--verbose", action="store_true", help="log every fault and start-up")
     try:
@@ -124,6 +152,12 @@ def main(argv: list[str] | None = None) -> int:
         print("error: --viewer needs a display (DISPLAY or WAYLAND_DISPLAY is not set); "
               "run without --viewer.", file=sys.stderr)
         return 2
+    words = sys.argv[1:] if argv is None else argv
+    given = [o for o in ("--camera-size", "--camera-fps") if any(w.startswith(o) for w in words)]
+    if given and not args.camera:
+        print(f"error: {given[0]} sets the served cameras, but none is served; add --camera NAME "
+              "(e.g. --camera overhead).", file=sys.stderr)
+        return 2
     if args.supply is not None and not 0.0 <= args.supply <= 25.0:
         print(f"error: --supply {args.supply:g}: outside 0..25 V; use e.g. --supply 12.",
               file=sys.stderr)
@@ -135,8 +169,10 @@ def main(argv: list[str] | None = None) -> int:
                            variant=args.variant,
                            cube=[c if len(c) != 2 else (*c, args.cube_yaw)
                                  for c in args.cube or []],
-                           base_height=args.base_height)
-    except (CalibrationError, CubePositionError, FaultSpecError, VirtualSO101Error) as exc:
+                           base_height=args.base_height, cameras=args.camera,
+                           camera_size=args.camera_size, camera_fps=args.camera_fps)
+    except (CalibrationError, CubePositionError, FaultSpecError, OpenCVMissing,
+            RenderSettingError, VirtualSO101Error) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
@@ -145,6 +181,8 @@ def main(argv: list[str] | None = None) -> int:
         try:
             link = make_link(args.link, arm.port) if args.link else None
             print(arm.port, flush=True)
+            for name, address in arm.camera_addresses.items():
+                print(f"camera {name}: {address}", flush=True)
             logger.warning("virtual SO-101 serving on %s%s (wire timing %s); commands on stdin "
                            "(`help`), Ctrl-C to stop", arm.port, f" = {link}" if link else "",
                            "on" if args.wire_timing else "off")

@@ -32,8 +32,8 @@ import threading
 from collections.abc import Callable, Iterator, MutableMapping
 
 __all__ = [
-    "close_viewer", "frame_camera", "guard_viewer_exit", "has_display", "launch_viewer",
-    "open_viewer",
+    "choose_gl_backend", "close_viewer", "frame_camera", "guard_viewer_exit", "has_display",
+    "launch_viewer", "open_viewer",
 ]
 
 log = logging.getLogger(__name__)

@@ -88,20 +88,23 @@ SERVO is an id or a joint name:
 from __future__ import annotations
 
 import logging
+import os
 import socket
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from multiprocessing.connection import Connection
 from pathlib import Path
 
-from so101_kinematics.display import has_display
+from so101_kinematics.display import choose_gl_backend, has_display
 from so101_kinematics.errors import VirtualSO101Error
 from so101_kinematics.paths import REPO
 from so101_kinematics.sensors.cube_wire import CubeReading
 from so101_kinematics.servo import KIT_SUPPLY_V
+from so101_kinematics.sim.render import check_frame_size
+from so101_kinematics.virtual.camera_server import CAMERA_FPS, check_camera_fps, require_cv2
 from so101_kinematics.virtual.cubes import check_base_height, check_cube_position, check_cubes
 from so101_kinematics.virtual.electrical import SUPPLY_V, THERMAL_TIME_S
 from so101_kinematics.virtual.faults import parse_faults
@@ -151,12 +154,19 @@ class VirtualSO101:
         thermal_time_s: [s] the servos' thermal time constant.
         rules: where Feetech's sources disagree, the other choice (``virtual/rules.py``:
             ``goal_time``, ``limp_goal``, ``locked_eeprom``, ``restart_reply``).
+        cameras: names of the model's cameras to serve (``overhead``, ``wrist``, ...), each
+            rendered live and served as MJPEG over HTTP (``virtual/camera_server.py``); their
+            addresses are :attr:`camera_addresses`.
+        camera_size: (width, height) [px] of the served frames.
+        camera_fps: [frames/s] served while a client watches.
 
     Raises:
         CalibrationError: the calibration is unusable.
         FaultSpecError: ``faults`` does not parse.
         VirtualSO101Error: no display for the viewer, or the emulator failed to start.
         JointLimitError: ``initial`` is outside the joint limits.
+        RenderSettingError: an unknown camera (the message lists the model's) or size.
+        OpenCVMissing: cameras asked for without OpenCV.
     """
 
     def __init__(self, calibration: str | Path | Mapping = DEFAULT_CALIBRATION_PATH,
@@ -166,7 +176,8 @@ class VirtualSO101:
                  factory: bool = False, leader: bool = False, supply: float | None = None,
                  thermal_time_s: float = THERMAL_TIME_S,
                  cube=None, base_height: float = 0.0, variant: str | None = None,
-                 rules: Mapping[str, str] | None = None):
+                 rules: Mapping[str, str] | None = None, cameras: Sequence[str] = (),
+                 camera_size: Sequence[int] = (640, 480), camera_fps: float = CAMERA_FPS):
         self.calibration = load_calibration(calibration)
         supply = (KIT_SUPPLY_V if leader else SUPPLY_V) if supply is None else supply
         chosen_rules = check_rules(rules)
@@ -183,7 +194,13 @@ class VirtualSO101:
                    "log_level": log_level, "factory": factory, "hand_holds": factory or leader,
                    "supply": float(supply), "thermal_time_s": float(thermal_time_s),
                    "cubes": cubes, "base_height": base_height, "variant": variant,
-                   "rules": chosen_rules}
+                   "rules": chosen_rules, "cameras": list(cameras),
+                   "camera_size": check_frame_size(camera_size, "camera size", even=False),
+                   "camera_fps": check_camera_fps(camera_fps)}
+        env = dict(os.environ)
+        if cameras:
+            require_cv2()  # one line before a start-up, not a traceback from the child
+            choose_gl_backend(env)  # headless: EGL (MuJoCo reads it when imported)
         # A fresh interpreter (as multiprocessing's "spawn", but without re-running
         # the caller's __main__, so scripts without a __main__ guard work too).
         parent_sock, child_sock = socket.socketpair()
@@ -192,7 +209,8 @@ class VirtualSO101:
                 "from so101_kinematics.virtual import emulator; "
                 f"emulator.emulator_main({child_sock.fileno()})")
         self._process = subprocess.Popen([sys.executable, "-c", code],
-                                         pass_fds=(child_sock.fileno(),), stdin=subprocess.DEVNULL)
+                                         pass_fds=(child_sock.fileno(),), stdin=subprocess.DEVNULL,
+                                         env=env)
         child_sock.close()
         self._conn = Connection(parent_sock.detach())
         self._conn.send(options)
@@ -208,6 +226,8 @@ class VirtualSO101:
             self._process.wait(5)
             raise value
         self.port: str = value
+        self.camera_addresses: dict[str, str] = self._call("camera_addresses") if cameras else {}
+        """Camera name -> the address ``cv2.VideoCapture`` opens (``http://127.0.0.1:PORT/NAME.mjpg``)."""
         logger.info("virtual SO-101 on %s (pid %d)", self.port, self._process.pid)
 
     @property
@@ -352,6 +372,15 @@ class VirtualSO101:
         ``wall_time_s`` (the simulation keeps real time when they agree).
         """
         return self._call("reply_stats")
+
+    def camera_stats(self) -> dict[str, float]:
+        """The served cameras' figures; empty without cameras.
+
+        Keys: ``frames`` drawn, ``skipped`` (the renderer was busy), mean ``render_ms`` (all
+        watched cameras, with the JPEG encoding) and ``latency_ms`` (from the state's copy to
+        the frame ready to send).
+        """
+        return self._call("camera_stats")
 
     def clear_stats(self) -> None:
         """Reset :meth:`reply_stats`."""

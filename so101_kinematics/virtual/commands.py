@@ -232,6 +232,11 @@ class ParentCommands:
             for servo in self.by_joint.values():
                 self.power_up(servo)
             return None
+        if name in ("camera_addresses", "camera_stats"):  # virtual/camera_server.py
+            if self.cameras is None:
+                return {}
+            return self.cameras.addresses if name == "camera_addresses" else \
+                self.cameras.camera_stats()
         if name == "reply_stats":
             lateness = sorted(self.lateness)
             p99 = lateness[int(0.99 * (len(lateness) - 1))] if lateness else 0.0

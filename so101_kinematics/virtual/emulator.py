@@ -116,6 +116,9 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
 
             self.viewer = mujoco.viewer.launch_passive(self.m, self.d)
         self.next_view = 0.0
+        self.cameras = None
+        if options.get("cameras"):  # virtual/camera_server.py: rendered, served over HTTP
+            self.cameras = _camera_server(self.m, options)
         # The pty: keep the slave open (else the master reads EIO in a busy loop).
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)
@@ -180,6 +183,19 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
                 except Exception as exc:  # noqa: BLE001 - handed to the caller
                     conn.send(("err", exc))
             self.step_physics()
+            if self.cameras is not None:
+                self.cameras.tick(self.d, time.perf_counter())
+
+
+def _camera_server(m, options: dict):
+    """The cameras' server, drawing the emulator's scene with the render meshes."""
+    from so101_kinematics.sim.cube import build_model
+    from so101_kinematics.virtual.camera_server import CameraServer
+
+    render_model = build_model(cubes_at=options.get("cubes", ()),
+                               base_height=options.get("base_height", 0.0), render_meshes=True)
+    return CameraServer(m, render_model, options["cameras"], options["camera_size"],
+                        options["camera_fps"])
 
 
 def _raise_priority() -> None:
@@ -226,6 +242,8 @@ def emulator_main(fd: int) -> None:
     finally:
         if emulator.viewer is not None:
             emulator.viewer.close()
+        if emulator.cameras is not None:
+            emulator.cameras.close()
         if not emulator.unplugged:
             os.close(emulator.master)
             os.close(emulator.slave)
