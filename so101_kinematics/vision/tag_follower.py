@@ -329,6 +329,7 @@ def follow(path: TagPath, duration: float, *, effects: ImageEffects | None = WEB
         "tracking_error_px": _stats(log["px"]), "tracking_error_mm": _stats(log["mm"]),
         "frames": log["frames"], "lost_frames": log["lost"], "hidden_frames": log["hidden"],
         "held_frames": log["held"], "first_held_s": log["first_held"],
+        "held_command_change_deg": log["held_change"],
         "max_pose_age_s": MAX_POSE_AGE, "path": asdict(path), "duration_s": duration,
         "height_m": HEIGHT, "look_tilt_deg": LOOK_TILT, "frame_rate": FRAME_RATE,
         "gain_per_s": GAIN, "damping": DAMPING, "camera": CAMERA,
@@ -340,11 +341,13 @@ def follow(path: TagPath, duration: float, *, effects: ImageEffects | None = WEB
 
 def _loop(m, d, body, g_tc, camera, path: TagPath, duration: float, viewer, inset) -> dict:
     """The control loop: see, want, step (or hold), one camera frame at a time; the log."""
-    tracker, dt, t0, K = _Tracker(), 1.0 / FRAME_RATE, d.time, camera.intrinsics()
+    tracker, t0, K = _Tracker(), d.time, camera.intrinsics()
     log = {"px": [], "mm": [], "lost": 0, "hidden": 0, "held": 0, "frames": 0,
-           "first_held": None}
-    for _ in range(int(round(duration * FRAME_RATE))):
+           "first_held": None, "held_change": 0.0}
+    held_at = None
+    for frame in range(int(round(duration * FRAME_RATE))):
         t = d.time - t0
+        dt = t0 + (frame + 1) / FRAME_RATE - d.time  # to the next frame (whole physics steps)
         hidden = path.hidden(t)
         d.mocap_pos[body] = [*path.position(t), HIDDEN_Z if hidden else 0.0]
         mujoco.mj_forward(m, d)
@@ -366,8 +369,12 @@ def _loop(m, d, body, g_tc, camera, path: TagPath, duration: float, viewer, inse
             log["held"] += 1
             if log["first_held"] is None:
                 log["first_held"] = round(t, 3)
+            held_at = held_at or command  # the command when this hold began
+            log["held_change"] = max(log["held_change"], max(
+                abs(command[j] - held_at[j]) for j in ARM_JOINTS))
             stepping.hold_position(m, d, viewer, dt)
             continue
+        held_at = None
         goal = camera_goal(tracker.position + tracker.velocity * tracker.age(d.time), g_tc)
         cfg = resolved_rate_step(command, g_tc, goal, tracker.velocity,
                                  error=goal[0] - g_bc[:3, 3], dt=dt)
