@@ -27,10 +27,10 @@ from so101_kinematics.outputs import (
 )
 from so101_kinematics.vision.sim_camera import WEBCAM
 from so101_kinematics.vision.tag_follower import (
-    FRAME_RATE,
+    FOLLOW_POSE_AGE,
+    FOLLOW_RATE,
     HEIGHT,
     LOOK_TILT,
-    MAX_POSE_AGE,
     PATHS,
     SPEED_RANGE,
     TagPath,
@@ -49,12 +49,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=f"""The target tag (40 mm) slides on the table along a circle or a line
 (back and forth) at --speed. Each of the wrist camera's frames
-({FRAME_RATE:g} frames/s, 640x480, a webcam's blur and noise) gives the tag's
+({FOLLOW_RATE:g} frames/s, 640x480, a webcam's blur and noise) gives the tag's
 position (on the table: its corners' rays met with the table's plane),
 and one resolved-rate step (the course's Jacobian, damped least squares)
 moves the camera towards {HEIGHT * 100:g} cm above the tag, looking at it {LOOK_TILT:g} deg
 off vertical, so the tag stays at the image's centre; the measured STS3215
-servos move the arm. A tag not seen for more than {MAX_POSE_AGE:g} s: the arm holds
+servos move the arm. A tag not seen for more than {FOLLOW_POSE_AGE:g} s: the arm holds
 until it is seen again (--hide START END hides it to show this).
 
 Scored from the simulator's truth: the tag's centre from the image's
@@ -125,7 +125,7 @@ def _run(args: argparse.Namespace) -> int:
           if px else f"Followed for {args.duration:g} s: the tag was hidden throughout.")
     print(f"Tag lost in {report['lost_frames']} frames ({report['hidden_frames']} hidden); the "
           f"arm held in {report['held_frames']} (no motion on a pose older than "
-          f"{MAX_POSE_AGE:g} s)" + ("" if report["first_held_s"] is None else
+          f"{FOLLOW_POSE_AGE:g} s)" + ("" if report["first_held_s"] is None else
                                     f", first at {report['first_held_s']:.2f} s") + ".")
     if json_path is not None:
         write_text_atomic(json_path, json.dumps(stamp(report, "follow_tag.py"), indent=2) + "\n")

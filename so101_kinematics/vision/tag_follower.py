@@ -2,7 +2,7 @@
 
 The target tag (``tags.TARGET_TAG``, 40 mm) is a mocap body sliding on the table along a
 circle or a line (:class:`TagPath`) at a stated speed. Each control cycle (one camera frame,
-:data:`FRAME_RATE`):
+:data:`FOLLOW_RATE`):
 
 1. **see**: the ``wrist`` camera's image (a webcam's blur and noise) through ``detect.py``'s
    one path; the tag lies flat on the table, so its position in the base frame comes from
@@ -20,7 +20,7 @@ circle or a line (:class:`TagPath`) at a stated speed. Each control cycle (one c
    measured STS3215 servos (``stepping.move_to_pose``, linear over the cycle).
 
 **Lost tag.** A frame without the tag keeps the last sighting; once it is older than
-:data:`MAX_POSE_AGE` the arm holds (no new command: the servos keep the last one) until
+:data:`FOLLOW_POSE_AGE` the arm holds (no new command: the servos keep the last one) until
 the tag is seen again, and the report counts the frames lost and held.
 
 Scored from the simulator's truth (never read by the controller): where the tag's true
@@ -50,16 +50,22 @@ from so101_kinematics.vision.detect import find_tag, flat_pose
 from so101_kinematics.vision.opencv_import import require_opencv
 from so101_kinematics.vision.sim_camera import WEBCAM, ImageEffects, SimCamera
 from so101_kinematics.vision.tagged_scene import build_tagged_model, tagged_spec
-from so101_kinematics.vision.tags import TAG_THICKNESS, TARGET_TAG, get_tag_pose_base, tag_geom_name
+from so101_kinematics.vision.tags import (
+    TAG_THICKNESS,
+    TARGET_TAG,
+    get_tag_pose_base,
+    tag_geom_name,
+)
 
 __all__ = [
-    "CAMERA", "DAMPING", "FRAME_RATE", "GAIN", "HEIGHT", "MAX_POSE_AGE", "PATHS", "SPEED_RANGE",
-    "TagPath", "camera_goal", "camera_in_tool", "camera_task", "follow", "follower_model", "resolved_rate_step",
+    "DAMPING", "FOLLOW_CAMERA", "FOLLOW_POSE_AGE", "FOLLOW_RATE", "GAIN", "HEIGHT", "LOOK_TILT",
+    "PATHS", "SPEED_RANGE", "TagPath", "camera_goal", "camera_in_tool", "camera_task", "follow",
+    "follower_model", "resolved_rate_step",
 ]
 
-CAMERA = "wrist"
+FOLLOW_CAMERA = "wrist"
 """The camera the follower looks with (``model/so101.xml``, on the gripper)."""
-FRAME_RATE = 30.0
+FOLLOW_RATE = 30.0
 """[frames/s] The camera's rate, and the control loop's: one step per frame."""
 HEIGHT = 0.15
 """[m] The camera's height above the tag it keeps (17 cm from it along the axis: the 40 mm
@@ -70,7 +76,7 @@ GAIN = 6.0
 """[1/s] K, the error's feedback (a time constant of 5 frames)."""
 DAMPING = 1e-3
 """lambda of the damped least squares (``straight_line.py``'s resolved rate's)."""
-MAX_POSE_AGE = 0.2
+FOLLOW_POSE_AGE = 0.2
 """[s] The oldest sighting the arm moves on (6 frames); older: it holds."""
 VELOCITY_SMOOTHING = 0.25
 """Weight of the newest sighting in the tag's smoothed velocity (exponential)."""
@@ -130,7 +136,7 @@ def _pose(position, rotation) -> np.ndarray:
     return g
 
 
-def camera_in_tool(m: mujoco.MjModel, d: mujoco.MjData, camera: str = CAMERA) -> np.ndarray:
+def camera_in_tool(m: mujoco.MjModel, d: mujoco.MjData, camera: str = FOLLOW_CAMERA) -> np.ndarray:
     """``g_tc``: the camera (OpenCV axes) in the FK's object frame, the mount's (fixed) [m].
 
     From the model at ``d``'s configuration (any: the camera rides on the gripper), as a
@@ -156,7 +162,7 @@ def camera_task(cfg, g_tc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 def resolved_rate_step(cfg, g_tc: np.ndarray, goal: tuple[np.ndarray, np.ndarray],
                        velocity: np.ndarray, error: np.ndarray | None = None,
-                       dt: float = 1.0 / FRAME_RATE, gain: float = GAIN) -> dict[str, float]:
+                       dt: float = 1.0 / FOLLOW_RATE, gain: float = GAIN) -> dict[str, float]:
     """One resolved-rate step: the configuration [deg] after ``dt`` towards ``goal``.
 
     Args:
@@ -224,7 +230,7 @@ class _Tracker:
     velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def update(self, position: np.ndarray, stamp: float) -> None:
-        if self.position is not None and 0.0 < stamp - self.stamp <= MAX_POSE_AGE:
+        if self.position is not None and 0.0 < stamp - self.stamp <= FOLLOW_POSE_AGE:
             seen = (position - self.position) / (stamp - self.stamp)
             self.velocity = (1 - VELOCITY_SMOOTHING) * self.velocity + VELOCITY_SMOOTHING * seen
         else:
@@ -237,7 +243,7 @@ class _Tracker:
 
 def _truth(m, d, K) -> tuple[float, float]:
     """The tag's offset from the image's centre [px] and the axis's miss on the table [m]."""
-    g_bc = get_camera_pose_base(m, d, CAMERA)
+    g_bc = get_camera_pose_base(m, d, FOLLOW_CAMERA)
     tag = get_tag_pose_base(m, d, tag_geom_name(TARGET_TAG))[:3, 3]
     pixel = project_points(K, g_bc, tag)[0]
     axis = g_bc[:3, 2]
@@ -268,7 +274,7 @@ def _start(path: TagPath):
 
 
 class _WristInset:
-    """The video's inset: the wrist camera's last image, the tag found outlined, its centre marked."""
+    """The video's inset: the wrist camera's last image, the tag outlined, the centre marked."""
 
     def __init__(self):
         self.image, self.corners = None, None
@@ -319,7 +325,7 @@ def follow(path: TagPath, duration: float, *, effects: ImageEffects | None = WEB
         m, d, video, compose=inset, total_time=duration, progress=False)
     finished = False
     try:
-        with SimCamera(m, d, CAMERA, effects=effects) as camera:
+        with SimCamera(m, d, FOLLOW_CAMERA, effects=effects) as camera:
             log = _loop(m, d, body, g_tc, camera, path, duration, recorder, inset)
         finished = True
     finally:
@@ -330,9 +336,9 @@ def follow(path: TagPath, duration: float, *, effects: ImageEffects | None = WEB
         "frames": log["frames"], "lost_frames": log["lost"], "hidden_frames": log["hidden"],
         "held_frames": log["held"], "first_held_s": log["first_held"],
         "held_command_change_deg": log["held_change"],
-        "max_pose_age_s": MAX_POSE_AGE, "path": asdict(path), "duration_s": duration,
-        "height_m": HEIGHT, "look_tilt_deg": LOOK_TILT, "frame_rate": FRAME_RATE,
-        "gain_per_s": GAIN, "damping": DAMPING, "camera": CAMERA,
+        "max_pose_age_s": FOLLOW_POSE_AGE, "path": asdict(path), "duration_s": duration,
+        "height_m": HEIGHT, "look_tilt_deg": LOOK_TILT, "frame_rate": FOLLOW_RATE,
+        "gain_per_s": GAIN, "damping": DAMPING, "camera": FOLLOW_CAMERA,
         "servo": actuation.servo_spec(m).describe(),
         "webcam_effects": None if effects is None else asdict(effects),
         "wall_time_s": round(time.perf_counter() - wall0, 2),
@@ -345,9 +351,9 @@ def _loop(m, d, body, g_tc, camera, path: TagPath, duration: float, viewer, inse
     log = {"px": [], "mm": [], "lost": 0, "hidden": 0, "held": 0, "frames": 0,
            "first_held": None, "held_change": 0.0}
     held_at = None
-    for frame in range(int(round(duration * FRAME_RATE))):
+    for frame in range(int(round(duration * FOLLOW_RATE))):
         t = d.time - t0
-        dt = t0 + (frame + 1) / FRAME_RATE - d.time  # to the next frame (whole physics steps)
+        dt = t0 + (frame + 1) / FOLLOW_RATE - d.time  # to the next frame (whole physics steps)
         hidden = path.hidden(t)
         d.mocap_pos[body] = [*path.position(t), HIDDEN_Z if hidden else 0.0]
         mujoco.mj_forward(m, d)
@@ -365,7 +371,7 @@ def _loop(m, d, body, g_tc, camera, path: TagPath, duration: float, viewer, inse
             log["px"].append(px)
             log["mm"].append(1000 * miss)
         command = scene.get_command(m, d)
-        if tracker.age(d.time) > MAX_POSE_AGE:  # lost: hold, no motion on an old pose
+        if tracker.age(d.time) > FOLLOW_POSE_AGE:  # lost: hold, no motion on an old pose
             log["held"] += 1
             if log["first_held"] is None:
                 log["first_held"] = round(t, 3)
