@@ -28,6 +28,7 @@ from so101_kinematics.checker.fk import (
     run_check,
 )
 from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number, range_help
+from so101_kinematics.errors import OpenCVMissing, RenderError, VisionError
 from so101_kinematics.outputs import JSON_REPORT, stamp, write_text_atomic
 from so101_kinematics.vision.vision_cases import vision_cases
 
@@ -46,6 +47,8 @@ def check_vision_file(path: str | Path, tolerance: dict | None = None,
         (one per function: ``vision_compare.judge_vision``), the module's output, seconds.
     """
     tolerance = dict(vision_compare.VISION_TOLERANCE, **(tolerance or {}))
+    if not Path(path).is_file():  # said as the other checkers say it, nothing rendered
+        return run_check(path, {}, [list(t) for t in tolerance.values()], timeout)[0]
     cases = list(vision_cases())
     stem = Path(path).stem
     check, run = run_check(path, vision_compare.build_request(
@@ -153,7 +156,12 @@ def main(argv: list[str] | None = None) -> int:
     if outputs is None:
         return EXIT_BAD_INPUT
     tolerance = {"tag_pose_in_base": (args.tolerance_mm, args.tolerance_deg)}
-    vision_cases()  # rendered once, here (one OpenGL context), before the files' threads
+    try:  # rendered once, here (one OpenGL context), before the files' threads
+        if any(Path(path).is_file() for path in args.files):
+            vision_cases()
+    except (OpenCVMissing, RenderError, VisionError) as error:
+        print(f"{PROG}: error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     checks = run_and_print(
         args.files, lambda path: check_vision_file(path, tolerance, args.timeout),
         vision_report, args.jobs, args.quiet)
