@@ -135,3 +135,12 @@ def test_the_json_report_is_written(checks, tmp_path, capsys):
     report = json.loads(out.read_text())
     assert report["verdict"] == "pass" and "so101-check-vision" in report["generator"]
     assert json.loads(gradescope.read_text())["score"] == 100.0
+
+
+def test_an_error_in_the_students_code_is_reported_not_raised(tmp_path):
+    broken = tmp_path / "broken.py"
+    broken.write_text(TEMPLATE.replace(TO_BASE, "return p_cam / 0 + undefined_name"))
+    check = check_vision_file(broken)
+    camera, tag = check["tests"]
+    assert check["verdict"] == "fail" and camera["status"] == tag["status"] == "wrong"
+    assert "NameError" in camera["causes"][0] and "line" in camera["causes"][0]

@@ -115,3 +115,23 @@ def test_bad_input_is_one_line_and_exit_2(argv, words, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and words in err and "Traceback" not in err
 
+
+
+def test_the_video_has_the_wrist_view_inset(tmp_path):
+    video = tmp_path / "follow.mp4"
+    assert follow_tag.main(["--duration", "0.3", "--video", str(video)]) == 0
+    import imageio.v2 as imageio
+
+    reader = imageio.get_reader(str(video))
+    try:
+        frame = reader.get_data(5).astype(float)  # 0.17 s in (30 frames/s)
+    finally:
+        reader.close()
+    # The inset (top-left third, framed in white) is the wrist camera's view: the tag, dark,
+    # at its centre.
+    height, width = frame.shape[:2]
+    inset = frame[2:round(width / 3 * 0.75), 2:width // 3]
+    middle = inset[inset.shape[0] // 2 - 5:inset.shape[0] // 2 + 5,
+                   inset.shape[1] // 2 - 5:inset.shape[1] // 2 + 5]
+    assert frame[0, :width // 3].mean() > 250  # the white frame
+    assert middle.mean() < inset.mean()  # the tag's black marker (and the cross) at the centre
