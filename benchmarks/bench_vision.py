@@ -14,7 +14,14 @@ Figures (medians over repeats, with spread):
     detect_reference_ms, OpenCV's
     ``ArucoDetector.detectMarkers`` alone on the same frame; detect_pose_vs_detector, the
     ratio (what the corner refinement and ``solvePnP`` add). Left out, with a note, when
-    OpenCV is missing.
+    OpenCV is missing;
+  - see_and_pick_cycle_s: the wall time of one see-and-pick trial (``see_and_pick.run_trial``:
+    the scene built, the arm out of the camera's way, the overhead camera's image with the
+    webcam's effects, both tags' poses, the plan by the IK, 21 s of simulated motion with the
+    STS3215 servos), the cube at (0.20, 0.10) m turned 30 deg, the target at the course's
+    place; see_and_pick_reference_s, reference: the same scene, moves and plan from the
+    cube's true pose, no camera, in the same run; see_and_pick_vs_reference, the ratio (what
+    seeing adds to a pick-and-place cycle).
 """
 
 from __future__ import annotations
@@ -81,6 +88,67 @@ def _detection(m, d, repeats: int) -> dict:
     return out
 
 
+CUBE_AT = (0.20, 0.10, 30.0)
+"""The benchmark's cube: x [m], y [m], yaw [deg] (in reach, off the target)."""
+
+
+def _pick_without_camera(cube_at, target_at) -> None:
+    """The reference: one see-and-pick's scene, moves and plan from the true poses, no camera."""
+    import mujoco
+
+    from so101_kinematics.planning.motion import run_plan
+    from so101_kinematics.sim import scene, stepping
+    from so101_kinematics.sim.pick_place import INITIAL_KEYFRAME
+    from so101_kinematics.vision.see_and_pick import (
+        LOOK_MOVE,
+        LOOK_POSE,
+        Sighting,
+        plan_from_sighting,
+    )
+    from so101_kinematics.vision.tagged_scene import build_tagged_model
+    from so101_kinematics.vision.tags import (
+        CUBE_TAG,
+        TARGET_TAG,
+        get_tag_pose_base,
+        tag_geom_name,
+    )
+
+    m = build_tagged_model(cube_at, target_at)
+    d = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d, m.key(INITIAL_KEYFRAME).id)
+    mujoco.mj_forward(m, d)
+    rest = scene.get_configuration(m, d)
+    stepping.move_to_pose(m, d, None, dict(rest, **LOOK_POSE), LOOK_MOVE[0])
+    stepping.hold_position(m, d, None, LOOK_MOVE[1])
+    truth = Sighting(get_tag_pose_base(m, d, tag_geom_name(CUBE_TAG, "cube")),
+                     get_tag_pose_base(m, d, tag_geom_name(TARGET_TAG)), d.time)
+    plan = plan_from_sighting(truth, rest)
+    run_plan(plan, lambda cfg, duration: stepping.move_to_pose(m, d, None, cfg, duration),
+             lambda duration: stepping.hold_position(m, d, None, duration), rest)
+
+
+def _see_and_pick(repeats: int) -> dict:
+    from benchmarks.common import summarize
+    from so101_kinematics.vision.see_and_pick import course_target, run_trial
+
+    target = course_target()
+    trial, reference = [], []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        result = run_trial(CUBE_AT, target)
+        trial.append(time.perf_counter() - start)
+        if not result.success:
+            raise RuntimeError(f"the benchmark's see-and-pick failed: {result.reason}")
+        start = time.perf_counter()
+        _pick_without_camera(CUBE_AT, target)
+        reference.append(time.perf_counter() - start)
+    out = {"see_and_pick_cycle_s": summarize(trial),
+           "see_and_pick_reference_s": summarize(reference)}
+    out["see_and_pick_vs_reference"] = (out["see_and_pick_cycle_s"]["median"]
+                                        / out["see_and_pick_reference_s"]["median"])
+    return out
+
+
 def bench_vision(quick: bool) -> dict:
     """Run the group; ``quick`` uses fewer repeats."""
     from benchmarks.common import summarize
@@ -106,6 +174,7 @@ def bench_vision(quick: bool) -> dict:
                                          - 1.0 / out["render_fps_640x480"]["median"])
     try:
         out.update(_detection(m, d, repeats))
+        out.update(_see_and_pick(2 if quick else 5))
     except OpenCVMissing as error:
         print(f"vision: detection not measured: {error}", file=sys.stderr)
     return out

@@ -1,4 +1,4 @@
-"""Runs in a child process: imports one student's FK or IK module and calls its functions.
+"""Runs in a child process: imports one student's FK, IK or vision module and calls its functions.
 
 Started by :mod:`so101_kinematics.checker.sandbox` as ``python -I -B probe.py
 REQUEST RESULT`` in a temporary working folder. It uses only the standard
@@ -266,6 +266,8 @@ def main() -> None:
                               if not name.startswith("__") and callable(getattr(module, name)))
     if request.get("kind") == "ik":
         probe_ik(module, request, results, save, fallback)
+    elif request.get("kind") == "vision":
+        probe_vision(module, request, results, save)
     else:
         probe_fk(module, request, results, save)
     save("done")
@@ -347,6 +349,27 @@ def probe_ik(module, request: dict, results: dict, save, fallback: str) -> None:
         results["own_fk"] = [
             fk_result(call(own_fk, dict(answer["value"]))) if "value" in answer else None
             for answer in answers]
+
+
+def probe_vision(module, request: dict, results: dict, save) -> None:
+    """Call ``camera_to_base`` at each case's points and ``tag_pose_in_base`` at each case."""
+    import numpy as np
+
+    for name in ("camera_to_base", "tag_pose_in_base"):
+        function = getattr(module, name, None)
+        if not callable(function):
+            continue
+        answers = results["functions"][name] = []
+        for index, case in enumerate(request["cases"]):
+            save(f"calling {name} with camera {index}")
+            position, xmat = np.array(case["cam_pos"]), np.array(case["cam_xmat"])
+            if name == "camera_to_base":
+                answers.append([matrix_result(call(function, position.copy(), xmat.copy(),
+                                                   np.array(point)))
+                                for point in case["points"]])
+            else:
+                answers.append(fk_result(call(function, np.array(case["corners"]),
+                                              np.array(case["K"]), position, xmat)))
 
 
 MODULE_PATH = ""

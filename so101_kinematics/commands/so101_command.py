@@ -6,7 +6,7 @@ assignment; the tools that work on their outputs live here::
     so101 compare run.csv --report report.png      # a hardware log replayed in the simulator
     so101 sheet sheet.pdf --paper letter           # the placement sheet (print at 100 %)
     so101 tags tags.pdf                            # the ArUco tags, true size (print at 100 %)
-    so101 check-fk my_fk.py                        # the checkers (as so101-check-fk/ik/traj)
+    so101 check-fk my_fk.py                        # the checkers (as so101-check-fk/ik/traj/vision)
     so101 virtual-calibration my_arm.json          # the virtual arm's calibration file
 
 Also ``python -m so101_kinematics ...``.
@@ -53,13 +53,17 @@ MOVED_FROM_VIRTUAL = {
 def _checker(module: str) -> Callable[[list[str]], int]:
     def run(argv: list[str]) -> int:
         from importlib import import_module
-        return import_module(f"so101_kinematics.checker.{module}").main(argv)
+        return import_module(module if "." in module
+                             else f"so101_kinematics.checker.{module}").main(argv)
     return run
 
 
 CHECKERS = {"check-fk": ("fk", "check a student's forward kinematics (as so101-check-fk)"),
             "check-ik": ("ik", "check a student's inverse kinematics (as so101-check-ik)"),
-            "check-traj": ("traj", "check a student's cubic move (as so101-check-traj)")}
+            "check-traj": ("traj", "check a student's cubic move (as so101-check-traj)"),
+            "check-vision": ("so101_kinematics.vision.vision_checker",
+                             "check a student's camera-to-base transform and tag pose (as "
+                             "so101-check-vision)")}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -34,7 +34,7 @@ SKIP = {".git", "__pycache__", "out", ".venv", ".pytest_cache", ".ruff_cache"}
 
 SAME_NAME_DIFFERENT_THINGS = {
     "main": "each command's entry point (so101-check-fk, -ik, -traj): the module is the address",
-    "build_request": "each checker's own request (FK, IK, trajectory): one verb per checker",
+    "build_request": "each checker's own request (FK, IK, trajectory, vision): one verb each",
     "gradescope_results": "the FK report's and the trajectory checker's results, different tests",
     "load_calibration": "the arm's JSON (calibration) vs the virtual arm's shipped file (virtual)",
     "metrics": "a trajectory's figures (planning) vs the simulator's tracking log (sim)",

@@ -15,7 +15,8 @@ from so101_kinematics.commands import so101_command
 from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
 REPO = Path(__file__).resolve().parents[2]
-SUBCOMMANDS = {"compare", "sheet", "check-fk", "check-ik", "check-traj", "virtual-calibration"}
+SUBCOMMANDS = {"compare", "sheet", "check-fk", "check-ik", "check-traj", "check-vision",
+               "virtual-calibration"}
 
 
 def tomllib():
@@ -35,7 +36,8 @@ def run_module(*args: str | Path) -> subprocess.CompletedProcess:
 def test_so101_is_a_console_script_and_the_old_ones_stay():
     scripts = tomllib().loads((REPO / "pyproject.toml").read_text())["project"]["scripts"]
     assert scripts["so101"] == "so101_kinematics.commands.so101_command:main"
-    assert {"so101-check-fk", "so101-check-ik", "so101-check-traj"} <= set(scripts)
+    assert {"so101-check-fk", "so101-check-ik", "so101-check-traj",
+            "so101-check-vision"} <= set(scripts)
 
 
 def test_python_m_lists_every_subcommand():
@@ -58,7 +60,7 @@ def test_compare_needs_its_report_figure(tmp_path, capsys):
     assert len(err) == 1 and "--report" in err[0]
 
 
-@pytest.mark.parametrize("name", ["check-fk", "check-ik", "check-traj"])
+@pytest.mark.parametrize("name", ["check-fk", "check-ik", "check-traj", "check-vision"])
 def test_the_checkers_answer_as_their_own_scripts(name, capsys):
     """`so101 check-fk ARGS` is `so101-check-fk ARGS`: same options, same exit codes."""
     assert so101_command.main([name, "--no-such-option"]) == 2

@@ -17,6 +17,7 @@ EXPECTED_KEYS = [
     "hw_loop_hz_200hz", "hw_period_p50_ms_200hz", "hw_period_p99_error_ms_200hz",
     "wire_cycle_ms", "wire_time_ms", "wire_cycle_emulator_added_ms",
     "render_fps_640x480", "render_reference_fps_640x480", "detect_pose_ms",
+    "see_and_pick_cycle_s", "see_and_pick_reference_s",
 ]
 
 
