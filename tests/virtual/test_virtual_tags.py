@@ -3,7 +3,8 @@
 A virtual arm with a cube and the target tag serves its overhead camera; a frame read with a
 student's ``cv2.VideoCapture`` goes through the one detection path (``vision/detect.py``):
 the cube tag's position within 2 mm of where the emulator's physics has the cube
-(``VirtualSO101.cube()``), the target tag within 2 mm and 1 deg of where it was laid.
+(``VirtualSO101.cube()``, which reports no yaw: the cube may turn a little as it settles),
+the target tag within 2 mm and 1 deg of where it was laid.
 """
 
 from __future__ import annotations
@@ -79,8 +80,7 @@ def test_the_served_overhead_camera_sees_the_cube_tag_and_the_target_tag_where_t
     seen = find_tag(rgb, K, CUBE_TAG)
     assert seen is not None, "the cube tag is not in the served frame"
     g_bt = flat_pose(seen, K, g_bc, centre[2] + CUBE_HALF_SIZE + TAG_THICKNESS)
-    assert np.linalg.norm(g_bt[:2, 3] - centre[:2]) < TOLERANCE_M
-    assert yaw_error_deg(g_bt, CUBE_AT[2]) < TOLERANCE_DEG
+    assert np.linalg.norm(g_bt[:2, 3] - centre[:2]) < TOLERANCE_M  # (its yaw: not reported)
     target = find_tag(rgb, K, TARGET_TAG)
     assert target is not None, "the target tag is not in the served frame"
     g_bt = flat_pose(target, K, g_bc, TAG_THICKNESS)  # on the table top, the base's z = 0
