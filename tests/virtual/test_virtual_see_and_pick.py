@@ -44,8 +44,9 @@ PLACE_TOLERANCE_M = 0.010  # the course's pick-and-place on the arm: 10 mm
 
 def lerobot_frame(address: str) -> np.ndarray:
     """One RGB frame read by lerobot's camera class (as a robot's ``cameras`` config does)."""
-    import lerobot_camera_so101_virtual  # noqa: F401 - registers the camera type
     from lerobot.cameras.utils import make_cameras_from_configs
+
+    import lerobot_camera_so101_virtual  # noqa: F401 - registers the camera type
     from lerobot_camera_so101_virtual import SO101VirtualCameraConfig
 
     config = SO101VirtualCameraConfig(address=address, width=SIZE[0], height=SIZE[1], fps=30)
