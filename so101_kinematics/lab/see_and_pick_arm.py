@@ -88,8 +88,8 @@ def see_and_pick_on_arm(port: str, address: str, calibration: Mapping[str, Any],
     """Look, plan, run on the arm at ``port``, look again: the report of one trial.
 
     Returns:
-        ``{"success_rate", "trials": [{"picked", "placed_error_mm", ...}], "cube_seen",
-        "target_seen"}`` (positions [m], yaw [deg]).
+        A dict: ``success_rate``, ``trials`` (one: ``picked``, ``placed``,
+        ``placed_error_mm``, ...), ``cube_seen`` and ``target_seen`` (x, y [m], yaw [deg]).
 
     Raises:
         TagNotInView: no tag before the run (nothing moved).
