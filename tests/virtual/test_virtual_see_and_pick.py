@@ -54,3 +54,13 @@ def test_the_arm_needs_both_its_port_and_its_camera(option, capsys):
     assert see_and_pick.main(option) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Fix: give both" in err
+
+
+def test_no_target_tag_in_view_is_one_line_and_nothing_moves(capsys):
+    with VirtualSO101(cube=CUBE_AT, cameras=["overhead"]) as arm:
+        before = arm.cube()
+        code = see_and_pick.main(["--port", arm.port, "--camera", arm.camera_addresses["overhead"]])
+        after = arm.cube()
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "target" in err
+    assert after.position_m == pytest.approx(before.position_m, abs=1e-4)
