@@ -17,6 +17,7 @@ from pathlib import Path
 
 from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number, range_help, run_script
 from so101_kinematics.errors import (
+    CalibrationError,
     CubePositionError,
     OutputPathError,
     PlanError,
@@ -91,11 +92,20 @@ line; nothing moved), 130 interrupted.""")
                         help="record the (first) trial, the camera's view inset")
     parser.add_argument("--json", type=Path, metavar="PATH", help="write the report as JSON")
     add_overwrite_argument(parser)
+    arm = parser.add_argument_group("on the virtual arm (through lerobot's bus and camera class)")
+    arm.add_argument("--port", metavar="PORT",
+                     help="the arm's serial port (the pty virtual_so101.py printed): look with "
+                     "--camera, pick and place through lerobot's bus; needs --camera")
+    arm.add_argument("--camera", metavar="ADDRESS",
+                     help="the camera's address (virtual_so101.py --camera overhead printed "
+                     "it), opened by lerobot's camera class; needs --port")
+    arm.add_argument("--calibration", type=Path, default=None, metavar="PATH",
+                     help="the arm's lerobot calibration (default: the virtual arm's)")
     parser.add_argument("--strict", action="store_true",
                         help="exit 1 unless every trial placed its cube")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
-    refused = (OutputPathError, PlanError, RenderError, CubePositionError)
+    refused = (OutputPathError, PlanError, RenderError, CubePositionError, CalibrationError)
     return run_script(parser, argv, _run, refused=refused,
                       interrupted="nothing was written; existing output files are as they were.")
 
@@ -135,9 +145,43 @@ def _print_trial(index: int, result) -> None:
           f"{result.placed_error_mm:.1f} mm from the target")
 
 
+def _run_on_arm(args: argparse.Namespace, json_path: Path | None) -> int:
+    """--port and --camera: one look, pick and place through lerobot (``lab/see_and_pick_arm``)."""
+    from so101_kinematics.calibration import load_calibration
+    from so101_kinematics.lab.see_and_pick_arm import ARM_PLACE_TOLERANCE, see_and_pick_on_arm
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
+
+    if not (args.port and args.camera):
+        print(f"error: {'--port' if args.port else '--camera'} needs "
+              f"{'--camera ADDRESS' if args.port else '--port PORT'}: the arm is driven through "
+              "its port and looks through the camera. Fix: give both.", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    calibration = load_calibration(args.calibration or DEFAULT_CALIBRATION_PATH)
+    try:
+        report = see_and_pick_on_arm(args.port, args.camera, calibration)
+    except VisionError as error:  # no tag in view: nothing moved
+        print(f"error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    trial = report["trials"][0]
+    print(f"Seen: cube at ({report['cube_seen'][0]:.3f}, {report['cube_seen'][1]:.3f}) m, "
+          f"{report['cube_seen'][2]:.0f} deg; target at ({report['target_seen'][0]:.3f}, "
+          f"{report['target_seen'][1]:.3f}) m")
+    error = trial["placed_error_mm"]
+    print(f"{'Placed' if trial['placed'] else 'NOT placed'} (within "
+          f"{ARM_PLACE_TOLERANCE * 1000:g} mm): picked {trial['picked']}, "
+          + ("no measure of the placement" if error is None else
+             f"{error:.1f} mm from the target (by the {trial['placed_measured_by']})"))
+    if json_path is not None:
+        write_text_atomic(json_path, json.dumps(stamp(report, "see_and_pick.py"), indent=2)
+                          + "\n")
+    return 1 if args.strict and not trial["placed"] else 0
+
+
 def _run(args: argparse.Namespace) -> int:
     """Check the outputs, run, report (see :func:`main`)."""
     video, json_path = _check_outputs(args)
+    if args.port or args.camera:
+        return _run_on_arm(args, json_path)
     cube, target = _on_table(args.cube, "--cube"), _on_table(args.target, "--target")
     if args.target is not None and args.random_target:
         print("error: --target puts the target tag at one pose, --random-target at random "

@@ -4,7 +4,8 @@ The course's files at the root are the project's one facade; ``so101_kinematics`
 
     python virtual_so101.py [--calibration PATH] [--factory | --leader] [--link PATH]
                             [--viewer] [--wire-timing] [--faults SPEC] [--supply VOLTS]
-                            [--camera NAME ... [--camera-size WxH] [--camera-fps FPS]]
+                            [--camera NAME ... [--camera-size WxH] [--camera-fps FPS]
+                            [--target X Y [YAW]]]
 
 prints the pty path as the first line of stdout, then ``camera NAME: ADDRESS`` for each
 served camera (``cv2.VideoCapture(ADDRESS)`` opens it), (give it to ``pick_place_hw.py
@@ -139,6 +140,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--camera-fps", type=float, default=CAMERA_FPS, metavar="FPS",
                         help="frames per second served while a client watches, 1..60 "
                              "(default %(default)g)")
+    parser.add_argument("--target", nargs="+", type=float, default=None, metavar="X Y [YAW]",
+                        help="lay the target tag on the table at X Y [m] in the base frame, "
+                             "turned YAW [deg], for the served cameras (the first cube "
+                             "carries the cube tag); needs --camera")
     add_moved_options(parser, MOVED_FROM_VIRTUAL)
     parser.add_argument("-v", "--verbose", action="store_true", help="log every fault and start-up")
     try:
@@ -153,10 +158,11 @@ def main(argv: list[str] | None = None) -> int:
               "run without --viewer.", file=sys.stderr)
         return 2
     words = sys.argv[1:] if argv is None else argv
-    given = [o for o in ("--camera-size", "--camera-fps") if any(w.startswith(o) for w in words)]
+    given = [o for o in ("--camera-size", "--camera-fps", "--target")
+             if any(w.startswith(o) for w in words)]
     if given and not args.camera:
-        print(f"error: {given[0]} sets the served cameras, but none is served; add --camera NAME "
-              "(e.g. --camera overhead).", file=sys.stderr)
+        print(f"error: {given[0]} is for the served cameras, but none is served; add --camera "
+              "NAME (e.g. --camera overhead).", file=sys.stderr)
         return 2
     if args.supply is not None and not 0.0 <= args.supply <= 25.0:
         print(f"error: --supply {args.supply:g}: outside 0..25 V; use e.g. --supply 12.",
@@ -170,7 +176,8 @@ def main(argv: list[str] | None = None) -> int:
                            cube=[c if len(c) != 2 else (*c, args.cube_yaw)
                                  for c in args.cube or []],
                            base_height=args.base_height, cameras=args.camera,
-                           camera_size=args.camera_size, camera_fps=args.camera_fps)
+                           camera_size=args.camera_size, camera_fps=args.camera_fps,
+                           target=args.target)
     except (CalibrationError, CubePositionError, FaultSpecError, OpenCVMissing,
             RenderSettingError, VirtualSO101Error) as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -65,10 +65,10 @@ def _detection(m, d, repeats: int) -> dict:
     import numpy as np
 
     from benchmarks.common import per_call_us, summarize
+    from so101_kinematics.opencv_import import require_opencv
+    from so101_kinematics.sim.tag_textures import TAG_DICTIONARY, TAGS
     from so101_kinematics.vision.detect import detect_tags, find_tag
-    from so101_kinematics.vision.opencv_import import require_opencv
     from so101_kinematics.vision.sim_camera import WEBCAM, SimCamera
-    from so101_kinematics.vision.tags import TAG_DICTIONARY, TAGS
 
     cv2 = require_opencv()
     with SimCamera(m, d, "probe", effects=WEBCAM) as camera:
@@ -99,6 +99,7 @@ def _pick_without_camera(cube_at, target_at) -> None:
     from so101_kinematics.planning.motion import run_plan
     from so101_kinematics.sim import scene, stepping
     from so101_kinematics.sim.pick_place import INITIAL_KEYFRAME
+    from so101_kinematics.sim.tag_textures import CUBE_TAG, TARGET_TAG, tag_geom_name
     from so101_kinematics.vision.see_and_pick import (
         LOOK_MOVE,
         LOOK_POSE,
@@ -106,12 +107,7 @@ def _pick_without_camera(cube_at, target_at) -> None:
         plan_from_sighting,
     )
     from so101_kinematics.vision.tagged_scene import build_tagged_model
-    from so101_kinematics.vision.tags import (
-        CUBE_TAG,
-        TARGET_TAG,
-        get_tag_pose_base,
-        tag_geom_name,
-    )
+    from so101_kinematics.vision.tags import get_tag_pose_base
 
     m = build_tagged_model(cube_at, target_at)
     d = mujoco.MjData(m)

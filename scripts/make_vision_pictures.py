@@ -20,13 +20,13 @@ from so101_kinematics.constants import CUBE_HALF_SIZE  # noqa: E402
 from so101_kinematics.errors import SO101Error  # noqa: E402
 from so101_kinematics.fast_fk import forward_kinematics  # noqa: E402
 from so101_kinematics.ik.call_shapes import get_inverse_kinematics  # noqa: E402
+from so101_kinematics.opencv_import import require_opencv  # noqa: E402
 from so101_kinematics.planning.plans import (  # noqa: E402
     FINAL_CONFIGURATION,
     STARTING_CONFIGURATION,
 )
 from so101_kinematics.sim.scene import to_radians  # noqa: E402
 from so101_kinematics.vision.detect import detect_tags  # noqa: E402
-from so101_kinematics.vision.opencv_import import require_opencv  # noqa: E402
 from so101_kinematics.vision.sim_camera import WEBCAM, ImageEffects, SimCamera  # noqa: E402
 from so101_kinematics.vision.tagged_scene import build_tagged_model  # noqa: E402
 

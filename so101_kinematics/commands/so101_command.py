@@ -184,8 +184,9 @@ def _sheet(args: argparse.Namespace) -> int:
 
 def _tags(args: argparse.Namespace) -> int:
     """The printable ArUco tags (vision/tags.py), true to size."""
-    from so101_kinematics.vision.opencv_import import require_opencv
-    from so101_kinematics.vision.tags import TAG_DICTIONARY, TAGS, write_tag_sheet
+    from so101_kinematics.opencv_import import require_opencv
+    from so101_kinematics.sim.tag_textures import TAG_DICTIONARY, TAGS
+    from so101_kinematics.vision.tags import write_tag_sheet
 
     require_opencv()  # before the output is touched: one line naming the fix
     path = outputs.check_output_path(args.tags, "so101 tags", suffixes=(".pdf",),

@@ -30,6 +30,7 @@ from so101_kinematics.sim import actuation
 from so101_kinematics.sim.contact_pairs import use_explicit_contact_pairs
 from so101_kinematics.sim.meshes import ensure_meshes
 from so101_kinematics.sim.render import use_render_meshes
+from so101_kinematics.sim.tag_textures import add_cube_tag, add_target_tag
 
 __all__ = [
     "CUBE_OFFSET_RANGE_MM", "CubeMonitor", "CubeStart", "add_cube", "build_model",
@@ -82,7 +83,8 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
                 explicit_pairs: bool = True,
                 cube_at: tuple[float, float, float] | None = None, *,
                 cubes_at: Sequence[Sequence[float]] = (),
-                base_height: float = 0.0, servo: dict | None = None) -> mujoco.MjModel:
+                base_height: float = 0.0, servo: dict | None = None, tagged: bool = False,
+                target_at: Sequence[float] | None = None) -> mujoco.MjModel:
     """Compile the course scene, optionally with a free cube at the plan's pick position.
 
     Args:
@@ -104,6 +106,10 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
         base_height: the table top is this far below the base frame [m] (the
             lab's 15 mm mount); the arm stays where it is, the table moves.
         servo: keywords of ``actuation.use_servo`` (default: its defaults).
+        tagged: print the cube tag on the first cube's top (``tag_textures.CUBE_TAG``;
+            a visual-only geom, the physics unchanged; needs OpenCV to draw it).
+        target_at: lay the target tag (``tag_textures.TARGET_TAG``) on the table at
+            (x [m], y [m][, yaw [deg]]) in the base frame (visual only; needs OpenCV).
 
     Returns:
         The model. Sleeping is enabled: a cube at rest on the table costs no
@@ -123,6 +129,10 @@ def build_model(plan: Plan | None = None, cube: CubeStart | None = None,
         add_cube(spec, centre - [0.0, 0.0, base_height], quat)
     for index, place in enumerate([cube_at] if cube_at is not None else cubes_at):
         add_cube(spec, *cube_on_table(*place, base_height=base_height), name=cube_name(index))
+    if tagged and spec.body(cube_name(0)) is not None:
+        add_cube_tag(spec, cube_name(0))
+    if target_at is not None:
+        add_target_tag(spec, *target_at)
     if explicit_pairs:
         use_explicit_contact_pairs(spec)
     m = spec.compile()

@@ -105,7 +105,12 @@ from so101_kinematics.sensors.cube_wire import CubeReading
 from so101_kinematics.servo import KIT_SUPPLY_V
 from so101_kinematics.sim.render import check_frame_size
 from so101_kinematics.virtual.camera_server import CAMERA_FPS, check_camera_fps, require_cv2
-from so101_kinematics.virtual.cubes import check_base_height, check_cube_position, check_cubes
+from so101_kinematics.virtual.cubes import (
+    check_base_height,
+    check_cube_position,
+    check_cubes,
+    check_target_position,
+)
 from so101_kinematics.virtual.electrical import SUPPLY_V, THERMAL_TIME_S
 from so101_kinematics.virtual.faults import parse_faults
 from so101_kinematics.virtual.rules import check_rules
@@ -159,6 +164,9 @@ class VirtualSO101:
             addresses are :attr:`camera_addresses`.
         camera_size: (width, height) [px] of the served frames.
         camera_fps: [frames/s] served while a client watches.
+        target: (x [m], y [m][, yaw [deg]]): the target tag (``sim/tag_textures.py``) on the
+            table there, in the base frame, drawn for the served cameras (which also see the
+            first cube's tag); visual only, the physics has no such body.
 
     Raises:
         CalibrationError: the calibration is unusable.
@@ -177,7 +185,8 @@ class VirtualSO101:
                  thermal_time_s: float = THERMAL_TIME_S,
                  cube=None, base_height: float = 0.0, variant: str | None = None,
                  rules: Mapping[str, str] | None = None, cameras: Sequence[str] = (),
-                 camera_size: Sequence[int] = (640, 480), camera_fps: float = CAMERA_FPS):
+                 camera_size: Sequence[int] = (640, 480), camera_fps: float = CAMERA_FPS,
+                 target: Sequence[float] | None = None):
         self.calibration = load_calibration(calibration)
         supply = (KIT_SUPPLY_V if leader else SUPPLY_V) if supply is None else supply
         chosen_rules = check_rules(rules)
@@ -196,7 +205,8 @@ class VirtualSO101:
                    "cubes": cubes, "base_height": base_height, "variant": variant,
                    "rules": chosen_rules, "cameras": list(cameras),
                    "camera_size": check_frame_size(camera_size, "camera size", even=False),
-                   "camera_fps": check_camera_fps(camera_fps)}
+                   "camera_fps": check_camera_fps(camera_fps),
+                   "target": check_target_position(target) if target is not None else None}
         env = dict(os.environ)
         if cameras:
             require_cv2()  # one line before a start-up, not a traceback from the child

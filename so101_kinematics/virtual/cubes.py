@@ -9,7 +9,8 @@ from so101_kinematics.errors import CubePositionError
 from so101_kinematics.inputs import check_number
 from so101_kinematics.sensors.cube_wire import MAX_CUBES
 
-__all__ = ["CUBE_REACH_M", "check_base_height", "check_cube_position", "check_cubes"]
+__all__ = ["CUBE_REACH_M", "check_base_height", "check_cube_position", "check_cubes",
+           "check_target_position"]
 
 CUBE_REACH_M = 0.5  # a cube is placed within this of the base, on the table [m]
 BASE_HEIGHT_RANGE_M = (0.0, 0.05)  # the table below the base frame [m] (the lab's mount: 0.015)
@@ -27,6 +28,23 @@ def check_cube_position(cube) -> tuple[float, float, float]:
     y = check_number(cube[1], "cube y", -CUBE_REACH_M, CUBE_REACH_M, "m", error=CubePositionError)
     yaw = check_number(cube[2] if len(cube) == 3 else 0.0, "cube yaw", -180.0, 180.0, "deg",
                        error=CubePositionError)
+    return x, y, yaw
+
+
+def check_target_position(target) -> tuple[float, float, float]:
+    """(x, y[, yaw]) of the target tag on the table, checked as a cube's (``--target``).
+
+    Raises:
+        CubePositionError: naming the value, the allowed range and the fix.
+    """
+    if len(target) not in (2, 3):
+        raise CubePositionError(f"The target tag's position is X Y [YAW], got {target!r}.")
+    x = check_number(target[0], "target x", -CUBE_REACH_M, CUBE_REACH_M, "m",
+                     error=CubePositionError)
+    y = check_number(target[1], "target y", -CUBE_REACH_M, CUBE_REACH_M, "m",
+                     error=CubePositionError)
+    yaw = check_number(target[2] if len(target) == 3 else 0.0, "target yaw", -180.0, 180.0,
+                       "deg", error=CubePositionError)
     return x, y, yaw
 
 

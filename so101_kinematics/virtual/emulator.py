@@ -188,12 +188,17 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
 
 
 def _camera_server(m, options: dict):
-    """The cameras' server, drawing the emulator's scene with the render meshes."""
+    """The cameras' server, drawing the emulator's scene with the render meshes and the tags.
+
+    The first cube carries the cube tag and ``options["target"]`` lays the target tag: visual
+    geoms of the drawn model only (the physics model has none; the positions are the same).
+    """
     from so101_kinematics.sim.cube import build_model
     from so101_kinematics.virtual.camera_server import CameraServer
 
     render_model = build_model(cubes_at=options.get("cubes", ()),
-                               base_height=options.get("base_height", 0.0), render_meshes=True)
+                               base_height=options.get("base_height", 0.0), render_meshes=True,
+                               tagged=True, target_at=options.get("target"))
     return CameraServer(m, render_model, options["cameras"], options["camera_size"],
                         options["camera_fps"])
 

@@ -35,8 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from so101_kinematics.errors import VisionError
-from so101_kinematics.vision.opencv_import import require_opencv
-from so101_kinematics.vision.tags import TAG_DICTIONARY, TAGS, Tag
+from so101_kinematics.opencv_import import require_opencv
+from so101_kinematics.sim.tag_textures import TAG_DICTIONARY, TAGS, Tag
 
 __all__ = ["TagSighting", "detect_tags", "find_tag", "flat_pose", "no_tag_message",
            "refine_corners", "tag_corners"]

@@ -43,17 +43,12 @@ from so101_kinematics.planning.plans import default_plan, pick_and_place_steps, 
 from so101_kinematics.sim import scene, stepping
 from so101_kinematics.sim.cube import CubeMonitor, cube_state, scene_limits
 from so101_kinematics.sim.pick_place import INITIAL_KEYFRAME, MIN_LIFT, TILT_TOLERANCE
+from so101_kinematics.sim.tag_textures import CUBE_TAG, TAG_THICKNESS, TARGET_TAG, tag_geom_name
 from so101_kinematics.vision.detect import find_tag, flat_pose, no_tag_message
 from so101_kinematics.vision.see_and_pick_video import inset_recorder
 from so101_kinematics.vision.sim_camera import WEBCAM, ImageEffects, SimCamera
 from so101_kinematics.vision.tagged_scene import build_tagged_model
-from so101_kinematics.vision.tags import (
-    CUBE_TAG,
-    TAG_THICKNESS,
-    TARGET_TAG,
-    get_tag_pose_base,
-    tag_geom_name,
-)
+from so101_kinematics.vision.tags import get_tag_pose_base
 
 __all__ = [
     "CAMERA", "FRAME_RATE", "LOOK_FRAMES", "LOOK_MOVE", "LOOK_POSE", "MAX_POSE_AGE",

@@ -12,11 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
+from so101_kinematics.opencv_import import require_opencv
 from so101_kinematics.planning.motion import Plan
 from so101_kinematics.sim.pick_place import total_duration
 from so101_kinematics.sim.render import DEFAULT_CAMERA, DEFAULT_FPS, DEFAULT_SIZE, FrameRenderer
 from so101_kinematics.sim.video import VideoRecorder
-from so101_kinematics.vision.opencv_import import require_opencv
 from so101_kinematics.vision.sim_camera import CAMERA_SIZE
 
 __all__ = ["INSET_FRACTION", "inset_recorder"]

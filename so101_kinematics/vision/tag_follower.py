@@ -1,6 +1,6 @@
 """The tag follower: the wrist camera keeps a moving tag centred, by the course's resolved rate.
 
-The target tag (``tags.TARGET_TAG``, 40 mm) is a mocap body sliding on the table along a
+The target tag (``tag_textures.TARGET_TAG``, 40 mm) is a mocap body sliding on the table along a
 circle or a line (:class:`TagPath`) at a stated speed. Each control cycle (one camera frame,
 :data:`FOLLOW_RATE`):
 
@@ -42,20 +42,16 @@ from so101_kinematics.errors import VisionError
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINT_RANGES_RAD
 from so101_kinematics.ik.geometry import PAN_AXIS_POINT, get_jacobian
+from so101_kinematics.opencv_import import require_opencv
 from so101_kinematics.sim import actuation, scene, stepping
 from so101_kinematics.sim.pick_place import INITIAL_KEYFRAME
+from so101_kinematics.sim.tag_textures import TAG_THICKNESS, TARGET_TAG, tag_geom_name
 from so101_kinematics.sim.video import VideoRecorder
 from so101_kinematics.vision.camera_model import get_camera_pose_base, project_points
 from so101_kinematics.vision.detect import find_tag, flat_pose
-from so101_kinematics.vision.opencv_import import require_opencv
 from so101_kinematics.vision.sim_camera import WEBCAM, ImageEffects, SimCamera
 from so101_kinematics.vision.tagged_scene import build_tagged_model, tagged_spec
-from so101_kinematics.vision.tags import (
-    TAG_THICKNESS,
-    TARGET_TAG,
-    get_tag_pose_base,
-    tag_geom_name,
-)
+from so101_kinematics.vision.tags import get_tag_pose_base
 
 __all__ = [
     "DAMPING", "FOLLOW_CAMERA", "FOLLOW_POSE_AGE", "FOLLOW_RATE", "GAIN", "HEIGHT", "LOOK_TILT",

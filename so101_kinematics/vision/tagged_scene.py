@@ -21,7 +21,7 @@ from so101_kinematics.sim import actuation
 from so101_kinematics.sim.cube import add_cube, cube_on_table
 from so101_kinematics.sim.meshes import ensure_meshes
 from so101_kinematics.sim.render import use_render_meshes
-from so101_kinematics.vision.tags import add_cube_tag, add_target_tag
+from so101_kinematics.sim.tag_textures import add_cube_tag, add_target_tag
 
 __all__ = ["build_tagged_model", "tagged_spec"]
 
@@ -33,7 +33,7 @@ def tagged_spec(cube_at: Sequence[float] | None = None,
 
     Args:
         cube_at: the cube resting on the table at (x [m], y [m][, yaw [deg]]) in the base
-            frame, its tag on top (``tags.CUBE_TAG``); None: no cube.
+            frame, its tag on top (``tag_textures.CUBE_TAG``); None: no cube.
         target_at: the target tag on the table at (x [m], y [m][, yaw [deg]]); None: none.
         render_meshes: draw the arm with the decimated render-only meshes (the same
             physics; ``sim/render.py``).

@@ -1,6 +1,6 @@
 """``so101-check-vision``'s cases: camera poses around the target tag, and the simulator's truth.
 
-The course's scene with the target tag (``tags.TARGET_TAG``: 40 mm on a 52 mm square) at
+The course's scene with the target tag (``tag_textures.TARGET_TAG``: 40 mm on a 52 mm square) at
 (0.22, 0.05) m turned 25 deg, and :data:`VIEWS` cameras looking at it from 25 to 35 cm,
 straight down (rolled) and from the side. For each: the rendered 640x480 image (a webcam's
 blur and noise) through ``detect.py`` gives the tag's corners (the input a student's
@@ -18,12 +18,13 @@ import mujoco
 import numpy as np
 
 from so101_kinematics.errors import VisionError
+from so101_kinematics.opencv_import import require_opencv
+from so101_kinematics.sim.tag_textures import TARGET_TAG, tag_geom_name
 from so101_kinematics.vision.camera_model import R_MUJOCO_OPENCV, get_camera_pose_base
 from so101_kinematics.vision.detect import find_tag, tag_corners
-from so101_kinematics.vision.opencv_import import require_opencv
 from so101_kinematics.vision.sim_camera import WEBCAM, SimCamera
 from so101_kinematics.vision.tagged_scene import build_tagged_model, tagged_spec
-from so101_kinematics.vision.tags import TARGET_TAG, get_tag_pose_base, tag_geom_name
+from so101_kinematics.vision.tags import get_tag_pose_base
 
 __all__ = ["TAG_AT", "VIEWS", "look_at", "vision_cases"]
 

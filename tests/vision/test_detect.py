@@ -13,18 +13,14 @@ import pytest
 from so101_kinematics.constants import CUBE_SIZE
 from so101_kinematics.errors import VisionError
 from so101_kinematics.ik.call_shapes import get_inverse_kinematics
+from so101_kinematics.opencv_import import require_opencv
 from so101_kinematics.sim.scene import to_radians
+from so101_kinematics.sim.tag_textures import CUBE_TAG, TAG_THICKNESS, TARGET_TAG
 from so101_kinematics.vision.camera_model import project_points
 from so101_kinematics.vision.detect import detect_tags, find_tag, flat_pose, no_tag_message
-from so101_kinematics.vision.opencv_import import require_opencv
 from so101_kinematics.vision.sim_camera import WEBCAM, SimCamera
 from so101_kinematics.vision.tagged_scene import build_tagged_model, tagged_spec
-from so101_kinematics.vision.tags import (
-    CUBE_TAG,
-    TAG_THICKNESS,
-    TARGET_TAG,
-    get_tag_pose_base,
-)
+from so101_kinematics.vision.tags import get_tag_pose_base
 
 CUBE_AT = (0.25, 0.10, 30.0)  # x [m], y [m], yaw [deg]
 TARGET_AT = (0.25, -0.12, -20.0)

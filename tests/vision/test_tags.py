@@ -12,7 +12,7 @@ from so101_kinematics.constants import CUBE_SIZE
 from so101_kinematics.markers import pdf_ours
 from so101_kinematics.paths import SCENE_PATH
 from so101_kinematics.sim.cube import add_cube, cube_on_table
-from so101_kinematics.vision.tags import (
+from so101_kinematics.sim.tag_textures import (
     CUBE_TAG,
     MARKER_CELLS,
     TAGS,
@@ -20,9 +20,8 @@ from so101_kinematics.vision.tags import (
     add_cube_tag,
     add_target_tag,
     tag_face_image,
-    tag_page,
-    write_tag_sheet,
 )
+from so101_kinematics.vision.tags import tag_page, write_tag_sheet
 
 pytestmark = pytest.mark.vision
 

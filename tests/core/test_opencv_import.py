@@ -7,7 +7,7 @@ import sys
 import pytest
 
 from so101_kinematics.errors import OpenCVMissing
-from so101_kinematics.vision.opencv_import import require_opencv
+from so101_kinematics.opencv_import import require_opencv
 
 
 def test_no_opencv_is_one_line_naming_the_fix(monkeypatch):

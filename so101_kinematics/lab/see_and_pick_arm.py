@@ -1,0 +1,120 @@
+"""See and pick on an arm through lerobot: a camera opened by lerobot's camera class, its bus.
+
+The hardware half of ``see_and_pick.py --port PORT --camera ADDRESS``:
+
+1. **look**: one frame read by lerobot's own camera class (``lerobot_camera_so101_virtual``,
+   an ``OpenCVCamera`` for the virtual arm's served stream), the tags found by the one
+   detection path (``vision/detect.py``) and laid on the table by ``detect.flat_pose`` with
+   the camera's ``K`` and pose. Those are the model's camera (``camera_model``, default
+   ``overhead``): exact for the virtual arm, whose camera is the model's;
+2. **plan**: the course's Cartesian pick-and-place (``cartesian_plan``, what
+   ``pick_place_hw.py --pick/--place`` runs) from the cube's seen position and yaw to the
+   target tag's;
+3. **move**: ``hw/run.py``'s ``run_on_arm`` through lerobot's ``FeetechMotorsBus``, the
+   checks before torque on and the fault policy as ``pick_place_hw.py``'s;
+4. **score**: the camera looks again; the cube tag's centre against the target's first seen
+   (the camera alone), or the bus's cube sensor when the tag is hidden (the virtual arm).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from so101_kinematics.constants import CUBE_HALF_SIZE
+from so101_kinematics.errors import TagNotInView
+from so101_kinematics.hw.run import run_on_arm
+from so101_kinematics.hw.teach import grasp_outcome
+from so101_kinematics.planning.cartesian_plan import cartesian_plan
+from so101_kinematics.sim.cube import build_model
+from so101_kinematics.sim.tag_textures import CUBE_TAG, TAG_THICKNESS, TARGET_TAG
+from so101_kinematics.vision.camera_model import camera_intrinsics, get_camera_pose_base
+from so101_kinematics.vision.detect import find_tag, flat_pose, no_tag_message
+
+__all__ = ["ARM_PLACE_TOLERANCE", "look_through_lerobot", "read_lerobot_frame",
+           "see_and_pick_on_arm"]
+
+ARM_PLACE_TOLERANCE = 0.010
+"""[m] placed: the cube's centre this near the target tag's (the course's arm figure)."""
+TABLE_TOP_Z = 0.0  # [m] the table top in the base frame (the lab's mount: --base-height)
+
+
+def read_lerobot_frame(address: str, size: Sequence[int] = (640, 480)) -> np.ndarray:
+    """One RGB frame of the camera at ``address``, read by lerobot's own camera class."""
+    from lerobot.cameras.utils import make_cameras_from_configs
+
+    import lerobot_camera_so101_virtual  # noqa: F401 - registers the camera type
+    from lerobot_camera_so101_virtual import SO101VirtualCameraConfig
+
+    config = SO101VirtualCameraConfig(address=address, width=size[0], height=size[1], fps=30)
+    camera = make_cameras_from_configs({"see_and_pick": config})["see_and_pick"]
+    camera.connect()
+    try:
+        return camera.read()
+    finally:
+        camera.disconnect()
+
+
+def look_through_lerobot(address: str, camera: str = "overhead",
+                         size: Sequence[int] = (640, 480),
+                         tags=(CUBE_TAG, TARGET_TAG)) -> dict[str, np.ndarray]:
+    """The tags' poses ``g_bt`` in the base frame from one frame, by tag name.
+
+    Raises:
+        TagNotInView: a tag is not in the frame (one line).
+    """
+    m = build_model(render_meshes=True)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    K, g_bc = camera_intrinsics(m, camera, *size), get_camera_pose_base(m, d, camera)
+    image = read_lerobot_frame(address, size)
+    heights = {CUBE_TAG.name: TABLE_TOP_Z + 2 * CUBE_HALF_SIZE + TAG_THICKNESS,
+               TARGET_TAG.name: TABLE_TOP_Z + TAG_THICKNESS}
+    poses = {}
+    for tag in tags:
+        seen = find_tag(image, K, tag)
+        if seen is None:
+            raise TagNotInView(no_tag_message(tag, camera))
+        poses[tag.name] = flat_pose(seen, K, g_bc, heights[tag.name])
+    return poses
+
+
+def see_and_pick_on_arm(port: str, address: str, calibration: Mapping[str, Any], *,
+                        camera: str = "overhead", size: Sequence[int] = (640, 480),
+                        **run_options) -> dict:
+    """Look, plan, run on the arm at ``port``, look again: the report of one trial.
+
+    Returns:
+        A dict: ``success_rate``, ``trials`` (one: ``picked``, ``placed``,
+        ``placed_error_mm``, ...), ``cube_seen`` and ``target_seen`` (x, y [m], yaw [deg]).
+
+    Raises:
+        TagNotInView: no tag before the run (nothing moved).
+    """
+    seen = look_through_lerobot(address, camera, size)
+    cube, target = seen[CUBE_TAG.name], seen[TARGET_TAG.name]
+    yaw = float(np.degrees(np.arctan2(cube[1, 0], cube[0, 0])))
+    plan = cartesian_plan((*cube[:2, 3], CUBE_HALF_SIZE), (*target[:2, 3], CUBE_HALF_SIZE),
+                          cube_yaw_deg=yaw)
+    result = run_on_arm(port, calibration, plan, **run_options)
+    try:
+        after, by = look_through_lerobot(address, camera, size, tags=(CUBE_TAG,))[
+            CUBE_TAG.name][:2, 3], "camera"
+    except TagNotInView:
+        after, by = (None, None) if result.cube is None else (
+            np.asarray(result.cube.position_m[:2]), "cube sensor")
+    error = None if after is None else float(np.hypot(*(after - target[:2, 3])))
+    grasp = grasp_outcome(plan, result.cycles) or ""
+    picked = result.aborted is None and "closed on the cube" in grasp
+    placed = picked and error is not None and error <= ARM_PLACE_TOLERANCE
+    trial = {"picked": picked, "placed": placed,
+             "placed_error_mm": None if error is None else 1000.0 * error,
+             "placed_measured_by": by, "aborted": None if result.aborted is None else
+             str(result.aborted), "grasp": grasp}
+    return {"success_rate": 1.0 if placed else 0.0, "trials": [trial],
+            "cube_seen": [*map(float, cube[:2, 3]), yaw],
+            "target_seen": [*map(float, target[:2, 3]),
+                            float(np.degrees(np.arctan2(target[1, 0], target[0, 0])))]}

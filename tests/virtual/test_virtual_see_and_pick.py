@@ -1,0 +1,66 @@
+"""See and pick on the virtual arm: lerobot's camera class finds the cube, lerobot's bus moves it.
+
+``see_and_pick.py --port PORT --camera ADDRESS`` (``lab/see_and_pick_arm.py``): the virtual
+arm serves its overhead camera (the cube and the target tag drawn, ``sim/tag_textures.py``);
+lerobot opens it with its own camera class (``lerobot_camera_so101_virtual``); the one
+detection path (``vision/detect.py``) gives the cube's and the target's positions; the
+course's Cartesian plan (as ``pick_place_hw.py --pick/--place``) runs through lerobot's
+``FeetechMotorsBus`` (``hw/run.py``'s ``run_on_arm``). The expected end: the cube resting on
+the target tag, within the 10 mm the course's pick-and-place asks of the arm.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+pytest.importorskip("lerobot")
+pytest.importorskip("cv2")
+pytestmark = [pytest.mark.hw, pytest.mark.vision]
+
+import see_and_pick  # noqa: E402
+from so101_kinematics.virtual.arm import VirtualSO101  # noqa: E402
+
+CUBE_AT = (0.20, 0.08, 20.0)  # [m, m, deg]
+TARGET_AT = (0.22, -0.10, -15.0)
+PLACE_TOLERANCE_M = 0.010  # the course's pick-and-place on the arm: 10 mm
+
+
+@pytest.mark.slow
+def test_the_virtual_arm_puts_the_cube_it_saw_on_the_target_it_saw(tmp_path, capsys):
+    report = tmp_path / "report.json"
+    with VirtualSO101(cube=CUBE_AT, target=TARGET_AT, cameras=["overhead"]) as arm:
+        code = see_and_pick.main(["--port", arm.port, "--camera",
+                                  arm.camera_addresses["overhead"], "--json", str(report)])
+        cube = arm.cube()
+    assert code == 0, capsys.readouterr().err
+    x, y, _ = cube.position_m
+    assert math.hypot(x - TARGET_AT[0], y - TARGET_AT[1]) <= PLACE_TOLERANCE_M
+    assert cube.tilt_deg <= 10.0 and not cube.held
+    result = json.loads(report.read_text())
+    seen = result["cube_seen"]
+    assert math.hypot(seen[0] - CUBE_AT[0], seen[1] - CUBE_AT[1]) <= 0.002
+    trial = result["trials"][0]
+    assert result["success_rate"] == 1.0 and trial["picked"] and trial["placed"]
+    assert trial["placed_error_mm"] == pytest.approx(
+        1000 * math.hypot(x - result["target_seen"][0], y - result["target_seen"][1]), abs=2.0)
+    print(capsys.readouterr().out)
+
+
+@pytest.mark.parametrize("option", [["--port", "/dev/null"], ["--camera", "http://x/o.mjpg"]])
+def test_the_arm_needs_both_its_port_and_its_camera(option, capsys):
+    assert see_and_pick.main(option) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Fix: give both" in err
+
+
+def test_no_target_tag_in_view_is_one_line_and_nothing_moves(capsys):
+    with VirtualSO101(cube=CUBE_AT, cameras=["overhead"]) as arm:
+        before = arm.cube()
+        code = see_and_pick.main(["--port", arm.port, "--camera", arm.camera_addresses["overhead"]])
+        after = arm.cube()
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "target" in err
+    assert after.position_m == pytest.approx(before.position_m, abs=1e-4)
