@@ -41,7 +41,6 @@ from so101_kinematics.planning.plans import default_plan  # noqa: E402
 from so101_kinematics.sim import actuation  # noqa: E402
 from so101_kinematics.virtual.arm import VirtualSO101  # noqa: E402
 from so101_kinematics.virtual.electrical import SUPPLY_V  # noqa: E402
-from so101_kinematics.virtual.protocol import ERR_OVERLOAD as OVERLOAD_BIT  # noqa: E402
 from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH  # noqa: E402
 
 CALIBRATION = load_calibration(DEFAULT_CALIBRATION_PATH)
@@ -61,16 +60,6 @@ def assert_near(actual, expected, tol_deg=1.5, tol_gripper=3.0, label=""):
         tol = tol_gripper if joint == "gripper" else tol_deg
         assert abs(actual[joint] - expected[joint]) <= tol, (
             f"{label} {joint}: {actual[joint]:.2f} vs {expected[joint]:.2f} (tol {tol})")
-
-
-def status_bit_within(arm, joint, bit, timeout_s):
-    """Whether ``joint``'s servo sets ``bit`` in its Status register (65) within ``timeout_s``."""
-    deadline = time.monotonic() + timeout_s
-    while not arm.registers(joint)["Status"] & bit:
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.05)
-    return True
 
 
 def goals_outside_calibration(goal_log):
@@ -409,10 +398,19 @@ def test_a_late_reply_is_dropped_not_taken_for_the_next_one(arm):
 @pytest.mark.slow
 @pytest.mark.newest_lerobot
 def test_stalled_joint_aborts_returns_and_releases(arm):
-    arm.inject("stall:elbow_flex")  # blocked where it stands (90 deg); swing_left asks for 70
+    # Blocked where it stands (90 deg) from the run's first cycle on; swing_left asks for 70.
+    # Not before the connect: the powered-up elbow sags 20 ticks under its goal (P 32), so a
+    # block then loads it to overload before lerobot's ping, which reads the error bit as a
+    # missing servo (an idle machine trips it before the connect ends, a loaded one not).
+    def on_cycle(session, cycle):
+        if not on_cycle.fired:
+            on_cycle.fired = True
+            arm.inject("stall:elbow_flex")
+
+    on_cycle.fired = False
     start = arm.joint_positions()
     with pytest.raises(hw.MotionAborted) as info:
-        hw.run_on_arm(arm.port, CALIBRATION, short_plan())
+        hw.run_on_arm(arm.port, CALIBRATION, short_plan(), on_cycle=on_cycle)
     message = str(info.value)
     # caught by whichever comes first: the tracking check or the servo's own overload bit
     assert ("elbow_flex does not follow its command" in message
@@ -442,17 +440,22 @@ def test_stall_that_also_blocks_the_way_back_holds_with_torque_on(arm):
     # factory Unloading_Condition): named as unable to hold, the arm to be supported (issue 33).
     # Whether the bit comes depends on where the run's hold goal lands: 0.2-0.4 deg from the
     # stuck joint, one encoder tick either side of the servo's dead band (measured under load:
-    # goal 29.80 deg -> no load, no bit; 29.89 or 29.98 -> load 100 %, the bit). Beside other
-    # jobs the run stops on another cycle and both happen (a 3.12 leg at -n 2; 4 of 6 runs
-    # beside three busy loops). Either way the ending says what the servo reads back.
-    tripped = status_bit_within(arm, "shoulder_pan", OVERLOAD_BIT, timeout_s=3.0)
+    # goal 29.80 deg -> no load, no bit; 29.89 or 29.98 -> load 100 %, the bit).
+    # Near the threshold the stalled servo's load flickers with its reading noise, so the bit
+    # may be set at the run's last read and clear for seconds after (CI saw exactly that: the
+    # ending named the overload, then 3 s of polling saw no bit). The ending reports the run's
+    # own read-back; the test holds it to one of the two true endings, never a third, and the
+    # overload named only on the stalled servo (tests/hw/test_guarded_registers.py pins the
+    # unable-to-hold line deterministically).
     line = hw.ending(result, "R")
-    if not tripped:
+    assert "torque ON" in line, line
+    if result.unable:
+        assert set(result.unable) == {"shoulder_pan"}, result.unable
+        assert line.startswith("The arm is NOT holding where it stopped"), line
+        assert "UNABLE TO HOLD (read back): shoulder_pan (status: overloaded)" in line, line
+    else:
         assert line.startswith("The arm is holding where it stopped"), line
-        assert "torque ON" in line and "UNABLE" not in line, line
-        return
-    assert line.startswith("The arm is NOT holding where it stopped"), line
-    assert "UNABLE TO HOLD (read back): shoulder_pan (status: overloaded)" in line
+        assert "UNABLE" not in line, line
 
 
 @pytest.mark.slow
