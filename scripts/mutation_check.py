@@ -557,7 +557,8 @@ MUTANTS: list[Mutant] = [
       'help="the placement sheet of a plan (PDF); no arm needed"',
       "tests/docs/test_so101_command_page.py::test_the_usage_block_is_the_commands_help"),
     m("docs_module_unlisted", "a module of the package goes missing from the architecture "
-      "page's table", "docs/architecture.md", None, " `sim_arm` `tag_textures` |", " `tag_textures` |",
+      "page's table", "docs/architecture.md", None, " `sim_arm` `tag_textures` |",
+      " `tag_textures` |",
       "tests/docs/test_architecture_page.py::test_every_module_is_on_the_architecture_page"),
     m("cube_sensor_stale", "the cube sensor keeps its first reading (the gripper is sent where "
       "the cube was)", "so101_kinematics/sensors/cube_reader.py", "CubeSensor.read",
