@@ -1,0 +1,131 @@
+"""Hand-eye calibration: a camera's pose on the gripper, or in the base frame, from board views.
+
+Both forms solve ``A X = X B`` with ``cv2.calibrateHandEye``, from N poses of the arm (the
+gripper's pose ``g_b_g`` from the FK of the joint angles read) and the board's pose in the
+camera at each (``g_c_board``, ``charuco.board_pose``):
+
+- **eye in hand** (the wrist camera; the board fixed on the table): the board's pose in the
+  base, ``g_b_g @ X @ g_c_board``, is the same in every view; ``X = g_g_c``, the camera in
+  the gripper frame (:func:`solve_hand_eye`);
+- **eye to hand** (the fixed camera; the board held in the gripper): the board's pose in the
+  gripper, ``inv(g_b_g) @ Y @ g_c_board``, is the same in every view; the same solver given
+  the *inverted* gripper poses returns ``Y = g_b_c``, the camera in the base frame
+  (:func:`solve_eye_to_hand`).
+
+What stays the same is the residual: the spread of that constant pose over the views (RMS
+of its positions about their mean [mm], of its rotations from their mean [deg]), which a real
+calibration can report without any truth. OpenCV's five methods (Tsai, Park, Horaud,
+Andreff, Daniilidis) are each tried; the one with the smallest spread is kept.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from so101_kinematics.errors import VisionError
+from so101_kinematics.vision.opencv_import import require_opencv
+
+__all__ = ["HandEye", "MIN_HAND_EYE_VIEWS", "pose_error", "solve_eye_to_hand", "solve_hand_eye"]
+
+MIN_HAND_EYE_VIEWS = 3
+"""``cv2.calibrateHandEye`` needs at least three poses (two motions about different axes)."""
+METHODS = ("TSAI", "PARK", "HORAUD", "ANDREFF", "DANIILIDIS")
+"""OpenCV's hand-eye methods (``cv2.CALIB_HAND_EYE_<name>``)."""
+
+
+@dataclass(frozen=True)
+class HandEye:
+    """A hand-eye result.
+
+    Attributes:
+        pose: 4x4 [m]: ``g_g_c`` (eye in hand) or ``g_b_c`` (eye to hand).
+        spread_mm: RMS distance of the constant pose's positions from their mean [mm].
+        spread_deg: RMS angle of its rotations from their mean [deg].
+        method: the OpenCV method kept.
+        views: the poses used.
+    """
+
+    pose: np.ndarray
+    spread_mm: float
+    spread_deg: float
+    method: str
+    views: int
+
+
+def pose_error(g: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
+    """Position [mm] and rotation [deg] between two 4x4 poses."""
+    relative = np.asarray(g)[:3, :3].T @ np.asarray(truth)[:3, :3]
+    angle = np.degrees(np.arccos(np.clip((np.trace(relative) - 1.0) / 2.0, -1.0, 1.0)))
+    return float(np.linalg.norm(np.asarray(g)[:3, 3] - np.asarray(truth)[:3, 3]) * 1000.0), \
+        float(angle)
+
+
+def _mean_rotation(rotations: np.ndarray) -> np.ndarray:
+    u, _, vt = np.linalg.svd(rotations.sum(axis=0))
+    return u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+
+
+def _spread(poses: Sequence[np.ndarray]) -> tuple[float, float]:
+    poses = np.asarray(poses)
+    positions = poses[:, :3, 3]
+    mean = np.eye(4)
+    mean[:3, :3] = _mean_rotation(poses[:, :3, :3])
+    mean[:3, 3] = positions.mean(axis=0)
+    errors = np.array([pose_error(g, mean) for g in poses])
+    return tuple(float(np.sqrt(np.mean(errors[:, i] ** 2))) for i in (0, 1))
+
+
+def _solve(a: Sequence[np.ndarray], b: Sequence[np.ndarray], what: str) -> HandEye:
+    """Each method's ``X`` of ``a_i X b_i = const``; the one whose constant spreads least."""
+    if len(a) != len(b) or len(a) < MIN_HAND_EYE_VIEWS:
+        raise VisionError(f"{what} needs at least {MIN_HAND_EYE_VIEWS} arm poses, each with the "
+                          f"board seen; got {min(len(a), len(b))}. Fix: pose the arm more times, "
+                          "turning the gripper about different axes.")
+    cv2 = require_opencv()
+    rotations_a = [np.asarray(g)[:3, :3] for g in a]
+    translations_a = [np.asarray(g)[:3, 3] for g in a]
+    rotations_b = [np.asarray(g)[:3, :3] for g in b]
+    translations_b = [np.asarray(g)[:3, 3] for g in b]
+    best = None
+    for method in METHODS:
+        rotation, translation = cv2.calibrateHandEye(
+            rotations_a, translations_a, rotations_b, translations_b,
+            method=getattr(cv2, f"CALIB_HAND_EYE_{method}"))
+        x = np.eye(4)
+        x[:3, :3] = rotation
+        x[:3, 3] = np.asarray(translation).ravel()
+        if not np.all(np.isfinite(x)):
+            continue
+        spread_mm, spread_deg = _spread([ga @ x @ gb for ga, gb in zip(a, b, strict=True)])
+        if best is None or spread_mm < best.spread_mm:
+            best = HandEye(x, spread_mm, spread_deg, method.lower(), len(a))
+    if best is None:
+        raise VisionError(f"{what}: no hand-eye method found a pose. Fix: pose the arm with "
+                          "larger turns of the gripper between views.")
+    return best
+
+
+def solve_hand_eye(g_b_gripper: Sequence[np.ndarray],
+                   g_c_board: Sequence[np.ndarray]) -> HandEye:
+    """Eye in hand: ``g_g_c``, the camera (OpenCV axes) in the gripper frame.
+
+    Args:
+        g_b_gripper: the gripper's pose in the base frame at each view (the FK's) [m].
+        g_c_board: the board's pose in the camera at each view (fixed board) [m].
+    """
+    return _solve(g_b_gripper, g_c_board, "Hand-eye calibration")
+
+
+def solve_eye_to_hand(g_b_gripper: Sequence[np.ndarray],
+                      g_c_board: Sequence[np.ndarray]) -> HandEye:
+    """Eye to hand: ``g_b_c``, the fixed camera (OpenCV axes) in the base frame.
+
+    Args:
+        g_b_gripper: the gripper's pose in the base frame at each view [m].
+        g_c_board: the pose of the board held in the gripper, in the camera, at each view [m].
+    """
+    return _solve([np.linalg.inv(g) for g in g_b_gripper], g_c_board,
+                  "Eye-to-hand calibration")
