@@ -20,6 +20,7 @@ from dataclasses import replace
 import mujoco
 import numpy as np
 
+from so101_kinematics.errors import VisionError
 from so101_kinematics.vision.calibration_views import (
     G_GRIPPER_BOARD,
     GRIPPER_BODY,
@@ -52,9 +53,13 @@ from so101_kinematics.vision.hand_eye import (
     solve_hand_eye,
 )
 from so101_kinematics.vision.sim_camera import CAMERA_SIZE, WEBCAM, ImageEffects, SimCamera
-from so101_kinematics.errors import VisionError
 
-__all__ = ["HOME", "WRIST_INTRINSICS_POSE", "body_pose_base", "run_calibration"]
+__all__ = ["ACCEPTANCE", "HOME", "WRIST_INTRINSICS_POSE", "body_pose_base", "passes",
+           "run_calibration"]
+
+ACCEPTANCE = {"focal_pct": 1.0, "translation_mm": 2.0, "rotation_deg": 0.5}
+"""Issue 36's acceptance in the simulator: focal lengths within 1 % of the model's, the
+hand-eye and eye-to-hand camera poses within 2 mm and 0.5 deg."""
 
 HOME = "home"
 """The keyframe the arm starts at (the overhead camera's intrinsics are taken there)."""
@@ -177,3 +182,13 @@ def run_calibration(views: int = 12, seed: int = 0, size=CAMERA_SIZE,
                                                 "wrist": wrist_grades["rms_px"]},
                           "hand_eye_mm": {k: v["residual_mm"] for k, v in hand_eye.items()},
                           "hand_eye_deg": {k: v["residual_deg"] for k, v in hand_eye.items()}}}
+
+
+def passes(report: dict) -> bool:
+    """Every result of :func:`run_calibration`'s report within :data:`ACCEPTANCE`."""
+    focal = max(abs(report["intrinsics"][camera][key]) for camera in ("overhead", "wrist")
+                for key in ("fx_error_pct", "fy_error_pct"))
+    poses = report["hand_eye"].values()
+    return (focal <= ACCEPTANCE["focal_pct"]
+            and all(p["translation_mm"] <= ACCEPTANCE["translation_mm"] for p in poses)
+            and all(p["rotation_deg"] <= ACCEPTANCE["rotation_deg"] for p in poses))

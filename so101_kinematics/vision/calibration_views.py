@@ -26,9 +26,15 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
+from so101_kinematics import model_facts
 from so101_kinematics.errors import VisionError
-from so101_kinematics.frames import ARM_JOINTS, BODY_OF_FRAME, JOINT_LIMITS, TOOL_SITE, \
-    get_frame_chain
+from so101_kinematics.frames import (
+    ARM_JOINTS,
+    BODY_OF_FRAME,
+    JOINT_LIMITS,
+    TOOL_SITE,
+    get_frame_chain,
+)
 from so101_kinematics.vision.boards import (
     CALIBRATION_BOARD,
     G_BODY_BOARD,
@@ -40,9 +46,11 @@ from so101_kinematics.vision.camera_model import BASE_BODY, get_camera_pose_base
 from so101_kinematics.vision.charuco import BoardSighting, find_board
 from so101_kinematics.vision.tagged_scene import build_tagged_model, tagged_spec
 
-__all__ = ["GRIPPER_BODY", "G_GRIPPER_BOARD", "TABLE_BOARD_AT", "ViewSampler", "board_views", "calibration_model",
-           "WRIST_VIEW_RANGES", "gripper_pose", "held_views", "set_arm", "table_board_pose", "take_view",
-           "wrist_views"]
+__all__ = [
+    "GRIPPER_BODY", "G_GRIPPER_BOARD", "TABLE_BOARD_AT", "ViewSampler", "WRIST_VIEW_RANGES",
+    "board_views", "calibration_model", "gripper_pose", "held_views", "set_arm",
+    "table_board_pose", "take_view", "wrist_views",
+]
 
 TABLE_BOARD_AT = (0.24, 0.0)
 """(x, y) [m] of the board's centre lying on the table, in the base frame: its long side
@@ -53,8 +61,9 @@ def _gripper_board() -> np.ndarray:
     """The board's frame in the gripper frame: held in the jaws by its top edge, hanging on."""
     g_g_body = np.eye(4)
     g_g_body[:3, :3] = [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]  # face towards +x
-    top = -0.110  # [m] the top edge between the jaw pads (the object frame's z is -0.1075)
-    g_g_body[:3, 3] = (0.0051 + CALIBRATION_BOARD.thickness / 2, 0.0,
+    held = model_facts.site_position(TOOL_SITE)  # a held cube's centre, between the jaw pads
+    top = held[2] - 0.0025  # [m] the board's top edge, just below it
+    g_g_body[:3, 3] = (held[0] + CALIBRATION_BOARD.thickness / 2, 0.0,
                        top - CALIBRATION_BOARD.face[1] / 2)
     return g_g_body @ G_BODY_BOARD
 
