@@ -93,9 +93,9 @@ def build_parser() -> argparse.ArgumentParser:
     add_stack_arguments(sheet)
     tags = sub.add_parser(
         "tags", help="the ArUco tags of the cube and the target (PDF, print at 100 %%)",
-        description="Write the ArUco tags (the cube's and the target's) at their true size on "
-                    "an A4 page, the same images as the simulator's textures. Needs OpenCV "
-                    "(the hw extra).")
+        description="Write the ArUco tags (the cube's and the target's), or with --board the "
+                    "ChArUco calibration board, at their true size on an A4 page, the same "
+                    "images as the simulator's textures. Needs OpenCV (the hw extra).")
     tags.add_argument("tags", type=Path, metavar="PATH.pdf")
     tags.add_argument("--board", action="store_true", help="write the ChArUco calibration "
                       "board instead (calibrate_camera.py; A4, print at 100 %%)")

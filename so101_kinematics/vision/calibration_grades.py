@@ -49,6 +49,7 @@ from so101_kinematics.vision.hand_eye import (
     MIN_HAND_EYE_VIEWS,
     HandEye,
     pose_error,
+    refine_on_corners,
     solve_eye_to_hand,
     solve_hand_eye,
 )
@@ -112,6 +113,7 @@ def _hand_eye_report(result: HandEye, truth: np.ndarray, pnp_rms: list[float], v
     return {"translation_mm": translation_mm, "rotation_deg": rotation_deg,
             "residual_mm": result.spread_mm, "residual_deg": result.spread_deg,
             "board_rms_px": float(np.sqrt(np.mean(np.square(pnp_rms)))),
+            "chain_rms_px": result.rms_px,
             "method": result.method, "views_used": result.views, "views": views,
             key: result.pose.tolist()}
 
@@ -124,7 +126,11 @@ def _wrist(m, d, camera: SimCamera, intrinsics: Intrinsics, rng, views: int) -> 
     poses = [(a, g_b_board) for a in wrist_views(m, d, rng, views, g_b_board, K_true, size)]
     found = _sightings(m, d, camera, poses, "hand-eye (wrist)", MIN_HAND_EYE_VIEWS)
     board = [board_pose(s, intrinsics.K, intrinsics.dist) for _, _, s in found]
-    result = solve_hand_eye([gripper_pose(a) for a, _, _ in found], [g for g, _ in board])
+    grippers = [gripper_pose(a) for a, _, _ in found]
+    result = refine_on_corners(
+        solve_hand_eye(grippers, [g for g, _ in board]), grippers, [g for g, _ in board],
+        [(s.object_points, s.corners) for _, _, s in found], intrinsics.K, intrinsics.dist,
+        eye_in_hand=True)
     truth = np.linalg.inv(body_pose_base(d, GRIPPER_BODY)) @ camera.pose()
     return _hand_eye_report(result, truth, [r for _, r in board], views, "camera_in_gripper")
 
@@ -136,10 +142,14 @@ def _fixed(m, d, camera: SimCamera, intrinsics: Intrinsics, rng, views: int) -> 
     poses = [(a, None) for a in held_views(m, d, rng, views, K_true, size, camera.name)]
     found = _sightings(m, d, camera, poses, "eye-to-hand (overhead)", MIN_HAND_EYE_VIEWS)
     board = [board_pose(s, intrinsics.K, intrinsics.dist) for _, _, s in found]
-    result = solve_eye_to_hand([gripper_pose(a) for a, _, _ in found], [g for g, _ in board])
+    grippers = [gripper_pose(a) for a, _, _ in found]
+    result = refine_on_corners(
+        solve_eye_to_hand(grippers, [g for g, _ in board]), grippers, [g for g, _ in board],
+        [(s.object_points, s.corners) for _, _, s in found], intrinsics.K, intrinsics.dist,
+        eye_in_hand=False)
     truth = get_camera_pose_base(m, d, camera.name)
     report = _hand_eye_report(result, truth, [r for _, r in board], views, "camera_in_base")
-    g_g_board = np.linalg.inv(gripper_pose(found[0][0])) @ result.pose @ board[0][0]
+    g_g_board = np.linalg.inv(grippers[0]) @ result.pose @ board[0][0]
     report["board_in_gripper_mm"] = pose_error(g_g_board, G_GRIPPER_BOARD)[0]
     return report
 

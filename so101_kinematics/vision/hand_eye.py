@@ -16,6 +16,12 @@ What stays the same is the residual: the spread of that constant pose over the v
 of its positions about their mean [mm], of its rotations from their mean [deg]), which a real
 calibration can report without any truth. OpenCV's five methods (Tsai, Park, Horaud,
 Andreff, Daniilidis) are each tried; the one with the smallest spread is kept.
+
+Then :func:`refine_on_corners` (Levenberg-Marquardt, numpy only) moves the camera's pose and
+the board's constant pose together to make every corner of every view land where it was
+seen: the board's far-away depth, which one view's ``solvePnP`` measures worst, is then
+pinned by all the views at once (bundle adjustment of the two unknowns, the FK's gripper
+poses taken as exact).
 """
 
 from __future__ import annotations
@@ -28,7 +34,8 @@ import numpy as np
 from so101_kinematics.errors import VisionError
 from so101_kinematics.vision.opencv_import import require_opencv
 
-__all__ = ["HandEye", "MIN_HAND_EYE_VIEWS", "pose_error", "solve_eye_to_hand", "solve_hand_eye"]
+__all__ = ["HandEye", "MIN_HAND_EYE_VIEWS", "pose_error", "refine_on_corners", "solve_eye_to_hand",
+           "solve_hand_eye"]
 
 MIN_HAND_EYE_VIEWS = 3
 """``cv2.calibrateHandEye`` needs at least three poses (two motions about different axes)."""
@@ -44,8 +51,10 @@ class HandEye:
         pose: 4x4 [m]: ``g_g_c`` (eye in hand) or ``g_b_c`` (eye to hand).
         spread_mm: RMS distance of the constant pose's positions from their mean [mm].
         spread_deg: RMS angle of its rotations from their mean [deg].
-        method: the OpenCV method kept.
+        method: the OpenCV method kept (with ``+corners`` once :func:`refine_on_corners` ran).
         views: the poses used.
+        rms_px: RMS reprojection error of every board corner through the chain (after
+            :func:`refine_on_corners`; None before).
     """
 
     pose: np.ndarray
@@ -53,6 +62,7 @@ class HandEye:
     spread_deg: float
     method: str
     views: int
+    rms_px: float | None = None
 
 
 def pose_error(g: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
@@ -129,3 +139,78 @@ def solve_eye_to_hand(g_b_gripper: Sequence[np.ndarray],
     """
     return _solve([np.linalg.inv(g) for g in g_b_gripper], g_c_board,
                   "Eye-to-hand calibration")
+
+
+def _exp(twist: np.ndarray) -> np.ndarray:
+    """A small motion's pose: rotation vector ``twist[:3]`` [rad], translation ``twist[3:]`` [m]."""
+    cv2 = require_opencv()
+    g = np.eye(4)
+    g[:3, :3] = cv2.Rodrigues(np.asarray(twist[:3], dtype=float))[0]
+    g[:3, 3] = twist[3:]
+    return g
+
+
+def _reprojection(p: np.ndarray, q: np.ndarray, chain, views, K, dist) -> np.ndarray:
+    """Every corner's pixel error when the board is at ``inv(p) @ chain_i @ q`` in the camera."""
+    cv2 = require_opencv()
+    errors = []
+    for m_i, (object_points, corners) in zip(chain, views, strict=True):
+        g = np.linalg.inv(p) @ m_i @ q
+        rvec = cv2.Rodrigues(g[:3, :3])[0]
+        projected = cv2.projectPoints(object_points, rvec, g[:3, 3], K, dist)[0].reshape(-1, 2)
+        errors.append((projected - corners).ravel())
+    return np.concatenate(errors)
+
+
+def refine_on_corners(result: HandEye, g_b_gripper: Sequence[np.ndarray],
+                      g_c_board: Sequence[np.ndarray], views, K: np.ndarray, dist=None, *,
+                      eye_in_hand: bool, iterations: int = 30) -> HandEye:
+    """``result`` refined on the board's corners (Levenberg-Marquardt, numeric Jacobian).
+
+    Args:
+        result: :func:`solve_hand_eye`'s or :func:`solve_eye_to_hand`'s.
+        g_b_gripper: the gripper's poses (as given to the solver) [m].
+        g_c_board: the board's poses in the camera (as given to the solver) [m].
+        views: per pose, (N x 3 board points [m], N x 2 pixels [px]) of the corners seen.
+        K: the camera matrix [px].
+        dist: its distortion coefficients (None: none).
+        eye_in_hand: the wrist form (board fixed in the base) or the fixed camera's (board in
+            the gripper).
+        iterations: at most this many steps.
+
+    Returns:
+        The refined result (its spread recomputed, ``rms_px`` set).
+    """
+    K = np.asarray(K, dtype=float)
+    dist = np.zeros(5) if dist is None else np.asarray(dist, dtype=float)
+    chain = [np.linalg.inv(g) if eye_in_hand else np.asarray(g) for g in g_b_gripper]
+    p = result.pose
+    constants = [np.linalg.inv(m_i) @ p @ g for m_i, g in zip(chain, g_c_board, strict=True)]
+    q = np.eye(4)
+    q[:3, :3] = _mean_rotation(np.asarray(constants)[:, :3, :3])
+    q[:3, 3] = np.mean(np.asarray(constants)[:, :3, 3], axis=0)
+    residual = _reprojection(p, q, chain, views, K, dist)
+    damping, step = 1e-3, 1e-7
+    for _ in range(iterations):
+        jacobian = np.empty((len(residual), 12))
+        for k in range(12):
+            delta = np.zeros(12)
+            delta[k] = step
+            jacobian[:, k] = (_reprojection(p @ _exp(delta[:6]), q @ _exp(delta[6:]), chain,
+                                            views, K, dist) - residual) / step
+        normal = jacobian.T @ jacobian
+        gradient = jacobian.T @ residual
+        update = -np.linalg.solve(normal + damping * np.diag(np.diag(normal)), gradient)
+        p_new, q_new = p @ _exp(update[:6]), q @ _exp(update[6:])
+        trial = _reprojection(p_new, q_new, chain, views, K, dist)
+        cost, trial_cost = residual @ residual, trial @ trial
+        if trial_cost < cost:
+            p, q, residual, damping = p_new, q_new, trial, damping / 3.0
+            if cost - trial_cost < 1e-6 * cost:  # converged: the last step gained nothing
+                break
+        else:
+            damping *= 5.0
+    spread_mm, spread_deg = _spread([np.linalg.inv(m_i) @ p @ g
+                                     for m_i, g in zip(chain, g_c_board, strict=True)])
+    rms = float(np.sqrt(np.mean(residual.reshape(-1, 2) ** 2) * 2.0))
+    return HandEye(p, spread_mm, spread_deg, f"{result.method}+corners", result.views, rms)

@@ -11,7 +11,13 @@ import numpy as np
 import pytest
 
 from so101_kinematics.errors import VisionError
-from so101_kinematics.vision.hand_eye import pose_error, solve_eye_to_hand, solve_hand_eye
+from so101_kinematics.vision.hand_eye import (
+    HandEye,
+    pose_error,
+    refine_on_corners,
+    solve_eye_to_hand,
+    solve_hand_eye,
+)
 
 pytestmark = pytest.mark.vision
 
@@ -62,3 +68,22 @@ def test_too_few_poses_is_one_line():
     with pytest.raises(VisionError) as error:
         solve_hand_eye(gripper_poses(2), gripper_poses(2))
     assert "\n" not in str(error.value) and "at least 3" in str(error.value)
+
+
+def test_the_corners_pull_a_wrong_start_back_to_the_truth():
+    """Exact pixels of a 4 x 6 grid of 32 mm through the eye-to-hand chain; a start 3 mm and
+    1 deg off comes back, the corners then landing where they were seen."""
+    y_true = pose([np.pi, 0, np.pi / 2], [0.2, 0.0, 0.55])
+    g_g_board = pose([0, np.pi / 2, 0], [0.0, 0.0, -0.23])
+    K = np.array([[433.0, 0, 319.5], [0, 433.0, 239.5], [0, 0, 1]])
+    grid = np.array([[0.032 * i, 0.032 * j, 0.0] for j in range(1, 7) for i in range(1, 5)])
+    grippers = gripper_poses(5, seed=2)
+    boards = [np.linalg.inv(y_true) @ g @ g_g_board for g in grippers]
+    views = []
+    for g in boards:
+        points = grid @ g[:3, :3].T + g[:3, 3]
+        views.append((grid, (points[:, :2] / points[:, 2:]) @ K[:2, :2].T + K[:2, 2]))
+    start = HandEye(y_true @ pose([0, 0, np.radians(1.0)], [0.003, 0, 0]), 0.0, 0.0, "tsai", 5)
+    refined = refine_on_corners(start, grippers, boards, views, K, eye_in_hand=False)
+    assert pose_error(refined.pose, y_true) == pytest.approx((0.0, 0.0), abs=1e-3)
+    assert refined.rms_px < 1e-3 and refined.method == "tsai+corners"
