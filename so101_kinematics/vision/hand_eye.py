@@ -15,7 +15,9 @@ camera at each (``g_c_board``, ``charuco.board_pose``):
 What stays the same is the residual: the spread of that constant pose over the views (RMS
 of its positions about their mean [mm], of its rotations from their mean [deg]), which a real
 calibration can report without any truth. OpenCV's five methods (Tsai, Park, Horaud,
-Andreff, Daniilidis) are each tried; the one with the smallest spread is kept.
+Andreff, Daniilidis), where this OpenCV has ``calibrateHandEye`` (OpenCV 5.0's Python module
+does not), and Park and Martin's method in numpy are each tried; the one with the smallest
+spread is kept.
 
 Then :func:`refine_on_corners` (Levenberg-Marquardt, numpy only) moves the camera's pose and
 the board's constant pose together to make every corner of every view land where it was
@@ -88,30 +90,64 @@ def _spread(poses: Sequence[np.ndarray]) -> tuple[float, float]:
     return tuple(float(np.sqrt(np.mean(errors[:, i] ** 2))) for i in (0, 1))
 
 
+def _opencv_candidates(a, b) -> dict[str, np.ndarray]:
+    """``cv2.calibrateHandEye``'s ``X`` by each method (none where this OpenCV lacks it)."""
+    cv2 = require_opencv()
+    if not hasattr(cv2, "calibrateHandEye"):  # OpenCV 5.0's Python has the constants only
+        return {}
+    arguments = ([np.asarray(g)[:3, :3] for g in a], [np.asarray(g)[:3, 3] for g in a],
+                 [np.asarray(g)[:3, :3] for g in b], [np.asarray(g)[:3, 3] for g in b])
+    found = {}
+    for method in METHODS:
+        rotation, translation = cv2.calibrateHandEye(
+            *arguments, method=getattr(cv2, f"CALIB_HAND_EYE_{method}"))
+        x = np.eye(4)
+        x[:3, :3] = rotation
+        x[:3, 3] = np.asarray(translation).ravel()
+        found[method.lower()] = x
+    return found
+
+
+def _procrustes(a, b) -> np.ndarray:
+    """``X`` of ``a_i X b_i = const`` by Park and Martin's method, in numpy.
+
+    Every pair of views gives a motion ``A X = X B`` (``A = inv(a_j) a_i``,
+    ``B = b_j inv(b_i)``); the rotations' axes turn as ``alpha = R_X beta``, solved as an
+    orthogonal Procrustes problem (Park and Martin, IEEE Trans. Robotics and Automation
+    10(5), 1994, with an SVD for their inverse square root); then
+    ``(R_A - I) t_X = R_X t_B - t_A`` by least squares.
+    """
+    cv2 = require_opencv()
+    motions = [(np.linalg.inv(a[j]) @ a[i], b[j] @ np.linalg.inv(b[i]))
+               for i in range(len(a)) for j in range(i + 1, len(a))]
+    alpha = np.array([cv2.Rodrigues(m_a[:3, :3])[0].ravel() for m_a, _ in motions])
+    beta = np.array([cv2.Rodrigues(m_b[:3, :3])[0].ravel() for _, m_b in motions])
+    u, _, vt = np.linalg.svd(alpha.T @ beta)
+    rotation = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+    lhs = np.vstack([m_a[:3, :3] - np.eye(3) for m_a, _ in motions])
+    rhs = np.concatenate([rotation @ m_b[:3, 3] - m_a[:3, 3] for m_a, m_b in motions])
+    x = np.eye(4)
+    x[:3, :3] = rotation
+    x[:3, 3] = np.linalg.lstsq(lhs, rhs, rcond=None)[0]
+    return x
+
+
 def _solve(a: Sequence[np.ndarray], b: Sequence[np.ndarray], what: str) -> HandEye:
     """Each method's ``X`` of ``a_i X b_i = const``; the one whose constant spreads least."""
     if len(a) != len(b) or len(a) < MIN_HAND_EYE_VIEWS:
         raise VisionError(f"{what} needs at least {MIN_HAND_EYE_VIEWS} arm poses, each with the "
                           f"board seen; got {min(len(a), len(b))}. Fix: pose the arm more times, "
                           "turning the gripper about different axes.")
-    cv2 = require_opencv()
-    rotations_a = [np.asarray(g)[:3, :3] for g in a]
-    translations_a = [np.asarray(g)[:3, 3] for g in a]
-    rotations_b = [np.asarray(g)[:3, :3] for g in b]
-    translations_b = [np.asarray(g)[:3, 3] for g in b]
+    a = [np.asarray(g, dtype=float) for g in a]
+    b = [np.asarray(g, dtype=float) for g in b]
+    candidates = {**_opencv_candidates(a, b), "park-procrustes": _procrustes(a, b)}
     best = None
-    for method in METHODS:
-        rotation, translation = cv2.calibrateHandEye(
-            rotations_a, translations_a, rotations_b, translations_b,
-            method=getattr(cv2, f"CALIB_HAND_EYE_{method}"))
-        x = np.eye(4)
-        x[:3, :3] = rotation
-        x[:3, 3] = np.asarray(translation).ravel()
+    for method, x in candidates.items():
         if not np.all(np.isfinite(x)):
             continue
         spread_mm, spread_deg = _spread([ga @ x @ gb for ga, gb in zip(a, b, strict=True)])
         if best is None or spread_mm < best.spread_mm:
-            best = HandEye(x, spread_mm, spread_deg, method.lower(), len(a))
+            best = HandEye(x, spread_mm, spread_deg, method, len(a))
     if best is None:
         raise VisionError(f"{what}: no hand-eye method found a pose. Fix: pose the arm with "
                           "larger turns of the gripper between views.")

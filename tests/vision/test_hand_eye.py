@@ -87,3 +87,17 @@ def test_the_corners_pull_a_wrong_start_back_to_the_truth():
     refined = refine_on_corners(start, grippers, boards, views, K, eye_in_hand=False)
     assert pose_error(refined.pose, y_true) == pytest.approx((0.0, 0.0), abs=1e-3)
     assert refined.rms_px < 1e-3 and refined.method == "tsai+corners"
+
+
+def test_without_opencvs_solver_park_and_martin_in_numpy(monkeypatch):
+    """OpenCV 5.0's Python module has no calibrateHandEye: the numpy method alone finds X."""
+    from so101_kinematics.vision import hand_eye
+
+    monkeypatch.setattr(hand_eye, "_opencv_candidates", lambda a, b: {})
+    x_true = pose([0.3, -0.2, 1.4], [-0.05, 0.0, -0.04])
+    g_b_board = pose([np.pi, 0, 0], [0.24, 0.0, 0.003])
+    grippers = gripper_poses(6, seed=3)
+    boards = [np.linalg.inv(g @ x_true) @ g_b_board for g in grippers]
+    result = solve_hand_eye(grippers, boards)
+    assert result.method == "park-procrustes"
+    assert pose_error(result.pose, x_true) == pytest.approx((0.0, 0.0), abs=1e-4)
