@@ -73,6 +73,7 @@ G_GRIPPER_BOARD = _gripper_board()
 its top edge in the jaws, its printed face towards the moving jaw (the gripper's +x)."""
 
 GRIPPER_BODY = BODY_OF_FRAME["5"]
+"""The model's body of the FK's frame 5, the gripper: the wrist camera's mount."""
 
 
 def table_board_pose() -> np.ndarray:
