@@ -6,6 +6,7 @@ assignment; the tools that work on their outputs live here::
     so101 compare run.csv --report report.png      # a hardware log replayed in the simulator
     so101 sheet sheet.pdf --paper letter           # the placement sheet (print at 100 %)
     so101 tags tags.pdf                            # the ArUco tags, true size (print at 100 %)
+    so101 tags board.pdf --board                   # the ChArUco calibration board, true size
     so101 check-fk my_fk.py                        # the checkers (as so101-check-fk/ik/traj/vision)
     so101 virtual-calibration my_arm.json          # the virtual arm's calibration file
 
@@ -96,10 +97,12 @@ def build_parser() -> argparse.ArgumentParser:
     add_stack_arguments(sheet)
     tags = sub.add_parser(
         "tags", help="the ArUco tags of the cube and the target (PDF, print at 100 %%)",
-        description="Write the ArUco tags (the cube's and the target's) at their true size on "
-                    "an A4 page, the same images as the simulator's textures. Needs OpenCV "
-                    "(the hw extra).")
+        description="Write the ArUco tags (the cube's and the target's), or with --board the "
+                    "ChArUco calibration board, at their true size on an A4 page, the same "
+                    "images as the simulator's textures. Needs OpenCV (the hw extra).")
     tags.add_argument("tags", type=Path, metavar="PATH.pdf")
+    tags.add_argument("--board", action="store_true", help="write the ChArUco calibration "
+                      "board instead (calibrate_camera.py; A4, print at 100 %%)")
     calibration = sub.add_parser(
         "virtual-calibration", help="write the virtual arm's calibration (from the model)",
         description="Write the lerobot calibration the virtual SO-101 ships with, derived from "
@@ -183,14 +186,22 @@ def _sheet(args: argparse.Namespace) -> int:
 
 
 def _tags(args: argparse.Namespace) -> int:
-    """The printable ArUco tags (vision/tags.py), true to size."""
+    """The printable ArUco tags (vision/tags.py) or ChArUco board (vision/boards.py), 1:1."""
     from so101_kinematics.opencv_import import require_opencv
     from so101_kinematics.sim.tag_textures import TAG_DICTIONARY, TAGS
+    from so101_kinematics.vision.boards import CALIBRATION_BOARD, write_board_sheet
     from so101_kinematics.vision.tags import write_tag_sheet
 
     require_opencv()  # before the output is touched: one line naming the fix
     path = outputs.check_output_path(args.tags, "so101 tags", suffixes=(".pdf",),
                                      kind=outputs.PDF, overwrite=args.overwrite)
+    if args.board:
+        write_board_sheet(path)
+        board = CALIBRATION_BOARD
+        print(f"ChArUco board ({TAG_DICTIONARY}, {board.squares[0]} x {board.squares[1]} squares "
+              f"of {board.square * 1000:.0f} mm, markers {board.marker * 1000:.0f} mm) written "
+              f"to {path}; print at 100 %, check the 50 mm bar with a ruler, glue it flat.")
+        return 0
     write_tag_sheet(path)
     names = ", ".join(f"{t.name} id {t.tag_id} ({t.size * 1000:.0f} mm)" for t in TAGS.values())
     print(f"Tags ({TAG_DICTIONARY}: {names}) written to {path}; print at 100 % and check the "

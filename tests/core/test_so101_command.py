@@ -91,6 +91,14 @@ def test_tags_writes_the_printable_tags(tmp_path, capsys):
     assert "DICT_4X4_50" in capsys.readouterr().out
 
 
+@pytest.mark.vision
+def test_tags_board_writes_the_charuco_board(tmp_path, capsys):
+    board = tmp_path / "board.pdf"
+    assert so101_command.main(["tags", str(board), "--board"]) == 0
+    assert board.read_bytes().startswith(b"%PDF-")
+    assert "ChArUco board" in capsys.readouterr().out
+
+
 def test_tags_without_opencv_is_one_line_exit_2(tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(sys.modules, "cv2", None)  # import cv2 raises ImportError
     assert so101_command.main(["tags", str(tmp_path / "tags.pdf")]) == 2
