@@ -80,10 +80,10 @@ class Webcam:
                                     width=None if is_file else width,
                                     height=None if is_file else height,
                                     fourcc=None if is_file else "MJPG")
-        self._camera = OpenCVCamera(config)
-        self._connect(source)
         self._K, self.dist = (load_calibration(calibration, width, height)
                               if calibration is not None else (None, None))
+        self._camera = OpenCVCamera(config)
+        self._connect(source)
 
     def _connect(self, source) -> None:
         try:

@@ -115,3 +115,14 @@ def test_no_camera_there_is_one_line(source, tmp_path):
     with pytest.raises(VisionError, match=f"camera {source}") as err:
         Webcam(source)
     assert "\n" not in str(err.value)
+
+
+def test_no_calibration_or_a_broken_one_is_one_line(recorded, tmp_path):
+    with Webcam(recorded[0]) as cam, pytest.raises(VisionError, match="no calibration") as err:
+        cam.intrinsics()
+    assert "\n" not in str(err.value)
+    broken = tmp_path / "broken.json"
+    broken.write_text(json.dumps({"fx": 500, "width": 640, "height": 480}))
+    with pytest.raises(VisionError, match="fx, fy, cx, cy, dist, width, height") as err:
+        Webcam(recorded[0], calibration=broken)
+    assert "\n" not in str(err.value)
