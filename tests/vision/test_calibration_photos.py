@@ -77,6 +77,20 @@ def test_the_wrist_camera_from_recorded_pictures(photos, tmp_path, capsys):
     assert "camera_in_gripper: at (-50" in capsys.readouterr().out
 
 
+def test_the_report_is_the_webcams_calibration(photos, tmp_path):
+    # the file calibrate_camera.py writes is the one vision/webcam.py reads: no second format
+    from so101_kinematics.vision.webcam import load_calibration
+
+    path = tmp_path / "wrist.json"
+    assert calibrate_camera.main(["--photos", str(photos), "--mount", "wrist",
+                                  "--json", str(path)]) == 0
+    K, dist = load_calibration(path, 640, 480)
+    focal = 240.0 / np.tan(np.radians(30.0))  # the wrist camera's fovy 60 deg, by hand
+    assert K[0, 0] == pytest.approx(focal, rel=0.01) and K[1, 1] == pytest.approx(focal, rel=0.01)
+    assert (K[0, 2], K[1, 2]) == pytest.approx((320.0, 240.0), abs=3.0)  # the image's middle
+    assert dist.shape == (5,) and np.all(np.abs(dist) < 0.1)  # a pinhole: next to no distortion
+
+
 def test_bad_folders_are_one_line(photos, tmp_path):
     with pytest.raises(InputError, match="no such folder"):
         calibrate_from_photos(tmp_path / "nowhere", "wrist")

@@ -1,0 +1,149 @@
+"""A real USB camera (or a recorded video) as a ``interfaces.Camera``, through lerobot.
+
+``Webcam`` opens lerobot's ``OpenCVCamera`` (lerobot 0.4.4 and 0.6.1 both have a
+``fourcc`` setting: a device is asked for MJPG; a video file keeps its own codec). The
+colour order is handled once, by lerobot (``color_mode=RGB``): :meth:`Webcam.read`
+returns lerobot's image as it is. lerobot is imported only when a Webcam is made.
+
+The calibration is the report that ``calibrate_camera.py --photos DIR --json PATH`` writes
+(:func:`so101_kinematics.vision.calibration_photos.calibrate_from_photos`): its
+``intrinsics`` hold ``K`` (the camera matrix [px]), ``distortion`` (OpenCV's coefficients)
+and ``image_size`` (width, height [px]) that the pictures had.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from so101_kinematics.errors import VisionError
+
+__all__ = ["Webcam", "load_calibration"]
+
+LEROBOT_FIX = "install the hardware extra (pip install -e '.[hw]')"
+
+
+def load_calibration(path: str | Path, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(K, dist)`` from calibrate_camera.py's report, made at ``width`` x ``height``.
+
+    Raises:
+        VisionError: a missing or malformed file, or one for another camera size.
+    """
+    try:
+        intrinsics = json.loads(Path(path).read_text())["intrinsics"]
+        K = np.asarray(intrinsics["K"], dtype=float).reshape(3, 3)
+        dist = np.asarray(intrinsics["distortion"], dtype=float).ravel()
+        size = tuple(int(v) for v in intrinsics["image_size"])
+    except (OSError, ValueError, KeyError, TypeError, IndexError) as exc:
+        raise VisionError(f"calibration {path}: cannot read it ({exc!s}); it needs the "
+                          f"intrinsics (K, distortion, image_size) that calibrate_camera.py "
+                          f"--photos DIR --json PATH writes") from None
+    if size != (width, height):
+        raise VisionError(f"calibration {path}: a calibration file for another camera "
+                          f"({size[0]}x{size[1]}, this camera gives {width}x{height}); "
+                          f"calibrate this camera at this size")
+    return K, dist
+
+
+class Webcam:
+    """A USB camera (index, ``/dev/videoN``) or a video file, read through lerobot.
+
+    Args:
+        source: a device index, a device path or a video file.
+        width, height: the size asked for [px]; a camera giving another size is refused.
+        fps: frames per second asked of a device (a file keeps its own).
+        calibration: a calibration JSON (None: no intrinsics).
+        max_age: [s] :meth:`read` raises when no new frame arrives within this.
+
+    Raises:
+        VisionError: no camera there, a busy camera, a wrong resolution, a bad calibration.
+    """
+
+    def __init__(self, source: int | str | Path, width: int = 640, height: int = 480,
+                 fps: int = 30, calibration: str | Path | None = None, max_age: float = 0.5):
+        try:
+            from lerobot.cameras.configs import ColorMode
+            from lerobot.cameras.opencv.camera_opencv import OpenCVCamera
+            from lerobot.cameras.opencv.configuration_opencv import OpenCVCameraConfig
+        except ImportError:
+            raise VisionError(f"Webcam needs lerobot: {LEROBOT_FIX}") from None
+        self.name, self.width, self.height, self.max_age = str(source), width, height, max_age
+        is_file = isinstance(source, (str, Path)) and Path(source).is_file() \
+            and not str(source).startswith("/dev/")
+        where = source if isinstance(source, int) else Path(source)
+        if not is_file and not isinstance(source, int) and not Path(source).exists():
+            raise VisionError(f"camera {source}: no camera or video there; list them with "
+                              f"lerobot-find-cameras opencv")
+        config = OpenCVCameraConfig(index_or_path=where, color_mode=ColorMode.RGB,
+                                    fps=None if is_file else fps,
+                                    width=None if is_file else width,
+                                    height=None if is_file else height,
+                                    fourcc=None if is_file else "MJPG")
+        self._K, self.dist = (load_calibration(calibration, width, height)
+                              if calibration is not None else (None, None))
+        self._camera = OpenCVCamera(config)
+        self._connect(source)
+
+    def _connect(self, source) -> None:
+        try:
+            self._camera.connect(warmup=False)
+        except ConnectionError:
+            busy = " (is another program using it?)" if not isinstance(source, int) else ""
+            raise VisionError(f"camera {source}: cannot open it{busy}; list the cameras with "
+                              f"lerobot-find-cameras opencv") from None
+        except RuntimeError as exc:
+            raise VisionError(f"camera {source}: a wrong resolution or format "
+                              f"({str(exc).splitlines()[0]}); ask for a size it gives "
+                              f"(lerobot-find-cameras opencv lists them)") from None
+        got = (int(self._camera.width), int(self._camera.height))
+        if got != (self.width, self.height):
+            self.close()
+            raise VisionError(f"camera {source}: a wrong resolution: it gives {got[0]}x{got[1]}, "
+                              f"{self.width}x{self.height} was asked; ask for {got[0]}x{got[1]}")
+
+    def read(self) -> np.ndarray:
+        """The newest frame, ``height`` x ``width`` x 3 uint8 RGB (lerobot's RGB, as is).
+
+        The age is lerobot's capture timestamp (``latest_timestamp``, ``perf_counter``;
+        0.4.4 and 0.6.1 alike): a frame older than ``max_age`` is never returned.
+
+        Raises:
+            VisionError: no frame younger than ``max_age`` within ``max_age`` (a stale frame).
+        """
+        cam, start = self._camera, time.perf_counter()
+        while True:
+            with cam.frame_lock:
+                frame, stamp = cam.latest_frame, cam.latest_timestamp
+            now = time.perf_counter()
+            if frame is not None and stamp is not None and now - stamp <= self.max_age:
+                return np.ascontiguousarray(frame, dtype=np.uint8)
+            if now - start > self.max_age:
+                age = "none yet" if stamp is None else f"the newest is {now - stamp:.2f} s old"
+                raise VisionError(f"camera {self.name}: a stale frame ({age}, max_age "
+                                  f"{self.max_age} s); is it unplugged, or the video at its end?")
+            time.sleep(0.002)
+
+    def intrinsics(self) -> np.ndarray:
+        """The calibrated camera matrix [px].
+
+        Raises:
+            VisionError: no calibration was given.
+        """
+        if self._K is None:
+            raise VisionError(f"camera {self.name}: no calibration; pass calibration=PATH "
+                              f"(a JSON from calibrate_camera.py)")
+        return self._K.copy()
+
+    def close(self) -> None:
+        """Release the camera (twice is fine)."""
+        if self._camera.is_connected:
+            self._camera.disconnect()
+
+    def __enter__(self) -> Webcam:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
