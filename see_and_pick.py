@@ -92,13 +92,18 @@ line; nothing moved), 130 interrupted.""")
                         help="record the (first) trial, the camera's view inset")
     parser.add_argument("--json", type=Path, metavar="PATH", help="write the report as JSON")
     add_overwrite_argument(parser)
-    arm = parser.add_argument_group("on the virtual arm (through lerobot's bus and camera class)")
+    arm = parser.add_argument_group("on an arm (through lerobot's bus and camera class)")
     arm.add_argument("--port", metavar="PORT",
                      help="the arm's serial port (the pty virtual_so101.py printed): look with "
                      "--camera, pick and place through lerobot's bus; needs --camera")
     arm.add_argument("--camera", metavar="ADDRESS",
                      help="the camera's address (virtual_so101.py --camera overhead printed "
-                     "it), opened by lerobot's camera class; needs --port")
+                     "it) or a webcam (/dev/video0, or its index), opened by lerobot's camera "
+                     "class; needs --port")
+    arm.add_argument("--camera-calibration", type=Path, default=None, metavar="PATH",
+                     help="a real camera's calibration: the report calibrate_camera.py --photos "
+                     "DIR --mount fixed --json PATH wrote (default: the model's overhead "
+                     "camera, exact for the virtual arm)")
     arm.add_argument("--calibration", type=Path, default=None, metavar="PATH",
                      help="the arm's lerobot calibration (default: the virtual arm's)")
     parser.add_argument("--strict", action="store_true",
@@ -158,8 +163,9 @@ def _run_on_arm(args: argparse.Namespace, json_path: Path | None) -> int:
         return EXIT_BAD_INPUT
     calibration = load_calibration(args.calibration or DEFAULT_CALIBRATION_PATH)
     try:
-        report = see_and_pick_on_arm(args.port, args.camera, calibration)
-    except VisionError as error:  # no tag in view: nothing moved
+        report = see_and_pick_on_arm(args.port, args.camera, calibration,
+                                     camera_calibration=args.camera_calibration)
+    except VisionError as error:  # no tag in view, no camera, a bad calibration: nothing moved
         print(f"error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
     trial = report["trials"][0]
@@ -182,6 +188,11 @@ def _run(args: argparse.Namespace) -> int:
     video, json_path = _check_outputs(args)
     if args.port or args.camera:
         return _run_on_arm(args, json_path)
+    if args.camera_calibration is not None:
+        print("error: --camera-calibration is a real camera's, for an arm: the simulator's "
+              "camera is the model's. Fix: add --port PORT --camera ADDRESS, or leave it out.",
+              file=sys.stderr)
+        return EXIT_BAD_INPUT
     cube, target = _on_table(args.cube, "--cube"), _on_table(args.target, "--target")
     if args.target is not None and args.random_target:
         print("error: --target puts the target tag at one pose, --random-target at random "

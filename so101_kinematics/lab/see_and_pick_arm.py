@@ -3,10 +3,13 @@
 The hardware half of ``see_and_pick.py --port PORT --camera ADDRESS``:
 
 1. **look**: one frame read by lerobot's own camera class (``lerobot_camera_so101_virtual``,
-   an ``OpenCVCamera`` for the virtual arm's served stream), the tags found by the one
+   an ``OpenCVCamera`` for the virtual arm's served stream; ``vision/webcam.py``'s
+   ``Webcam`` for a device, ``/dev/videoN`` or an index), the tags found by the one
    detection path (``vision/detect.py``) and laid on the table by ``detect.flat_pose`` with
-   the camera's ``K`` and pose. Those are the model's camera (``camera_model``, default
-   ``overhead``): exact for the virtual arm, whose camera is the model's;
+   the camera's ``K``, distortion and pose. Those are the model's camera (``camera_model``,
+   default ``overhead``: exact for the virtual arm, whose camera is the model's), or a real
+   camera's from the report ``calibrate_camera.py --photos DIR --mount fixed --json PATH``
+   wrote (``camera_calibration``);
 2. **plan**: the course's Cartesian pick-and-place (``cartesian_plan``, what
    ``pick_place_hw.py --pick/--place`` runs) from the cube's seen position and yaw to the
    target tag's;
@@ -33,17 +36,26 @@ from so101_kinematics.sim.cube import build_model
 from so101_kinematics.sim.tag_textures import CUBE_TAG, TAG_THICKNESS, TARGET_TAG
 from so101_kinematics.vision.camera_model import camera_intrinsics, get_camera_pose_base
 from so101_kinematics.vision.detect import find_tag, flat_pose, no_tag_message
+from so101_kinematics.vision.webcam import Webcam, load_calibration, load_camera_in_base
 
-__all__ = ["ARM_PLACE_TOLERANCE", "look_through_lerobot", "read_lerobot_frame",
-           "see_and_pick_on_arm"]
+__all__ = ["ARM_PLACE_TOLERANCE", "camera_view", "is_device", "look_through_lerobot",
+           "read_lerobot_frame", "see_and_pick_on_arm"]
 
 ARM_PLACE_TOLERANCE = 0.010
 """[m] placed: the cube's centre this near the target tag's (the course's arm figure)."""
 TABLE_TOP_Z = 0.0  # [m] the table top in the base frame (the lab's mount: --base-height)
 
 
+def is_device(address: str) -> bool:
+    """Whether ``address`` names a camera device (an index, ``/dev/videoN``), not a stream."""
+    return address.isdigit() or address.startswith("/dev/")
+
+
 def read_lerobot_frame(address: str, size: Sequence[int] = (640, 480)) -> np.ndarray:
     """One RGB frame of the camera at ``address``, read by lerobot's own camera class."""
+    if is_device(address):
+        with Webcam(int(address) if address.isdigit() else address, *size) as webcam:
+            return webcam.read()
     from lerobot.cameras.utils import make_cameras_from_configs
 
     import lerobot_camera_so101_virtual  # noqa: F401 - registers the camera type
@@ -58,33 +70,51 @@ def read_lerobot_frame(address: str, size: Sequence[int] = (640, 480)) -> np.nda
         camera.disconnect()
 
 
+def camera_view(camera: str = "overhead", size: Sequence[int] = (640, 480),
+                camera_calibration=None) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """``(K, dist, g_bc)``: a calibrated camera's, or the model's camera ``camera``.
+
+    With ``camera_calibration`` (calibrate_camera.py's report) the real camera's; without,
+    the model's (no distortion; exact for the virtual arm).
+
+    Raises:
+        VisionError: a report that is not calibrate_camera.py's, or for another size (one line).
+    """
+    if camera_calibration is not None:
+        K, dist = load_calibration(camera_calibration, *size)
+        return K, dist, load_camera_in_base(camera_calibration)
+    m = build_model(render_meshes=True)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    return camera_intrinsics(m, camera, *size), None, get_camera_pose_base(m, d, camera)
+
+
 def look_through_lerobot(address: str, camera: str = "overhead",
                          size: Sequence[int] = (640, 480),
-                         tags=(CUBE_TAG, TARGET_TAG)) -> dict[str, np.ndarray]:
+                         tags=(CUBE_TAG, TARGET_TAG),
+                         camera_calibration=None) -> dict[str, np.ndarray]:
     """The tags' poses ``g_bt`` in the base frame from one frame, by tag name.
 
     Raises:
         TagNotInView: a tag is not in the frame (one line).
+        VisionError: a bad camera calibration, no camera at ``address`` (one line).
     """
-    m = build_model(render_meshes=True)
-    d = mujoco.MjData(m)
-    mujoco.mj_forward(m, d)
-    K, g_bc = camera_intrinsics(m, camera, *size), get_camera_pose_base(m, d, camera)
+    K, dist, g_bc = camera_view(camera, size, camera_calibration)
     image = read_lerobot_frame(address, size)
     heights = {CUBE_TAG.name: TABLE_TOP_Z + 2 * CUBE_HALF_SIZE + TAG_THICKNESS,
                TARGET_TAG.name: TABLE_TOP_Z + TAG_THICKNESS}
     poses = {}
     for tag in tags:
-        seen = find_tag(image, K, tag)
+        seen = find_tag(image, K, tag, dist)
         if seen is None:
             raise TagNotInView(no_tag_message(tag, camera))
-        poses[tag.name] = flat_pose(seen, K, g_bc, heights[tag.name])
+        poses[tag.name] = flat_pose(seen, K, g_bc, heights[tag.name], dist)
     return poses
 
 
 def see_and_pick_on_arm(port: str, address: str, calibration: Mapping[str, Any], *,
                         camera: str = "overhead", size: Sequence[int] = (640, 480),
-                        **run_options) -> dict:
+                        camera_calibration=None, **run_options) -> dict:
     """Look, plan, run on the arm at ``port``, look again: the report of one trial.
 
     Returns:
@@ -94,14 +124,15 @@ def see_and_pick_on_arm(port: str, address: str, calibration: Mapping[str, Any],
     Raises:
         TagNotInView: no tag before the run (nothing moved).
     """
-    seen = look_through_lerobot(address, camera, size)
+    seen = look_through_lerobot(address, camera, size, camera_calibration=camera_calibration)
     cube, target = seen[CUBE_TAG.name], seen[TARGET_TAG.name]
     yaw = float(np.degrees(np.arctan2(cube[1, 0], cube[0, 0])))
     plan = cartesian_plan((*cube[:2, 3], CUBE_HALF_SIZE), (*target[:2, 3], CUBE_HALF_SIZE),
                           cube_yaw_deg=yaw)
     result = run_on_arm(port, calibration, plan, **run_options)
     try:
-        after, by = look_through_lerobot(address, camera, size, tags=(CUBE_TAG,))[
+        after, by = look_through_lerobot(address, camera, size, tags=(CUBE_TAG,),
+                                         camera_calibration=camera_calibration)[
             CUBE_TAG.name][:2, 3], "camera"
     except TagNotInView:
         after, by = (None, None) if result.cube is None else (

@@ -32,10 +32,10 @@ import mujoco
 import numpy as np
 
 from so101_kinematics.markers import pdf_metadata
-from so101_kinematics.outputs import atomic_output
-from so101_kinematics.vision.camera_model import BASE_BODY
 from so101_kinematics.opencv_import import require_opencv
+from so101_kinematics.outputs import atomic_output
 from so101_kinematics.sim.tag_textures import TAG_DICTIONARY
+from so101_kinematics.vision.camera_model import BASE_BODY
 
 __all__ = [
     "BOARD_BODY", "Board", "CALIBRATION_BOARD", "G_BODY_BOARD", "add_board", "board_face_image",

@@ -21,6 +21,7 @@ import numpy as np
 
 from so101_kinematics.errors import InputError, VisionError
 from so101_kinematics.frames import ARM_JOINTS
+from so101_kinematics.opencv_import import require_opencv
 from so101_kinematics.vision.calibration_views import gripper_pose
 from so101_kinematics.vision.charuco import (
     Intrinsics,
@@ -35,7 +36,6 @@ from so101_kinematics.vision.hand_eye import (
     solve_eye_to_hand,
     solve_hand_eye,
 )
-from so101_kinematics.opencv_import import require_opencv
 
 __all__ = ["IMAGE_SUFFIXES", "MOUNTS", "POSES_FILE", "calibrate_from_photos", "read_photo"]
 

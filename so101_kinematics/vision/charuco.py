@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from so101_kinematics.errors import OpenCVMissing, VisionError
-from so101_kinematics.vision.boards import CALIBRATION_BOARD, Board, charuco_board
 from so101_kinematics.opencv_import import OPENCV_FIX, require_opencv
+from so101_kinematics.vision.boards import CALIBRATION_BOARD, Board, charuco_board
 
 __all__ = ["BoardSighting", "Intrinsics", "MIN_CORNERS", "MIN_INTRINSIC_VIEWS", "board_pose",
            "calibrate_intrinsics", "find_board", "no_board_message"]

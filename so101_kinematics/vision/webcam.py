@@ -21,7 +21,7 @@ import numpy as np
 
 from so101_kinematics.errors import VisionError
 
-__all__ = ["Webcam", "load_calibration"]
+__all__ = ["Webcam", "load_calibration", "load_camera_in_base"]
 
 LEROBOT_FIX = "install the hardware extra (pip install -e '.[hw]')"
 
@@ -46,6 +46,32 @@ def load_calibration(path: str | Path, width: int, height: int) -> tuple[np.ndar
                           f"({size[0]}x{size[1]}, this camera gives {width}x{height}); "
                           f"calibrate this camera at this size")
     return K, dist
+
+
+def load_camera_in_base(path: str | Path) -> np.ndarray:
+    """The fixed camera's pose in the base frame ``g_bc`` (4x4 [m]) from a calibration report.
+
+    The report is calibrate_camera.py's of the eye-to-hand calibration (``--mount fixed``,
+    with poses.csv).
+
+    Raises:
+        VisionError: a missing or malformed file, or one without the fixed camera's pose.
+    """
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise VisionError(f"camera calibration {path}: cannot read it ({exc!s}); give the "
+                          f"report calibrate_camera.py --photos DIR --json PATH wrote") from None
+    try:
+        g_bc = np.asarray(data["hand_eye"]["fixed"]["camera_in_base"], dtype=float)
+    except (KeyError, TypeError, ValueError):
+        g_bc = None
+    if g_bc is None or g_bc.shape != (4, 4) or not np.all(np.isfinite(g_bc)):
+        raise VisionError(f"camera calibration {path}: no fixed camera's pose in the base frame "
+                          f"in it; calibrate the camera over the table with "
+                          f"calibrate_camera.py --photos DIR --mount fixed --json PATH "
+                          f"(poses.csv beside the pictures)")
+    return g_bc
 
 
 class Webcam:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 
 pytest.importorskip("lerobot")
@@ -64,3 +65,61 @@ def test_no_target_tag_in_view_is_one_line_and_nothing_moves(capsys):
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "target" in err
     assert after.position_m == pytest.approx(before.position_m, abs=1e-4)
+
+
+def calibration_report(path, K, g_bc, size=(640, 480)):
+    """A report as calibrate_camera.py --photos DIR --mount fixed --json writes it."""
+    path.write_text(json.dumps({
+        "intrinsics": {"K": np.asarray(K).tolist(), "distortion": [0.0] * 5, "rms_px": 0.1,
+                       "views_used": 12, "image_size": list(size)},
+        "hand_eye": {"fixed": {"camera_in_base": np.asarray(g_bc).tolist(),
+                               "residual_mm": 0.2, "residual_deg": 0.05}}}))
+    return path
+
+
+def test_a_camera_calibration_file_is_the_camera_the_arm_sees_by(tmp_path):
+    # The report's camera moved 10 mm along the base's x: every ray moves with it, so each tag
+    # is seen 10 mm further along x (a rigid shift, by hand), its y and yaw unchanged.
+    from so101_kinematics.lab.see_and_pick_arm import camera_view, look_through_lerobot
+
+    K, _, g_bc = camera_view("overhead")
+    moved = g_bc.copy()
+    moved[0, 3] += 0.010
+    with VirtualSO101(cube=CUBE_AT, target=TARGET_AT, cameras=["overhead"]) as arm:
+        address = arm.camera_addresses["overhead"]
+        model = look_through_lerobot(address)
+        same = look_through_lerobot(address, camera_calibration=calibration_report(
+            tmp_path / "same.json", K, g_bc))
+        shifted = look_through_lerobot(address, camera_calibration=calibration_report(
+            tmp_path / "moved.json", K, moved))
+    for name, g in model.items():
+        assert same[name][:3, 3] == pytest.approx(g[:3, 3], abs=0.0005)
+        assert shifted[name][:3, 3] - g[:3, 3] == pytest.approx([0.010, 0.0, 0.0], abs=0.0005)
+        assert shifted[name][:3, :3] == pytest.approx(g[:3, :3], abs=1e-3)
+
+
+def test_a_calibration_without_the_fixed_cameras_pose_is_one_line_and_nothing_moves(
+        tmp_path, capsys):
+    from so101_kinematics.lab.see_and_pick_arm import camera_view
+
+    K, _, g_bc = camera_view("overhead")
+    wrist_only = calibration_report(tmp_path / "wrist.json", K, g_bc)
+    data = json.loads(wrist_only.read_text())
+    data["hand_eye"] = {"wrist": {"camera_in_gripper": np.eye(4).tolist()}}
+    wrist_only.write_text(json.dumps(data))
+    with VirtualSO101(cube=CUBE_AT, target=TARGET_AT, cameras=["overhead"]) as arm:
+        before = arm.cube()
+        code = see_and_pick.main(["--port", arm.port, "--camera",
+                                  arm.camera_addresses["overhead"],
+                                  "--camera-calibration", str(wrist_only)])
+        after = arm.cube()
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "--mount fixed" in err and str(wrist_only) in err
+    assert after.position_m == pytest.approx(before.position_m, abs=1e-4)
+
+
+def test_a_camera_calibration_without_an_arm_is_refused(tmp_path, capsys):
+    assert see_and_pick.main(["--camera-calibration", str(tmp_path / "c.json")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--port PORT --camera ADDRESS" in err
