@@ -31,6 +31,7 @@ import numpy as np
 from so101_kinematics.cli import EXIT_FAILED, ArgumentParser, number, run_script
 from so101_kinematics.errors import InputError, OpenCVMissing, VisionError
 from so101_kinematics.frames import ARM_JOINTS
+from so101_kinematics.opencv_import import require_opencv
 from so101_kinematics.outputs import (
     add_overwrite_argument,
     check_output_path,
@@ -40,7 +41,6 @@ from so101_kinematics.outputs import (
 )
 from so101_kinematics.vision.calibration_grades import ACCEPTANCE, passes, run_calibration
 from so101_kinematics.vision.calibration_photos import MOUNTS, POSES_FILE, calibrate_from_photos
-from so101_kinematics.opencv_import import require_opencv
 
 PROGRAM = "calibrate_camera.py"
 REPORT = report_of(PROGRAM)  # --json replaces only a report of this program

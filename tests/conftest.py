@@ -135,10 +135,12 @@ def pytest_collection_modifyitems(config, items):
 # 1 passed; the tests helper saw it once at -n 2 as well). So do the course script's faults
 # (test_pick_place_hw.py): a stall's overload bit needs 2 s of real-time stall, and in the final
 # rehearsal's 3.12 leg at -n 2 it was not yet set when the ending read it back (the 3.11 legs
-# passed it). Each of their tests takes the arms'
-# lock exclusively; every other test that runs a virtual arm (marked hw, or in tests/virtual/)
-# takes it shared. Under xdist, or across processes when SO101_ARMS_LOCK names a lock file
-# (.ci/run: its slow leg and its Python 3.12 leg run side by side and share one).
+# passed it). So do lerobot's own tools (tests marked `alone`), which read with one try and a
+# 35 ms timeout: lerobot-calibrate missed a reply in the slow leg beside another arm in two
+# rehearsals on 2026-12-04, the emulator at nice -10. Each of these tests takes the arms' lock
+# exclusively; every other test that runs a virtual arm (marked hw, or in tests/virtual/) takes
+# it shared. Under xdist, or across processes when SO101_ARMS_LOCK names a lock file (.ci/run:
+# its hardware legs share one).
 EXCLUSIVE_ARM_FILES = {"test_virtual_feetech_sdk.py", "test_virtual_protocol.py",
                        "test_virtual_fidelity.py", "test_virtual_so101.py",
                        "test_stop_with_cube.py", "test_pick_place_hw.py"}
@@ -149,7 +151,7 @@ def _virtual_arm_turn(request, tmp_path_factory):
     run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
     shared_lock = os.environ.get("SO101_ARMS_LOCK")
     node = request.node
-    exclusive = node.path.name in EXCLUSIVE_ARM_FILES
+    exclusive = node.path.name in EXCLUSIVE_ARM_FILES or node.get_closest_marker("alone")
     if (run is None and not shared_lock) or not (exclusive or node.get_closest_marker("hw")
                                                  or node.path.parent.name == "virtual"):
         yield

@@ -44,6 +44,10 @@ class ShellArm:
                                         text=True, cwd=REPO)
         self.port = self.process.stdout.readline().strip()
         assert self.port.startswith("/dev/"), self.port
+        self.cameras = {}  # name -> address: a line each after the port (--camera NAME)
+        for _ in range(args.count("--camera")):
+            name, address = self.process.stdout.readline().strip().split(": ", 1)
+            self.cameras[name.removeprefix("camera ")] = address
 
     def ask(self, line: str) -> str:
         self.process.stdin.write(line + "\n")
@@ -151,6 +155,7 @@ def test_setup_motors_on_factory_servos_then_the_follower_connects(env):
         arm.close()
 
 
+@pytest.mark.alone
 def test_calibrate_from_the_shell_agrees_with_the_shipped_calibration(env):
     arm = ShellArm()
     try:
@@ -209,15 +214,24 @@ def test_teleoperate_the_follower_follows_the_shell_moved_leader(env):
             joint, lead[joint], follow[joint], sag[joint])
 
 
+@pytest.mark.alone
 def test_record_a_short_episode_between_shell_started_arms(env, tmp_path):
     # lerobot 0.6 moved the dataset code into an extra (lerobot[dataset]); 0.4 has it built in
     pytest.importorskip("datasets", reason="lerobot-record needs lerobot[dataset] here")
     install_calibration(env, "robots/so_follower", "vf")
     install_calibration(env, "teleoperators/so_leader", "vl")
-    follower, leader = ShellArm(*KIT_FOLLOWER), ShellArm("--leader")
+    # the follower serves its overhead camera, which lerobot records beside the joints through
+    # its own camera class (our type so101_virtual, found by discover_packages_path)
+    follower = ShellArm(*KIT_FOLLOWER, "--camera", "overhead", "--camera-fps", "30")
+    leader = ShellArm("--leader")
+    address = follower.cameras["overhead"]
+    cameras = (f"{{overhead: {{type: so101_virtual, address: '{address}', width: 640, "
+               "height: 480, fps: 30}}")
     root = tmp_path / "dataset"
     try:
         record = tool("lerobot-record", *teleop_args(follower, leader),
+                      f"--robot.cameras={cameras}",
+                      "--robot.discover_packages_path=lerobot_camera_so101_virtual",
                       "--dataset.repo_id=local/virtual_lab", f"--dataset.root={root}",
                       "--dataset.num_episodes=1", "--dataset.episode_time_s=6",
                       "--dataset.reset_time_s=0", "--dataset.push_to_hub=false",
@@ -233,6 +247,11 @@ def test_record_a_short_episode_between_shell_started_arms(env, tmp_path):
     info = json.loads((root / "meta" / "info.json").read_text())
     assert info["total_episodes"] == 1
     assert info["total_frames"] >= 150  # 6 s at 30 fps, allowing for a slow start
+    # the camera's images are in the dataset: a 640x480 RGB video feature, its file written
+    image = info["features"]["observation.images.overhead"]
+    assert image["dtype"] == "video" and image["shape"][:2] == [480, 640], image
+    videos = sorted((root / "videos").rglob("*.mp4"))
+    assert videos and all(v.stat().st_size > 10_000 for v in videos), videos
     # The follower tracked the leader: median |action - observation| per joint after 1 s.
     import pandas as pd
 

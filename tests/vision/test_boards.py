@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from so101_kinematics.markers import pdf_ours
+from so101_kinematics.sim.tag_textures import TAGS
 from so101_kinematics.vision.boards import (
     BOARD_BODY,
     CALIBRATION_BOARD,
@@ -28,7 +29,6 @@ from so101_kinematics.vision.charuco import board_pose, find_board
 from so101_kinematics.vision.hand_eye import pose_error
 from so101_kinematics.vision.sim_camera import SimCamera
 from so101_kinematics.vision.tagged_scene import build_tagged_model, tagged_spec
-from so101_kinematics.sim.tag_textures import TAGS
 
 pytestmark = pytest.mark.vision
 

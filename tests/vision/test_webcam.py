@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from so101_kinematics.errors import VisionError
-from so101_kinematics.vision.detect import find_tag
 from so101_kinematics.opencv_import import require_opencv
+from so101_kinematics.sim.tag_textures import TARGET_TAG
+from so101_kinematics.vision.detect import find_tag
 from so101_kinematics.vision.sim_camera import SimCamera
 from so101_kinematics.vision.tagged_scene import build_tagged_model, tagged_spec
-from so101_kinematics.sim.tag_textures import TARGET_TAG
 from so101_kinematics.vision.tags import get_tag_pose_base
 from so101_kinematics.vision.webcam import Webcam
 
