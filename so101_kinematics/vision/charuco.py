@@ -26,6 +26,7 @@ import numpy as np
 from so101_kinematics.errors import OpenCVMissing, VisionError
 from so101_kinematics.opencv_import import OPENCV_FIX, require_opencv
 from so101_kinematics.vision.boards import CALIBRATION_BOARD, Board, charuco_board
+from so101_kinematics.vision.detect import grey_image
 
 __all__ = ["BoardSighting", "Intrinsics", "MIN_CORNERS", "MIN_INTRINSIC_VIEWS", "board_pose",
            "calibrate_intrinsics", "find_board", "no_board_message"]
@@ -79,18 +80,6 @@ def _detector(board: Board):
     return cv2.aruco.CharucoDetector(charuco_board(board))
 
 
-def _grey(image: np.ndarray) -> np.ndarray:
-    image = np.asarray(image)
-    if image.dtype != np.uint8 or image.ndim not in (2, 3) or (
-            image.ndim == 3 and image.shape[2] != 3):
-        raise VisionError(f"An image must be H x W x 3 uint8 RGB (or H x W grey); got "
-                          f"{image.dtype} {image.shape}. Fix: pass camera.read()'s image.")
-    if image.ndim == 2:
-        return image
-    cv2 = require_opencv()
-    return cv2.cvtColor(image, cv2.COLOR_RGB2GRAY)
-
-
 def find_board(image: np.ndarray, board: Board = CALIBRATION_BOARD,
                min_corners: int = MIN_CORNERS) -> BoardSighting | None:
     """The board's inner corners in ``image``, or None when too few of them are in view.
@@ -100,7 +89,7 @@ def find_board(image: np.ndarray, board: Board = CALIBRATION_BOARD,
         board: which board.
         min_corners: the fewest corners that make a view; they must not lie on one line.
     """
-    corners, ids, _, _ = _detector(board).detectBoard(_grey(image))
+    corners, ids, _, _ = _detector(board).detectBoard(grey_image(image))
     if ids is None or len(ids) < min_corners:
         return None
     object_points, image_points = charuco_board(board).matchImagePoints(corners, ids)

@@ -38,8 +38,8 @@ from so101_kinematics.errors import VisionError
 from so101_kinematics.opencv_import import require_opencv
 from so101_kinematics.sim.tag_textures import TAG_DICTIONARY, TAGS, Tag
 
-__all__ = ["TagSighting", "detect_tags", "find_tag", "flat_pose", "no_tag_message",
-           "refine_corners", "tag_corners"]
+__all__ = ["TagSighting", "detect_tags", "find_tag", "flat_pose", "grey_image",
+           "no_tag_message", "refine_corners", "tag_corners"]
 
 
 def tag_corners(size: float) -> np.ndarray:
@@ -85,7 +85,7 @@ def _detector(dictionary: str):
         cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)), parameters)
 
 
-def _grey(image: np.ndarray) -> np.ndarray:
+def grey_image(image: np.ndarray) -> np.ndarray:
     """An ``interfaces.Camera`` image (H x W x 3 uint8 RGB) in grey; a grey image as it is."""
     image = np.asarray(image)
     if image.dtype != np.uint8 or image.ndim not in (2, 3) or (
@@ -206,7 +206,7 @@ def detect_tags(image: np.ndarray, K: np.ndarray, dist=None, g_bc: np.ndarray | 
     Returns:
         The sightings, by tag id (the same id twice: both).
     """
-    grey = _grey(image)
+    grey = grey_image(image)
     corners_list, ids, _ = _detector(TAG_DICTIONARY).detectMarkers(grey)
     if ids is None:
         return []
