@@ -624,6 +624,12 @@ MUTANTS: list[Mutant] = [
       "flat_pose", "yaw = np.arctan2(across[1], across[0])",
       "yaw = np.arctan2(-across[1], across[0])",
       "tests/vision/test_detect.py::test_a_flat_tags_pose_from_the_overhead_camera_at_640x480"),
+    m("camera_calibration_ignored", "see_and_pick.py --camera-calibration is read but the "
+      "model's camera is used: a real camera's pose never reaches the detection",
+      "so101_kinematics/lab/see_and_pick_arm.py", "camera_view",
+      "if camera_calibration is not None:", "if False:",
+      "tests/virtual/test_virtual_see_and_pick.py::"
+      "test_a_camera_calibration_file_is_the_camera_the_arm_sees_by"),
 ]
 
 
