@@ -32,7 +32,9 @@ TRACE_STEP_MM = 0.1  # [mm]: the ink's trace keeps a point when the tip moved th
 COVER_MM = 1.0  # [mm]: a target point with ink this close is covered (the line's width)
 STRAY_MM = 2.0  # [mm]: ink farther than this from every stroke is stray (twice the line's width)
 GAP_S = 0.02  # [s]: touches further apart in time than this are two lines of ink
-CHUNK = 2048  # points per block of the distance computation
+CHUNK = 1000  # points per block of the distance computation
+CAPTION_MM = 16.0  # [mm of the page's scale]: the band under the page for the caption
+MM_PER_INCH_SHOWN = 30.0  # the picture's scale: 100 px per 30 mm of page (A5: 700 px wide)
 
 
 def distances_to_strokes(points: np.ndarray, strokes: Sequence[np.ndarray]) -> np.ndarray:
@@ -127,7 +129,7 @@ def save_drawing(path: str | Path, page: Page, strokes: Sequence[np.ndarray], in
         page: the page (its size is the picture's).
         strokes: the target strokes [mm].
         ink: the touches that left ink (:meth:`ink.InkRecorder.ink`).
-        title: a line under the page (the figures).
+        title: one or two lines under the page (the figures).
         program: the program named in the PNG's marker.
     """
     import matplotlib
@@ -137,8 +139,10 @@ def save_drawing(path: str | Path, page: Page, strokes: Sequence[np.ndarray], in
     from matplotlib.patches import Rectangle
 
     width, height = page.size
-    figure = Figure(figsize=(width / 40.0, (height + 14.0) / 40.0), dpi=100)
-    axes = figure.add_axes((0.0, 14.0 / (height + 14.0), 1.0, height / (height + 14.0)))
+    band = CAPTION_MM
+    figure = Figure(figsize=(width / MM_PER_INCH_SHOWN, (height + band) / MM_PER_INCH_SHOWN),
+                    dpi=100)
+    axes = figure.add_axes((0.0, band / (height + band), 1.0, height / (height + band)))
     axes.set_xlim(-width / 2, width / 2)
     axes.set_ylim(-height / 2, height / 2)
     axes.set_aspect("equal")
@@ -151,7 +155,7 @@ def save_drawing(path: str | Path, page: Page, strokes: Sequence[np.ndarray], in
     for line in ink_trace(page, ink):
         axes.plot(line[:, 0], line[:, 1], color=(0.05, 0.1, 0.45), linewidth=1.0,
                   solid_capstyle="round")
-    figure.text(0.5, 0.5 * 14.0 / (height + 14.0), title, ha="center", va="center", fontsize=9)
+    figure.text(0.5, 0.5 * band / (height + band), title, ha="center", va="center", fontsize=8)
     target = Path(path)
     with atomic_output(target) as temporary:
         figure.savefig(temporary, format="png", metadata=png_metadata(program))

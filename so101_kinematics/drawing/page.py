@@ -22,7 +22,8 @@ from so101_kinematics.drawing.pen import PenPose, pen_configuration
 from so101_kinematics.errors import PlanError, UnreachableError
 
 __all__ = [
-    "PAGES", "PAGE_THICKNESS", "Page", "check_reach", "outside_reach", "page_to_base",
+    "PAGES", "PAGE_THICKNESS", "Page", "base_to_page", "check_reach", "outside_reach",
+    "page_to_base",
 ]
 
 PAGES = {"a5": (210.0, 148.0), "a4": (297.0, 210.0)}
@@ -148,5 +149,6 @@ def check_reach(page: Page, strokes: Sequence[np.ndarray], pose: PenPose,
         f"{len(beyond)} of {len(strokes)} strokes (number {names}) fall outside the arm's "
         f"reach with the pen at a {math.degrees(pose.tilt):g} deg tilt, by up to "
         f"{worst:.0f} mm (page centre at ({page.centre[0]:.3f}, {page.centre[1]:.3f}) m). "
-        f"Fix: draw smaller (--height-mm), move the page (--page-at X Y) towards the "
-        f"strokes' side by {worst:.0f} mm or more, or tilt the pen (--tilt-deg 20).")
+        f"Fix: move the page (--page-at X Y) so that these strokes come {worst:.0f} mm or more "
+        "towards the arm's middle reach (0.2, 0) m, draw smaller (--height-mm), or tilt the "
+        "pen (--tilt-deg 20).")
