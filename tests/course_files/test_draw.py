@@ -1,0 +1,59 @@
+"""draw.py: the TA's command, its report and picture, and the one-line refusals (exit 2)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import draw
+from so101_kinematics.markers import png_ours
+
+
+def _refused(capsys, *argv) -> str:
+    assert draw.main(list(argv)) == 2
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert "Fix:" in lines[0]
+    return lines[0]
+
+
+def test_an_empty_text_is_refused(capsys):
+    assert "--text is empty" in _refused(capsys, "--text", "", "--headless")
+
+
+def test_an_unknown_glyph_is_refused(capsys):
+    assert "no glyph for 'ß', 'ü'" in _refused(capsys, "--text", "Grüße", "--headless")
+
+
+def test_an_svg_without_paths_is_refused(capsys, tmp_path):
+    picture = tmp_path / "empty.svg"
+    picture.write_text('<svg xmlns="http://www.w3.org/2000/svg"></svg>')
+    assert "no path" in _refused(capsys, "--svg", str(picture), "--headless")
+
+
+def test_a_page_out_of_reach_is_refused_naming_the_strokes(capsys):
+    line = _refused(capsys, "--shape", "square", "--height-mm", "40", "--page-at", "0.42", "0")
+    assert "fall outside the arm's reach" in line and "by up to" in line
+
+
+def test_a_speed_out_of_range_is_refused(capsys):
+    assert "--speed-mm-s" in _refused(capsys, "--shape", "star", "--speed-mm-s", "500")
+
+
+def test_the_image_must_be_a_png(capsys, tmp_path):
+    assert "must end in .png" in _refused(capsys, "--shape", "star", "--image",
+                                          str(tmp_path / "x.jpg"))
+
+
+@pytest.mark.slow
+def test_a_small_star_is_drawn_and_reported(tmp_path, capsys):
+    report, image = tmp_path / "star.json", tmp_path / "star.png"
+    assert draw.main(["--shape", "star", "--height-mm", "20", "--speed-mm-s", "25",
+                      "--headless", "--json", str(report), "--image", str(image)]) == 0
+    data = json.loads(report.read_text())
+    assert {"mean_mm", "worst_mm", "stray_mm", "coverage_pct"} <= set(data["ink"])
+    assert data["ink"]["mean_mm"] < 1.5
+    assert png_ours(image)
+    assert "Drew 1 stroke (" in capsys.readouterr().out
