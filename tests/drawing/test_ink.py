@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from so101_kinematics.drawing.ink import PEN_TIP_RADIUS, InkRecorder, build_drawing_model
-from so101_kinematics.drawing.page import PAGE_THICKNESS, Page
+from so101_kinematics.drawing.page import PAGE_THICKNESS, Page, base_to_page
 from so101_kinematics.drawing.pen import (
     PEN_MASS,
     PEN_PRELOAD_M,
@@ -64,3 +64,18 @@ def test_the_pen_inks_where_it_presses_with_the_springs_force(model):
     low = PEN_SPRING * PEN_PRELOAD_M + weight
     high = PEN_SPRING * (PEN_PRELOAD_M + PEN_PRESS_M) + weight * 1.1  # the tip's 0.5 g too
     assert low < ink[-50:, 3].mean() < high
+
+
+def test_the_models_page_is_the_page_turned_as_it_lies():
+    """The page's box in the compiled model: its corners are the page's, in page millimetres."""
+    page = Page("a5", (210.0, 148.0), centre=(0.21, 0.03), yaw=30.0)
+    m = build_drawing_model(page)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    geom = d.geom("page")
+    half = m.geom("page").size
+    corners = [geom.xpos + geom.xmat.reshape(3, 3) @ [sx * half[0], sy * half[1], half[2]]
+               for sx in (-1, 1) for sy in (-1, 1)]
+    on_page = np.abs(base_to_page(page, np.array(corners)[:, :2]))
+    assert on_page == pytest.approx(np.tile([105.0, 74.0], (4, 1)), abs=1e-9)
+    assert corners[0][2] == pytest.approx(PAGE_THICKNESS)  # the paper's top
