@@ -108,7 +108,7 @@ def shape_strokes(shape: str) -> list[np.ndarray]:
             "square".
 
     Example:
-        >>> [round(v, 3) for v in shape_strokes("square")[0][:2].ravel()]
+        >>> shape_strokes("square")[0][:2].ravel().round(3).tolist()
         [-0.5, -0.5, 0.5, -0.5]
     """
     if shape == "square":
