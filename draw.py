@@ -42,7 +42,7 @@ from so101_kinematics.outputs import (
 
 REPORT = report_of("draw.py")  # --json replaces only a report of this program
 HEIGHT_RANGE = (2.0, 200.0)  # [mm]
-SPEED_RANGE = (1.0, 200.0)  # [mm/s]
+SPEED_RANGE = (1.0, 1000.0)  # [mm/s]: the servos' own limit is checked on the plan
 TILT_RANGE = (-30.0, 45.0)  # [deg]
 PAGE_AT_DEFAULT = (0.2, 0.0)  # [m]: the page's centre, in front of the arm
 

@@ -7,7 +7,9 @@ held (the tip ``pen.PEN_PRESS_M`` below the paper: the holder's spring keeps it 
 page), lifts ``LIFT_M`` at the stroke's end, and travels pen-up to the next stroke at
 ``TRAVEL_SPEED_MM_S``. Along a stroke the speed is constant between corners; at a corner
 sharper than ``CORNER_DEG`` the pen slows to a stop and goes on (a trapezoid of
-acceleration ``ACCEL_MM_S2``): a lagging servo cuts a corner it passes at speed.
+ramps of ``SPEED_RAMP_S``): a lagging servo cuts a corner it passes at speed. The ramps take the
+same time at any speed, so the pen reaches the asked speed on every run longer than
+``speed x SPEED_RAMP_S``.
 
 The servo's lag: a position servo trails a goal moving at ``v`` by ``tau v``
 (``servo.lag``: 0.10 s at lerobot's P = 16 on 5 V, less on 12 V). Each command is the
@@ -40,7 +42,7 @@ from so101_kinematics.errors import PlanError, UnreachableError
 from so101_kinematics.frames import ARM_JOINTS
 
 __all__ = [
-    "ACCEL_MM_S2", "CORNER_DEG", "DEFAULT_SPEED_MM_S", "DWELL_S", "LIFT_M", "LOWER_S",
+    "CORNER_DEG", "SPEED_RAMP_S", "DEFAULT_SPEED_MM_S", "DWELL_S", "LIFT_M", "LOWER_S",
     "PenPath", "SPEED_SHARE", "TRAVEL_SPEED_MM_S", "check_joint_speeds", "lag_seconds",
     "plan_drawing", "trapezoid",
 ]
@@ -48,7 +50,7 @@ __all__ = [
 DEFAULT_SPEED_MM_S = 15.0
 """The pen's speed on the paper by default [mm/s] (a public SO-101 drawing project: 10)."""
 TRAVEL_SPEED_MM_S = 40.0  # [mm/s] pen up, between strokes
-ACCEL_MM_S2 = 150.0  # [mm/s^2]: the ramps at stroke ends and corners (0.1 s to 15 mm/s)
+SPEED_RAMP_S = 0.1  # [s]: the pen's speed-up and slow-down at stroke ends and corners
 CORNER_DEG = 25.0  # [deg]: a turn sharper than this is drawn with a stop
 LIFT_M = 0.008  # [m]: the pen's lift between strokes (above the paper)
 LOWER_S = 0.4  # [s]: the pen's way down or up (cubic)
@@ -144,14 +146,14 @@ def _tip_samples(page: Page, strokes: Sequence[np.ndarray], speed: float, dt: fl
                  z_down: float, z_up: float):
     """The tip's samples [m] with their pen-down flags and stroke indices."""
     parts: list[tuple[np.ndarray, bool, int]] = []
-    here = None
+    here, travel = None, TRAVEL_SPEED_MM_S
     for index, stroke in enumerate(strokes):
         start_up = page_to_base(page, stroke[:1], z_up)[0]
         if here is not None:
             way = float(np.linalg.norm(start_up - here)) * 1000.0
             if way > 0.0:
                 line = np.vstack([here, start_up])
-                parts.append((_along(line, trapezoid(way, TRAVEL_SPEED_MM_S, ACCEL_MM_S2, dt)
+                parts.append((_along(line, trapezoid(way, travel, travel / SPEED_RAMP_S, dt)
                                      / 1000.0), False, -1))
         else:
             parts.append((_hold(start_up, DWELL_S, dt), False, -1))
@@ -161,7 +163,7 @@ def _tip_samples(page: Page, strokes: Sequence[np.ndarray], speed: float, dt: fl
         for run in _runs(stroke):
             tips = page_to_base(page, run, z_down)
             length = float(np.linalg.norm(np.diff(run, axis=0), axis=1).sum())
-            parts.append((_along(tips, trapezoid(length, speed, ACCEL_MM_S2, dt) / 1000.0),
+            parts.append((_along(tips, trapezoid(length, speed, speed / SPEED_RAMP_S, dt) / 1000.0),
                           True, index))
             parts.append((_hold(tips[-1], CORNER_DWELL_S, dt), True, index))
         end_down = page_to_base(page, stroke[-1:], z_down)[0]
@@ -218,8 +220,22 @@ def _with_load(commands: list[dict], down: np.ndarray, volts: float, variant: st
 
 
 def check_joint_speeds(plan: list[dict], dt: float, speed: float,
-                       volts: float = servo.DEFAULT_SUPPLY_V, variant: str | None = None) -> None:
+                       volts: float = servo.DEFAULT_SUPPLY_V, variant: str | None = None,
+                       tips: np.ndarray | None = None, down: np.ndarray | None = None) -> None:
     """Refuse a plan that asks a joint for more than ``SPEED_SHARE`` of its no-load speed.
+
+    The speed that fits: each pen-down sample's fastest joint per unit of the tip's speed
+    there is the Jacobian's, the same at any pen speed, so the pen's speed times the largest
+    such ratio bounds every joint's speed.
+
+    Args:
+        plan: the configurations [deg], one per ``dt``.
+        dt: the control period [s].
+        speed: the pen's asked speed [mm/s] (for the message).
+        volts: the supply [V].
+        variant: the STS3215 variant (default: the supply's).
+        tips: the tip's planned positions [m] (n, 3), for the speed that fits.
+        down: the samples with the pen on the paper (n,).
 
     Raises:
         PlanError: naming the joint, its speed, the servo's, and the pen speed that fits.
@@ -227,17 +243,24 @@ def check_joint_speeds(plan: list[dict], dt: float, speed: float,
     q = np.array([[c[j] for j in ARM_JOINTS] for c in plan])
     if len(q) < 2:
         return
-    rates = np.abs(np.diff(q, axis=0)).max(axis=0) / dt  # [deg/s]
+    joint_rates = np.abs(np.diff(q, axis=0)) / dt  # [deg/s] per sample and joint
+    rates = joint_rates.max(axis=0)
     chosen = servo.VARIANTS[variant or servo.default_variant(volts)]
     limit = SPEED_SHARE * math.degrees(chosen.no_load_speed(volts))
     worst = int(np.argmax(rates))
-    if rates[worst] > limit:
-        fits = speed * limit / rates[worst]
-        raise PlanError(
-            f"--speed-mm-s {speed:g}: the drawing turns {ARM_JOINTS[worst]} at up to "
-            f"{rates[worst]:.0f} deg/s, more than the {SPEED_SHARE:.0%} of the STS3215 "
-            f"{chosen.name}'s no-load speed at {volts:g} V ({limit:.0f} deg/s) a servo can "
-            f"hold on a path. Fix: --speed-mm-s {math.floor(fits):g} or less.")
+    if rates[worst] <= limit:
+        return
+    fits = speed * limit / rates[worst]
+    if tips is not None and down is not None:
+        tip_speed = np.linalg.norm(np.diff(tips, axis=0), axis=1) * 1000.0 / dt  # [mm/s]
+        drawing = down[1:] & down[:-1] & (tip_speed > 1e-3 * speed)
+        if drawing.any():
+            fits = limit / float((joint_rates.max(axis=1)[drawing] / tip_speed[drawing]).max())
+    raise PlanError(
+        f"--speed-mm-s {speed:g}: the drawing turns {ARM_JOINTS[worst]} at up to "
+        f"{rates[worst]:.0f} deg/s, more than the {SPEED_SHARE:.0%} of the STS3215 "
+        f"{chosen.name}'s no-load speed at {volts:g} V ({limit:.0f} deg/s) a servo can "
+        f"hold on a path. Fix: --speed-mm-s {math.floor(fits):g} or less.")
 
 
 def plan_drawing(page: Page, strokes: Sequence[np.ndarray], pose: PenPose,
@@ -275,7 +298,7 @@ def plan_drawing(page: Page, strokes: Sequence[np.ndarray], pose: PenPose,
             raise UnreachableError(f"{error} (check the page's reach first: "
                                    "page.check_reach)", error.reason, error.distance) from None
         plan.append(cfg)
-    check_joint_speeds(plan, dt, speed, volts, variant)
+    check_joint_speeds(plan, dt, speed, volts, variant, tips, down)
     commands = _led(plan, dt, lag) if lag else [dict(c) for c in plan]
     if load:
         commands = _with_load(commands, down, volts, variant, p)

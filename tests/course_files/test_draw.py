@@ -39,7 +39,14 @@ def test_a_page_out_of_reach_is_refused_naming_the_strokes(capsys):
 
 
 def test_a_speed_out_of_range_is_refused(capsys):
-    assert "--speed-mm-s" in _refused(capsys, "--shape", "star", "--speed-mm-s", "500")
+    assert "--speed-mm-s" in _refused(capsys, "--shape", "star", "--speed-mm-s", "5000")
+
+
+def test_a_speed_the_servos_cannot_hold_is_refused_with_one_that_can(capsys):
+    line = _refused(capsys, "--shape", "star", "--height-mm", "100", "--speed-mm-s", "900")
+    assert "no-load speed" in line
+    fits = float(line.split("Fix: --speed-mm-s ")[1].split()[0])
+    assert draw.main(["--shape", "star", "--height-mm", "100", "--speed-mm-s", f"{fits:g}"]) == 0
 
 
 def test_the_image_must_be_a_png(capsys, tmp_path):

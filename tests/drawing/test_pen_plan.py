@@ -11,8 +11,8 @@ from so101_kinematics import servo
 from so101_kinematics.drawing.page import PAGE_THICKNESS, Page, base_to_page
 from so101_kinematics.drawing.pen import PEN_PRESS_M, PenPose
 from so101_kinematics.drawing.pen_plan import (
-    ACCEL_MM_S2,
     LIFT_M,
+    SPEED_RAMP_S,
     check_joint_speeds,
     lag_seconds,
     plan_drawing,
@@ -50,7 +50,7 @@ def test_the_pen_draws_at_the_speed_on_the_paper_at_the_contact_height(drawn):
     speeds = np.linalg.norm(np.diff(path.tips[:, :2], axis=0), axis=1) * 1000.0 / DT
     drawing = speeds[path.down[1:] & path.down[:-1]]
     assert drawing.max() == pytest.approx(15.0, rel=1e-6)
-    ramp = 15.0 / ACCEL_MM_S2 / DT  # samples in one ramp
+    ramp = SPEED_RAMP_S / DT  # samples in one ramp
     cruising = np.isclose(drawing, 15.0).sum()
     assert cruising >= (40.0 / 15.0) / DT - 4 * ramp - 2  # all but the four ramps
 
