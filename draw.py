@@ -30,7 +30,13 @@ from so101_kinematics.drawing.ink_score import COVER_MM, STRAY_MM, save_drawing
 from so101_kinematics.drawing.page import PAGES, Page
 from so101_kinematics.drawing.pen import PenPose
 from so101_kinematics.drawing.pen_plan import DEFAULT_SPEED_MM_S
-from so101_kinematics.errors import OutputPathError, PlanError
+from so101_kinematics.errors import (
+    CalibrationError,
+    ConnectionFailed,
+    LerobotMissing,
+    OutputPathError,
+    PlanError,
+)
 from so101_kinematics.outputs import (
     PNG,
     add_overwrite_argument,
@@ -60,8 +66,8 @@ that leaves ink where its tip presses on the page. The ink is scored
 against the strokes: mean and worst distance [mm], coverage (ink within
 {COVER_MM:g} mm) and the longest stray ink (farther than {STRAY_MM:g} mm).
 
-Exit code: 0 drawn, 2 bad input (one line; nothing drawn), 1 an unexpected
-error, 130 interrupted.""")
+Exit code: 0 drawn, 2 bad input (one line; nothing drawn), 1 a run on an
+arm that aborted or an unexpected error, 130 interrupted.""")
     what = parser.add_mutually_exclusive_group()
     what.add_argument("--text", help="one line of text, in a Hershey stroke font")
     what.add_argument("--svg", metavar="FILE", help="an SVG picture: its paths are drawn")
@@ -97,10 +103,21 @@ error, 130 interrupted.""")
     parser.add_argument("--image", type=Path, metavar="PATH.png",
                         help="write the page with the ink (and the target, faint) as a PNG")
     add_overwrite_argument(parser)
+    arm = parser.add_argument_group("on an arm (through lerobot's bus; the virtual arm too)")
+    arm.add_argument("--port", metavar="PORT",
+                     help="the arm's serial port (virtual_so101.py prints the virtual arm's): "
+                     "the same plan through lerobot's bus; the JSON's arm_tip is the tip's "
+                     "read-back path against the strokes (the arm has no page that records ink)")
+    arm.add_argument("--calibration", type=Path, default=None, metavar="PATH",
+                     help="the arm's lerobot calibration (default: the virtual arm's)")
+    arm.add_argument("--no-pen", action="store_true",
+                     help="the arm holds no pen over a page (the virtual arm): its goals are "
+                     "not offset for the pen's weight and push")
     add_servo_arguments(parser)
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
-    return run_script(parser, argv, _run, refused=(OutputPathError, PlanError),
+    refused = (OutputPathError, PlanError, CalibrationError, ConnectionFailed, LerobotMissing)
+    return run_script(parser, argv, _run, refused=refused,
                       interrupted="nothing was written; existing output files are as they were.")
 
 
@@ -119,12 +136,38 @@ def _check_outputs(args: argparse.Namespace) -> tuple[Path | None, Path | None]:
     return image, json_path
 
 
+def _run_on_arm(args: argparse.Namespace, page: Page, strokes, json_path: Path | None) -> int:
+    """--port: the plan through lerobot's bus (``lab/draw_arm.py``); the tip's path scored."""
+    from so101_kinematics.calibration import load_calibration
+    from so101_kinematics.lab.draw_arm import draw_on_arm
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
+
+    if args.image is not None:
+        raise PlanError("--image with --port: the arm has no page that records ink (nothing "
+                        "was run). Fix: leave out --image, or draw in the simulator first.")
+    calibration = load_calibration(args.calibration or DEFAULT_CALIBRATION_PATH)
+    report = draw_on_arm(args.port, calibration, strokes, page, PenPose(args.tilt_deg),
+                         args.speed_mm_s, load=not args.no_pen)
+    tip = report["arm_tip"]
+    ended = "" if report["aborted"] is None else f" ABORTED ({report['aborted']})"
+    count = report["strokes"]
+    print(f"Drew {count} stroke{'s' if count != 1 else ''} on the arm at {args.port}{ended}: "
+          "the tip's read-back path "
+          + ("was never on the page" if tip["mean_mm"] is None else
+             f"{tip['mean_mm']:.2f} mm mean, {tip['worst_mm']:.2f} mm worst from the strokes"))
+    if json_path is not None:
+        write_text_atomic(json_path, json.dumps(stamp(report, "draw.py"), indent=2) + "\n")
+    return 0 if report["aborted"] is None else 1
+
+
 def _run(args: argparse.Namespace) -> int:
     """Check the outputs, draw, report (see :func:`main`)."""
     image, json_path = _check_outputs(args)
-    servo = servo_from_arguments(args)
     page = Page(args.page, PAGES[args.page], tuple(args.page_at), args.page_yaw)
     strokes = drawing_strokes(args.height_mm, page, args.text, args.svg, args.shape, args.font)
+    if args.port:
+        return _run_on_arm(args, page, strokes, json_path)
+    servo = servo_from_arguments(args)
     started = time.perf_counter()
     report, ink, prepared = run_drawing(strokes, page, PenPose(args.tilt_deg), args.speed_mm_s,
                                         servo, lead=not args.no_lead)

@@ -39,7 +39,7 @@ from so101_kinematics.sim import actuation
 from so101_kinematics.sim.scene import set_initial_pose
 from so101_kinematics.sim.straight import control_period
 
-__all__ = ["PAGE_MARGIN_MM", "SETTLE_S", "drawing_strokes", "run_drawing"]
+__all__ = ["PAGE_MARGIN_MM", "SETTLE_S", "drawing_strokes", "ready_strokes", "run_drawing"]
 
 PAGE_MARGIN_MM = 5.0
 """The drawing keeps this far from the page's edges [mm]."""
@@ -107,6 +107,23 @@ def _svg_to_page(svg: str, height: float) -> list[np.ndarray]:
     return [s for s in strokes if stroke_length(s) >= MIN_STROKE_MM]
 
 
+def ready_strokes(strokes: Sequence[np.ndarray], page: Page,
+                  pose: PenPose) -> tuple[list[np.ndarray], tuple[float, float]]:
+    """The strokes as drawn: ordered from the drawing's left end, resampled, checked in reach.
+
+    Returns:
+        ``(prepared, start)``: the strokes and the point [mm] the ordering started from.
+
+    Raises:
+        PlanError: strokes out of reach (``page.check_reach``).
+    """
+    low, _ = bounds(strokes)
+    start = (float(low[0]), 0.0)
+    prepared = prepare(strokes, start=start)
+    check_reach(page, prepared, pose)
+    return prepared, start
+
+
 def _run_in_simulator(m: mujoco.MjModel, path) -> InkRecorder:
     """Put the arm at the path's start, let it settle, run the path; the recorder."""
     d = mujoco.MjData(m)
@@ -140,9 +157,7 @@ def run_drawing(strokes: Sequence[np.ndarray], page: Page, pose: PenPose | None 
     """
     pose = pose or PenPose()
     servo = dict(servo or {})
-    low, _ = bounds(strokes)
-    prepared = prepare(strokes, start=(low[0], 0.0))
-    check_reach(page, prepared, pose)
+    prepared, start = ready_strokes(strokes, page, pose)
     volts, variant = float(servo.get("volts", DEFAULT_SUPPLY_V)), servo.get("variant")
     faithful = servo.get("mode", "sts3215") != "ideal"
     lag = lag_seconds(volts, variant, servo.get("p")) if lead and faithful else 0.0
@@ -164,7 +179,7 @@ def run_drawing(strokes: Sequence[np.ndarray], page: Page, pose: PenPose | None 
                 "force_n": {"mean": round(float(forces.mean()), 3),
                             "max": round(float(forces.max()), 3), "ink_at_least": INK_FORCE_N}},
         "strokes": len(prepared), "target_mm": round(ink_length(prepared), 1),
-        "pen_up_travel_mm": round(pen_up_travel(prepared, (low[0], 0.0)), 1),
+        "pen_up_travel_mm": round(pen_up_travel(prepared, start), 1),
         "drawing_s": round(path.duration, 2),
         "servo": actuation.servo_spec(m).describe(),
         "lag_lead_s": round(lag, 4),

@@ -64,3 +64,8 @@ def test_a_small_star_is_drawn_and_reported(tmp_path, capsys):
     assert data["ink"]["mean_mm"] < 1.5
     assert png_ours(image)
     assert "Drew 1 stroke (" in capsys.readouterr().out
+
+
+def test_an_image_with_the_port_is_refused(capsys):
+    assert "--image with --port" in _refused(capsys, "--shape", "star", "--port", "/dev/null",
+                                             "--image", "x.png")
