@@ -69,3 +69,17 @@ def test_a_small_star_is_drawn_and_reported(tmp_path, capsys):
 def test_an_image_with_the_port_is_refused(capsys):
     assert "--image with --port" in _refused(capsys, "--shape", "star", "--port", "/dev/null",
                                              "--image", "x.png")
+
+
+@pytest.mark.slow
+def test_an_svg_picture_is_drawn(tmp_path):
+    picture = tmp_path / "smile.svg"  # a face: a circle, two eyes (short lines), a smile (an arc)
+    picture.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="100" height="100">'
+                       '<circle cx="50" cy="50" r="40"/><path d="M 35 35 L 35 45"/>'
+                       '<path d="M 65 35 L 65 45"/><path d="M 30 60 A 20 20 0 0 0 70 60"/>'
+                       '</svg>')
+    report = tmp_path / "smile.json"
+    assert draw.main(["--svg", str(picture), "--height-mm", "40", "--json", str(report)]) == 0
+    figures = json.loads(report.read_text())
+    assert figures["strokes"] == 4 and figures["source"] == {"svg": str(picture)}
+    assert figures["ink"]["mean_mm"] <= 1.5 and figures["ink"]["worst_mm"] <= 3.0
