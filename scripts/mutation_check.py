@@ -628,7 +628,8 @@ MUTANTS: list[Mutant] = [
       "tests/vision/test_detect.py::test_a_flat_tags_pose_from_the_overhead_camera_at_640x480"),
     # --- the drawing (issue 37) ---------------------------------------------------------------
     m("drawing_lead_behind", "the servo's lag led the wrong way (the plan minus tau v): the pen "
-      "trails twice as far", DRAW_PLAN, "_led", "led = q + tau * rate", "led = q - tau * rate",
+      "trails twice as far", DRAW_PLAN, "lead_commands", "led = q + tau * rate",
+      "led = q - tau * rate",
       "tests/drawing/test_pen_plan.py::test_each_command_leads_the_plan_by_the_lag_times_its_"
       "velocity"),
     m("drawing_strokes_never_reversed", "the ordering never draws a stroke from its far end: "

@@ -43,8 +43,8 @@ from so101_kinematics.frames import ARM_JOINTS
 
 __all__ = [
     "CORNER_DEG", "SPEED_RAMP_S", "DEFAULT_SPEED_MM_S", "DWELL_S", "LIFT_M", "LOWER_S",
-    "PenPath", "SPEED_SHARE", "TRAVEL_SPEED_MM_S", "check_joint_speeds", "lag_seconds",
-    "plan_drawing", "trapezoid",
+    "PenPath", "SPEED_SHARE", "TRAVEL_SPEED_MM_S", "check_joint_speeds", "corner_runs",
+    "lag_seconds", "lead_commands", "plan_drawing", "points_along", "trapezoid", "with_pen_load",
 ]
 
 DEFAULT_SPEED_MM_S = 15.0
@@ -113,7 +113,7 @@ def trapezoid(length: float, speed: float, accel: float, dt: float) -> np.ndarra
     return s
 
 
-def _along(points: np.ndarray, distances: np.ndarray) -> np.ndarray:
+def points_along(points: np.ndarray, distances: np.ndarray) -> np.ndarray:
     """Points at ``distances`` along the polyline ``points``."""
     steps = np.linalg.norm(np.diff(points, axis=0), axis=1)
     cumulative = np.concatenate([[0.0], np.cumsum(steps)])
@@ -121,7 +121,7 @@ def _along(points: np.ndarray, distances: np.ndarray) -> np.ndarray:
                             for k in range(points.shape[1])])
 
 
-def _runs(stroke: np.ndarray) -> list[np.ndarray]:
+def corner_runs(stroke: np.ndarray) -> list[np.ndarray]:
     """A stroke cut at its corners sharper than ``CORNER_DEG`` (each run drawn rest to rest)."""
     d = np.diff(stroke, axis=0)
     heading = np.arctan2(d[:, 1], d[:, 0])
@@ -153,18 +153,18 @@ def _tip_samples(page: Page, strokes: Sequence[np.ndarray], speed: float, dt: fl
             way = float(np.linalg.norm(start_up - here)) * 1000.0
             if way > 0.0:
                 line = np.vstack([here, start_up])
-                parts.append((_along(line, trapezoid(way, travel, travel / SPEED_RAMP_S, dt)
-                                     / 1000.0), False, -1))
+                distances = trapezoid(way, travel, travel / SPEED_RAMP_S, dt) / 1000.0
+                parts.append((points_along(line, distances), False, -1))
         else:
             parts.append((_hold(start_up, DWELL_S, dt), False, -1))
         start_down = page_to_base(page, stroke[:1], z_down)[0]
         parts.append((_vertical(start_up, start_down, dt), False, -1))
         parts.append((_hold(start_down, DWELL_S, dt), True, index))
-        for run in _runs(stroke):
+        for run in corner_runs(stroke):
             tips = page_to_base(page, run, z_down)
             length = float(np.linalg.norm(np.diff(run, axis=0), axis=1).sum())
-            parts.append((_along(tips, trapezoid(length, speed, speed / SPEED_RAMP_S, dt) / 1000.0),
-                          True, index))
+            distances = trapezoid(length, speed, speed / SPEED_RAMP_S, dt) / 1000.0
+            parts.append((points_along(tips, distances), True, index))
             parts.append((_hold(tips[-1], CORNER_DWELL_S, dt), True, index))
         end_down = page_to_base(page, stroke[-1:], z_down)[0]
         parts.append((_hold(end_down, DWELL_S - CORNER_DWELL_S, dt), True, index))
@@ -189,7 +189,7 @@ def lag_seconds(volts: float = servo.DEFAULT_SUPPLY_V, variant: str | None = Non
     return servo.lag(1.0, settings, volts, variant or servo.default_variant(volts))
 
 
-def _led(plan: list[dict], dt: float, tau: float) -> list[dict]:
+def lead_commands(plan: list[dict], dt: float, tau: float) -> list[dict]:
     """Each configuration plus ``tau`` times the plan's velocity (central differences)."""
     q = np.array([[c[j] for j in ARM_JOINTS] for c in plan])
     rate = np.gradient(q, dt, axis=0) if len(q) > 1 else np.zeros_like(q)
@@ -197,7 +197,7 @@ def _led(plan: list[dict], dt: float, tau: float) -> list[dict]:
     return [dict(zip(ARM_JOINTS, row.tolist(), strict=True)) for row in led]
 
 
-def _with_load(commands: list[dict], down: np.ndarray, volts: float, variant: str | None,
+def with_pen_load(commands: list[dict], down: np.ndarray, volts: float, variant: str | None,
                p: int | None) -> list[dict]:
     """Each command plus the sag the pen's load at the object frame adds (``gravity``).
 
@@ -279,7 +279,7 @@ def plan_drawing(page: Page, strokes: Sequence[np.ndarray], pose: PenPose,
         variant: the STS3215 variant (default: the supply's).
         lag: the servo's lag [s] (:func:`lag_seconds`): each command leads the plan by it
             times the plan's velocity; 0: the plan as it is.
-        load: offset each command by the sag the pen's load adds (:func:`_with_load`).
+        load: offset each command by the sag the pen's load adds (:func:`with_pen_load`).
         p: the servos' P_Coefficient (default lerobot's), for that sag.
 
     Raises:
@@ -299,7 +299,7 @@ def plan_drawing(page: Page, strokes: Sequence[np.ndarray], pose: PenPose,
                                    "page.check_reach)", error.reason, error.distance) from None
         plan.append(cfg)
     check_joint_speeds(plan, dt, speed, volts, variant, tips, down)
-    commands = _led(plan, dt, lag) if lag else [dict(c) for c in plan]
+    commands = lead_commands(plan, dt, lag) if lag else [dict(c) for c in plan]
     if load:
-        commands = _with_load(commands, down, volts, variant, p)
+        commands = with_pen_load(commands, down, volts, variant, p)
     return PenPath(dt, tips, down, stroke, plan, commands)
