@@ -647,6 +647,13 @@ MUTANTS: list[Mutant] = [
       "build_drawing_model", "half = [page.size[1] / 2000.0, page.size[0] / 2000.0,",
       "half = [page.size[0] / 2000.0, page.size[1] / 2000.0,",
       "tests/drawing/test_ink.py::test_the_models_page_is_the_page_turned_as_it_lies"),
+    m("light_brightness_constant", "the light at full brightness whatever its speed: the "
+      "exposure piles up where the arm slows", "so101_kinematics/drawing/light_paint.py",
+      "measured_brightness", "np.clip(before / speed, 0.0, HEADROOM)", "np.ones_like(before)",
+      "tests/drawing/test_light_paint.py::test_the_brightness_follows_the_read_back_speed_one_"
+      "period_late",
+      "tests/drawing/test_light_paint.py::test_a_120_mm_star_within_2_mm_and_even_within_20_"
+      "percent"),
 ]
 
 
