@@ -100,7 +100,8 @@ def _run(args: argparse.Namespace) -> int:
     print(f"Painted in {report['duration_s']:.0f} s at {args.speed_mm_s:g} mm/s: {line}")
     if image is not None:
         save_exposure(image, exposure,
-                      f"{line} (camera '{EXPOSURE_CAMERA}', simulated long exposure)")
+                      f"{line}\nthe simulated long exposure of the fixed camera "
+                      f"'{EXPOSURE_CAMERA}'")
     if json_path is not None:
         write_text_atomic(json_path, json.dumps(stamp(report, "light_paint.py"), indent=2)
                           + "\n")

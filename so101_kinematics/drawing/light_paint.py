@@ -242,13 +242,14 @@ def save_exposure(path: str | Path, image: np.ndarray, caption: str,
     from matplotlib.figure import Figure
 
     height, width = image.shape
-    figure = Figure(figsize=(width / 100.0, height / 100.0 + 0.3), dpi=100)
-    axes = figure.add_axes((0.0, 0.3 / (height / 100.0 + 0.3), 1.0,
-                            (height / 100.0) / (height / 100.0 + 0.3)))
+    band = 0.4  # [in]: the caption's two lines
+    figure = Figure(figsize=(width / 100.0, height / 100.0 + band), dpi=100)
+    axes = figure.add_axes((0.0, band / (height / 100.0 + band), 1.0,
+                            (height / 100.0) / (height / 100.0 + band)))
     axes.imshow(np.sqrt(image), cmap="inferno", vmin=0.0, vmax=1.0)
     axes.axis("off")
-    figure.text(0.5, 0.15 / (height / 100.0 + 0.3), caption, ha="center", va="center",
-                fontsize=8)
+    figure.text(0.5, 0.5 * band / (height / 100.0 + band), caption, ha="center",
+                va="center", fontsize=8)
     target = Path(path)
     with atomic_output(target) as temporary:
         figure.savefig(temporary, format="png", metadata=png_metadata(program))
