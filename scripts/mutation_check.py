@@ -86,6 +86,8 @@ T_PROFILES = "tests/lab/test_profile_compare.py"
 T_LINE = "tests/planning/test_straight_line.py"
 LEAD, T_LEAD = "so101_kinematics/hw/lead.py", "tests/hw/test_lead.py"
 GUARDED, T_GUARD = "so101_kinematics/hw/guarded.py", "tests/hw/test_guarded_registers.py"
+DRAW_PLAN = "so101_kinematics/drawing/pen_plan.py"
+DRAW_SCORE = "so101_kinematics/drawing/ink_score.py"
 
 MUTANTS: list[Mutant] = [
     # --- the servo model (issue 25) --------------------------------------------------------
@@ -630,6 +632,34 @@ MUTANTS: list[Mutant] = [
       "if camera_calibration is not None:", "if False:",
       "tests/virtual/test_virtual_see_and_pick.py::"
       "test_a_camera_calibration_file_is_the_camera_the_arm_sees_by"),
+    # --- the drawing (issue 37) ---------------------------------------------------------------
+    m("drawing_lead_behind", "the servo's lag led the wrong way (the plan minus tau v): the pen "
+      "trails twice as far", DRAW_PLAN, "lead_commands", "led = q + tau * rate",
+      "led = q - tau * rate",
+      "tests/drawing/test_pen_plan.py::test_each_command_leads_the_plan_by_the_lag_times_its_"
+      "velocity"),
+    m("drawing_strokes_never_reversed", "the ordering never draws a stroke from its far end: "
+      "the pen-up travel grows", "so101_kinematics/drawing/strokes.py", "order_strokes",
+      "if to_last[i_last] < to_first[i_first]:", "if False:",
+      "tests/drawing/test_strokes.py::test_ordering_shortens_the_pen_up_travel_and_may_reverse_"
+      "a_stroke"),
+    m("drawing_distance_to_lines", "the ink's distance to each segment's line, not the segment "
+      "(no clip at its ends): ink beyond a stroke's end scores as on it", DRAW_SCORE,
+      "distances_to_strokes", "t = np.clip(((p - a) * ab).sum(axis=2) / length2, 0.0, 1.0)",
+      "t = ((p - a) * ab).sum(axis=2) / length2",
+      "tests/drawing/test_ink_score.py::test_the_distance_to_a_polyline_by_hand"),
+    m("drawing_page_box_not_turned", "the page's box laid with its width along the base's x: "
+      "strokes near the page's sides draw in the air", "so101_kinematics/drawing/ink.py",
+      "build_drawing_model", "half = [page.size[1] / 2000.0, page.size[0] / 2000.0,",
+      "half = [page.size[0] / 2000.0, page.size[1] / 2000.0,",
+      "tests/drawing/test_ink.py::test_the_models_page_is_the_page_turned_as_it_lies"),
+    m("light_brightness_constant", "the light at full brightness whatever its speed: the "
+      "exposure piles up where the arm slows", "so101_kinematics/drawing/light_paint.py",
+      "measured_brightness", "np.clip(before / speed, 0.0, HEADROOM)", "np.ones_like(before)",
+      "tests/drawing/test_light_paint.py::test_the_brightness_follows_the_read_back_speed_one_"
+      "period_late",
+      "tests/drawing/test_light_paint.py::test_a_120_mm_star_within_2_mm_and_even_within_20_"
+      "percent"),
 ]
 
 
