@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 from pathlib import Path
@@ -124,7 +125,8 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         module = item.nodeid.split("::")[0]
         defs = getattr(getattr(item, "_fixtureinfo", None), "name2fixturedefs", {})
-        if any(d.scope == "module" and d.baseid == module for fds in defs.values() for d in fds):
+        if item.path.name in EXCLUSIVE_ARM_FILES or any(
+                d.scope == "module" and d.baseid == module for fds in defs.values() for d in fds):
             item.add_marker(pytest.mark.xdist_group(module))
 
 
@@ -132,36 +134,60 @@ def pytest_collection_modifyitems(config, items):
 # another virtual arm on 2 cores a reply came late (a -n 2 run: 3 of 56 failed; alone: 35 of
 # 35 passed). The stops with a cube in the jaws too: their grip is real-time physics, and in
 # CI's -n 2 slow leg a Ctrl-C during the lift left the cube 0.39 m from its place (alone: 1 of
-# 1 passed; the tests helper saw it once at -n 2 as well). So do the course script's faults
-# (test_pick_place_hw.py): a stall's overload bit needs 2 s of real-time stall, and in the final
-# rehearsal's 3.12 leg at -n 2 it was not yet set when the ending read it back (the 3.11 legs
-# passed it). So do lerobot's own tools (tests marked `alone`), which read with one try and a
-# 35 ms timeout: lerobot-calibrate missed a reply in the slow leg beside another arm in two
-# rehearsals on 2026-12-04, the emulator at nice -10. Each of these tests takes the arms' lock
-# exclusively; every other test that runs a virtual arm (marked hw, or in tests/virtual/) takes
-# it shared. Under xdist, or across processes when SO101_ARMS_LOCK names a lock file (.ci/run:
-# its hardware legs share one).
+# 1 passed; the tests helper saw it once at -n 2 as well). Such a file takes the arms' lock
+# exclusively, once for all its tests on one worker (one xdist group; taken per test, each of
+# the quick tier's 76 such tests waited for another leg's test in progress: the quick tier
+# took 689 s beside the 3.12 leg, 231 s alone). So do lerobot's own tools, each test for
+# itself (marked `alone`): they read with one try and a 35 ms timeout, and lerobot-calibrate
+# missed a reply in the slow leg beside another arm in two rehearsals on 2026-12-04, the
+# emulator at nice -10. test_pick_place_hw.py takes it shared again: its stall drill, the
+# reason it was exclusive, now holds the ending to the run's own read-back. Every other test
+# that runs a virtual arm (marked hw, or in tests/virtual/) takes it shared. Under xdist, or
+# across processes when SO101_ARMS_LOCK names a lock file (.ci/run: its arm legs share one).
 EXCLUSIVE_ARM_FILES = {"test_virtual_feetech_sdk.py", "test_virtual_protocol.py",
                        "test_virtual_fidelity.py", "test_virtual_so101.py",
-                       "test_stop_with_cube.py", "test_pick_place_hw.py"}
+                       "test_stop_with_cube.py"}
 
 
-@pytest.fixture(autouse=True)
-def _virtual_arm_turn(request, tmp_path_factory):
+def _arms_lock_path(tmp_path_factory) -> str | None:
+    """The arms' lock file of this run (None: one process, no other leg: no lock needed)."""
     run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
     shared_lock = os.environ.get("SO101_ARMS_LOCK")
-    node = request.node
-    exclusive = node.path.name in EXCLUSIVE_ARM_FILES or node.get_closest_marker("alone")
-    if (run is None and not shared_lock) or not (exclusive or node.get_closest_marker("hw")
-                                                 or node.path.parent.name == "virtual"):
-        yield
-        return
+    if run is None and not shared_lock:
+        return None
+    return shared_lock or str(tmp_path_factory.getbasetemp().parent / f"virtual-arms-{run}.lock")
+
+
+@contextlib.contextmanager
+def _arms_lock(path: str, exclusive: bool):
     import fcntl
 
-    lock_path = shared_lock or tmp_path_factory.getbasetemp().parent / f"virtual-arms-{run}.lock"
-    with open(lock_path, "a") as lock:
+    with open(path, "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
         try:
             yield
         finally:
             fcntl.flock(lock, fcntl.LOCK_UN)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _virtual_arms_alone_for_the_file(request, tmp_path_factory):
+    path = _arms_lock_path(tmp_path_factory)
+    if path is None or request.path.name not in EXCLUSIVE_ARM_FILES:
+        yield
+        return
+    with _arms_lock(path, exclusive=True):
+        yield
+
+
+@pytest.fixture(autouse=True)
+def _virtual_arm_turn(request, tmp_path_factory):
+    node = request.node
+    path = _arms_lock_path(tmp_path_factory)
+    alone = node.get_closest_marker("alone") is not None
+    if path is None or node.path.name in EXCLUSIVE_ARM_FILES or not (
+            alone or node.get_closest_marker("hw") or node.path.parent.name == "virtual"):
+        yield  # no lock, or the file's (held by the fixture above), or no arm
+        return
+    with _arms_lock(path, exclusive=alone):
+        yield

@@ -109,10 +109,11 @@ def test_the_bus_is_answered_while_the_hand_checks_a_long_path():
         lo, hi = JOINT_LIMITS[joint]
         waypoints += [base, {joint: lo}, {joint: hi}, {joint: base.get(joint, (lo + hi) / 2)}]
     waypoints.append(shell.UPRIGHT)
-    # The sweep twice: a check of about 50 ms, so that one late wake-up of the reader on a
-    # loaded 2-core machine (13.6 ms seen in CI against a 23.8 ms check) is not taken for
-    # a check that held the bus; a check that holds it makes a read wait all of it.
-    waypoints = waypoints * 2
+    # The sweep four times: a check of 40-100 ms, so that one late wake-up of the reader on
+    # a loaded 2-core machine (13.6 ms seen in CI against a 23.8 ms check, 13.1 ms against
+    # 20.9 ms with the sweep twice) is not taken for a check that held the bus; a check that
+    # holds it makes the read sent as it starts wait all of it.
+    waypoints = waypoints * 4
     read = instruction_packet(1, INST_READ, bytes((56, 2)))  # Present_Position of servo 1
     worst, running = [0.0], [True]
     with VirtualSO101(torque_on_start=False) as virtual, open_link(virtual.port,
@@ -137,5 +138,5 @@ def test_the_bus_is_answered_while_the_hand_checks_a_long_path():
             running[0] = False
             reader.join(timeout=5)
     assert check > 0.010, f"the check took {1e3 * check:.1f} ms: too short to tell"
-    assert worst[0] < 0.5 * check, (f"a read waited {1e3 * worst[0]:.1f} ms during a "
+    assert worst[0] < 0.75 * check, (f"a read waited {1e3 * worst[0]:.1f} ms during a "
                                     f"{1e3 * check:.1f} ms check")
