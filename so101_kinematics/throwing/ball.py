@@ -66,7 +66,7 @@ class Ball:
 
     @property
     def radius(self) -> float:
-        """[m]"""
+        """The ball's radius [m]."""
         return self.diameter / 2.0
 
     @property

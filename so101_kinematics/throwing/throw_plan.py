@@ -1,4 +1,4 @@
-"""The throw's inverse: a cup on the table -> the release pose and speed, checked against the servos.
+"""The throw's inverse: a cup on the table -> the release pose and speed the servos can reach.
 
 The throw is an overarm swing in the arm's vertical plane: ``shoulder_lift``, ``elbow_flex``
 and ``wrist_flex`` turn forward together at the same rate (``SWING_JOINTS``), one cubic move
@@ -61,7 +61,7 @@ GRIPPER_HOLD = 20.0
 SPEED_MARGIN = 0.9
 """A joint's planned rate stays under this share of its servo's speed at the release: a
 servo reaches its top speed only asymptotically."""
-CUP_DISTANCE_RANGE = (0.25, 0.65)
+CUP_DISTANCE_RANGE = (0.25, 1.0)
 """The cup's distance from the base [m] that ``throw.py`` accepts before the servos' own
 check: nearer, the cup stands against the arm's base; the far end is the servos'
 (:func:`throwing_range`)."""
@@ -158,16 +158,20 @@ def _speed_for(point, direction, ball: Ball, distance: float) -> tuple[float, fl
 
 
 def throwing_range(m: mujoco.MjModel, ball: Ball, volts: float = 12.0,
-                   variant: str = servo.DEFAULT_VARIANT) -> tuple[float, float]:
-    """The cups' distances from the base [m] the servos can throw to: (nearest, farthest).
+                   variant: str = servo.DEFAULT_VARIANT) -> tuple[float, float, float]:
+    """The cups' distances from the base [m] the servos can throw to, and the top speed [m/s].
 
-    The farthest is the flight at the joints' top rate times ``SPEED_MARGIN``; the nearest
-    is ``CUP_DISTANCE_RANGE``'s (the arm's base).
+    The farthest is the flight at the joints' top rate times ``SPEED_MARGIN`` (the release
+    speed returned); the nearest is ``CUP_DISTANCE_RANGE``'s (the arm's base).
+
+    Returns:
+        ``(nearest [m], farthest [m], the release speed at the farthest [m/s])``.
     """
     point, per_rate = release_state(m, 0.0)
     rate = SPEED_MARGIN * min(joint_speed_limits(m, 0.0, volts, variant).values())
     end = flight(point, per_rate * rate, ball, CUP_HEIGHT)[0]
-    return CUP_DISTANCE_RANGE[0], min(CUP_DISTANCE_RANGE[1], float(end[0]))
+    return (CUP_DISTANCE_RANGE[0], min(CUP_DISTANCE_RANGE[1], float(end[0])),
+            float(np.linalg.norm(per_rate)) * rate)
 
 
 def plan_throw(m: mujoco.MjModel, target, ball: Ball, volts: float = 12.0,
@@ -179,12 +183,15 @@ def plan_throw(m: mujoco.MjModel, target, ball: Ball, volts: float = 12.0,
     """
     x, y = (float(v) for v in target)
     distance = math.hypot(x, y)
-    nearest, farthest = throwing_range(m, ball, volts, variant)
+    nearest, farthest, top_speed = throwing_range(m, ball, volts, variant)
     if not nearest <= distance <= farthest:
+        why = ("nearer, the cup stands against the arm's base" if distance < nearest else
+               f"farther needs a release faster than {top_speed:.2f} m/s, "
+               f"{SPEED_MARGIN:.0%} of the STS3215 {variant}'s top speed at {volts:g} V")
         raise PlanError(f"cup at ({x:.3f}, {y:.3f}) m is {distance:.3f} m from the base, outside "
-                        f"the throwing range {nearest:.2f}-{farthest:.2f} m (the {ball.name} ball, "
-                        f"STS3215 {variant} at {volts:g} V). Fix: place the cup {nearest:.2f}-"
-                        f"{farthest:.2f} m from the base.")
+                        f"the {ball.name} ball's throwing range {nearest:.2f}-{farthest:.2f} m "
+                        f"({why}). Fix: place the cup {nearest:.2f}-{farthest:.2f} m from the "
+                        "base.")
     pan = -math.degrees(math.atan2(y, x))  # a positive shoulder_pan turns the arm to -y
     point, per_rate = release_state(m, pan)
     speed, _ = _speed_for(point, per_rate / np.linalg.norm(per_rate), ball,

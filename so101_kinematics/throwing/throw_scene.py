@@ -34,8 +34,9 @@ from so101_kinematics.sim.meshes import ensure_meshes
 from so101_kinematics.throwing.ball import Ball
 
 __all__ = [
-    "BALL_CONTACT", "CUP_BOTTOM_THICKNESS", "CUP_HEIGHT", "CUP_INNER_DIAMETER", "CUP_WALLS", "CUP_WALL_THICKNESS",
-    "Flight", "RELEASE_OPENING_DEG", "build_throw_model", "in_cup", "place_cup",
+    "BALL_CONTACT", "CUP_BOTTOM_THICKNESS", "CUP_HEIGHT", "CUP_INNER_DIAMETER", "CUP_WALLS",
+    "CUP_WALL_THICKNESS",
+    "Flight", "RELEASE_OPENING_DEG", "SIDE_CAMERA", "build_throw_model", "in_cup", "place_cup",
 ]
 
 CUP_INNER_DIAMETER = 0.090
@@ -56,6 +57,8 @@ object frame's distance from the jaw's axis (about 0.09 m) 10 deg is 16 mm of ga
 for a ball held in the jaws' tips to leave."""
 CUP_RGBA = (0.85, 0.15, 0.15, 1.0)
 BALL_RGBA = (1.0, 0.55, 0.1, 1.0)
+SIDE_CAMERA = "throw_side"
+"""The throwing scene's camera: from the side (-y), the arm and the cups' whole range in view."""
 TABLE_DRAWN = 0.8  # [m]: the plane's half size as drawn
 
 
@@ -110,9 +113,19 @@ def build_throw_model(ball: Ball, servo: Mapping | None = None) -> mujoco.MjMode
                       data=[*site_position(TOOL_SITE), 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0,
                             0.0])
     _add_cup(spec)
+    spec.worldbody.add_camera(name=SIDE_CAMERA, pos=[0.25, -1.05, 0.33], fovy=45.0,
+                              mode=mujoco.mjtCamLight.mjCAMLIGHT_FIXED,
+                              quat=_looking_along_y(math.radians(8.0)))
     m = spec.compile()
     actuation.use_servo(m, **dict(servo or {}))
     return m
+
+
+def _looking_along_y(down: float) -> list[float]:
+    """A camera's quaternion: looking along +y, tilted ``down`` [rad] (x right, y up)."""
+    # the camera looks along its -z: rotate the world's frame 90 deg about x, then tilt down
+    angle = math.pi / 2.0 - down
+    return [math.cos(angle / 2.0), math.sin(angle / 2.0), 0.0, 0.0]
 
 
 def place_cup(m: mujoco.MjModel, d: mujoco.MjData, x: float, y: float) -> None:
@@ -165,9 +178,13 @@ class Flight:
             d.xfrc_applied[self.body, :3] = self.ball.drag_force(self.ball_state()[1])
         actuation.step(m, d, 1)
         if self.release is not None and self.touch is None:
+            touched = []
             for i in range(d.ncon):
-                contact = d.contact[i]
-                if self.geom in (int(contact.geom1), int(contact.geom2)):
-                    other = contact.geom2 if contact.geom1 == self.geom else contact.geom1
-                    self.touch = (float(d.time), self.ball_state()[0], m.geom(int(other)).name)
-                    break
+                pair = (int(d.contact[i].geom1), int(d.contact[i].geom2))
+                if self.geom in pair:
+                    touched.append(m.geom(pair[1] if pair[0] == self.geom else pair[0]).name)
+            if touched:
+                # a ball in the cup may reach through its bottom to the table within a step:
+                # the cup, which it met first, is named
+                cup = [name for name in touched if name.startswith("cup")]
+                self.touch = (float(d.time), self.ball_state()[0], (cup or touched)[0])
