@@ -174,6 +174,22 @@ def throwing_range(m: mujoco.MjModel, ball: Ball, volts: float = 12.0,
             float(np.linalg.norm(per_rate)) * rate)
 
 
+def _aim(m: mujoco.MjModel, x: float, y: float) -> tuple[float, np.ndarray, np.ndarray]:
+    """The pan [deg] whose release heads at (x, y) [m]; the release point and velocity per rate.
+
+    The pan axis is not the base frame's origin, nor the object frame in its plane, so the
+    heading is corrected until the velocity's line passes over the cup (a few iterations).
+    """
+    pan = -math.degrees(math.atan2(y, x))  # a positive shoulder_pan turns the arm to -y
+    for _ in range(6):
+        point, per_rate = release_state(m, pan)
+        wanted = math.atan2(y - point[1], x - point[0])
+        heading = math.atan2(per_rate[1], per_rate[0])
+        pan -= math.degrees(wanted - heading)
+    point, per_rate = release_state(m, pan)
+    return pan, point, per_rate
+
+
 def plan_throw(m: mujoco.MjModel, target, ball: Ball, volts: float = 12.0,
                variant: str = servo.DEFAULT_VARIANT) -> ThrowPlan:
     """The planned throw at a cup whose axis stands at ``target`` (x, y) [m] on the table.
@@ -192,8 +208,7 @@ def plan_throw(m: mujoco.MjModel, target, ball: Ball, volts: float = 12.0,
                         f"the {ball.name} ball's throwing range {nearest:.2f}-{farthest:.2f} m "
                         f"({why}). Fix: place the cup {nearest:.2f}-{farthest:.2f} m from the "
                         "base.")
-    pan = -math.degrees(math.atan2(y, x))  # a positive shoulder_pan turns the arm to -y
-    point, per_rate = release_state(m, pan)
+    pan, point, per_rate = _aim(m, x, y)
     speed, _ = _speed_for(point, per_rate / np.linalg.norm(per_rate), ball,
                           math.hypot(x - point[0], y - point[1]))
     rate = speed / float(np.linalg.norm(per_rate))
