@@ -31,7 +31,7 @@ from so101_kinematics.throwing.ball import BALLS
 from so101_kinematics.throwing.throw_scene import build_throw_model
 from so101_kinematics.throwing.throw_trials import (
     cup_positions,
-    run_trials,
+    run_throws,
     save_picture,
     save_video,
 )
@@ -110,7 +110,7 @@ def _run(args: argparse.Namespace) -> int:
     ball = BALLS[args.ball]
     m = build_throw_model(ball, {"volts": args.supply, "variant": "C018"})
     cups = [tuple(args.cup)] if args.cup else cup_positions(args.trials, args.seed)
-    report = run_trials(m, ball, cups, args.supply, "C018")
+    report = run_throws(m, ball, cups, args.supply, "C018")
     report["seed"] = None if args.cup else args.seed
     for number_, trial in enumerate(report["trials"], 1):
         where = "in the cup" if trial["in_cup"] else "missed"

@@ -28,18 +28,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
 __all__ = [
-    "AIR_DENSITY", "BALLS", "Ball", "FLIGHT_STEP_S", "GRAVITY", "MAX_FLIGHT_S", "flight",
+    "AIR_DENSITY", "BALLS", "Ball", "FALL_ACCELERATION", "FLIGHT_STEP_S", "MAX_FLIGHT_S", "flight",
     "landing_point",
 ]
 
 AIR_DENSITY = 1.204
 """Air's density [kg/m^3] at 20 C and sea-level pressure (ISO 2533)."""
 
-GRAVITY = 9.81
-"""Gravity's acceleration [m/s^2] (MuJoCo's default ``opt.gravity`` is (0, 0, -9.81))."""
+FALL_ACCELERATION = -float(mujoco.MjOption().gravity[2])
+"""Gravity's acceleration [m/s^2]: MuJoCo's default ``opt.gravity`` (9.81), the simulator's."""
 
 FLIGHT_STEP_S = 0.001
 """The forward model's integration step [s] (RK4: its own error is far below a millimetre)."""
@@ -95,7 +96,7 @@ def _acceleration(v: np.ndarray, k: float) -> np.ndarray:
     """Gravity and drag on (n, 3) velocities [m/s]: (n, 3) accelerations [m/s^2]."""
     speed = np.linalg.norm(v, axis=1, keepdims=True)
     a = -k * speed * v
-    a[:, 2] -= GRAVITY
+    a[:, 2] -= FALL_ACCELERATION
     return a
 
 

@@ -202,7 +202,7 @@ def plan_throw(m: mujoco.MjModel, target, ball: Ball, volts: float = 12.0,
     nearest, farthest, top_speed = throwing_range(m, ball, volts, variant)
     if not nearest <= distance <= farthest:
         why = ("nearer, the cup stands against the arm's base" if distance < nearest else
-               f"farther needs a release faster than {top_speed:.2f} m/s, "
+               f"farther needs a release faster than {top_speed:.2f} m/s: the swing above "
                f"{SPEED_MARGIN:.0%} of the STS3215 {variant}'s top speed at {volts:g} V")
         raise PlanError(f"cup at ({x:.3f}, {y:.3f}) m is {distance:.3f} m from the base, outside "
                         f"the {ball.name} ball's throwing range {nearest:.2f}-{farthest:.2f} m "

@@ -1,7 +1,7 @@
 """Throws at seeded cups, their summary, and a picture or a video of one throw.
 
 :func:`cup_positions` draws the cups (a seeded generator: the same seed, the same cups);
-:func:`run_trials` throws at each (``throw_run.throw_at``) and sums up; :func:`save_picture`
+:func:`run_throws` throws at each (``throw_run.throw_at``) and sums up; :func:`save_picture`
 and :func:`save_video` show one throw from the side camera of the throwing scene.
 """
 
@@ -20,7 +20,7 @@ from so101_kinematics.throwing.throw_run import ThrowRun, throw_at
 from so101_kinematics.throwing.throw_scene import SIDE_CAMERA
 
 __all__ = [
-    "AZIMUTH_RANGE_DEG", "CUP_DISTANCES", "cup_positions", "run_trials",
+    "AZIMUTH_RANGE_DEG", "CUP_DISTANCES", "cup_positions", "run_throws",
     "save_picture", "save_video",
 ]
 
@@ -46,7 +46,7 @@ def cup_positions(count: int, seed: int) -> list[tuple[float, float]]:
     return cups
 
 
-def run_trials(m: mujoco.MjModel, ball: Ball, cups, volts: float = servo.DEFAULT_SUPPLY_V,
+def run_throws(m: mujoco.MjModel, ball: Ball, cups, volts: float = servo.DEFAULT_SUPPLY_V,
                variant: str = servo.DEFAULT_VARIANT) -> dict:
     """Throw at each cup; the report (``hits``, ``trials``, the worst model error, the speeds)."""
     trials = [throw_at(m, ball, cup, volts, variant) for cup in cups]

@@ -12,7 +12,7 @@ from so101_kinematics.throwing.throw_scene import build_throw_model
 from so101_kinematics.throwing.throw_trials import (
     AZIMUTH_RANGE_DEG,
     cup_positions,
-    run_trials,
+    run_throws,
     save_picture,
 )
 
@@ -30,7 +30,7 @@ def test_the_cups_are_seeded_and_between_0_3_and_0_6_m():
 @pytest.mark.slow
 def test_eight_of_ten_throws_land_in_the_cup_and_the_model_within_3_cm_of_each():
     m = build_throw_model(BALL)
-    report = run_trials(m, BALL, cup_positions(10, 0))
+    report = run_throws(m, BALL, cup_positions(10, 0))
     assert report["hits"] >= 8, report
     assert all(t["model_error_m"] < 0.03 for t in report["trials"]), report
 
