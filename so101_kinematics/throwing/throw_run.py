@@ -51,7 +51,7 @@ AIM_TOLERANCE_M = 0.015
 """A rehearsed release whose landing is this near the cup's centre, and nearer than its
 neighbours' (one physics step earlier or later), is good [m]; the earliest good one is chosen
 (the ball thrown upwards, not a late throw down at the cup). A 4 ms step moves the landing
-about 1 cm, so the nearest of a pass can be that far."""
+1.0-1.7 cm, so the nearest of a pass can be 8 mm away."""
 SETTLE_S = 0.5
 """The arm rests at the wind-up this long before the swing [s]."""
 RELEASE_WINDOW = (0.4, 0.85)
