@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import math
 
+import imageio.v2 as imageio
 import pytest
 
-from so101_kinematics.markers import png_ours
+from so101_kinematics.markers import mp4_ours, png_ours
 from so101_kinematics.throwing.ball import BALLS
 from so101_kinematics.throwing.throw_scene import build_throw_model
 from so101_kinematics.throwing.throw_trials import (
@@ -14,6 +15,7 @@ from so101_kinematics.throwing.throw_trials import (
     cup_positions,
     run_throws,
     save_picture,
+    save_video,
 )
 
 BALL = BALLS["pingpong"]
@@ -40,3 +42,13 @@ def test_a_picture_of_a_throw_is_ours(tmp_path):
     path = tmp_path / "throw.png"
     trial = save_picture(path, m, BALL, (0.35, 0.05))
     assert png_ours(path) and trial["in_cup"]
+
+
+def test_a_video_of_a_throw_is_ours_and_plays_in_real_time(tmp_path):
+    m = build_throw_model(BALL)
+    path = tmp_path / "throw.mp4"
+    trial = save_video(path, m, BALL, (0.35, 0.05))
+    assert mp4_ours(path)
+    frames = imageio.get_reader(str(path)).count_frames()
+    # from the wind-up to AFTER_TOUCH_S after the first touch, at 30 frames/s
+    assert frames >= 30 * (trial["release_s"] + trial["flight_s"])
