@@ -105,7 +105,7 @@ class ThrowRun:
         return self.open_at is not None and t >= self.start + self.open_at - 1e-9
 
     def run(self, until: float, record=None) -> None:
-        """Run to ``until`` [s] of simulation time; ``record(flight)`` after each physics step."""
+        """Run to ``until`` [s] of simulation time; ``record(self)`` after each physics step."""
         d = self.d
         while d.time < until - 1e-9:
             send_position_command(d, self.command(d.time))
