@@ -660,6 +660,23 @@ MUTANTS: list[Mutant] = [
       "period_late",
       "tests/drawing/test_light_paint.py::test_a_120_mm_star_within_2_mm_and_even_within_20_"
       "percent"),
+    # --- the throw (issue 38) -----------------------------------------------------------------
+    m("throwing_no_drag_in_simulator", "the simulator's ball flies without the model's drag: "
+      "the comparison of model and landing is no longer like for like",
+      "so101_kinematics/throwing/throw_scene.py", "Flight.step",
+      "d.xfrc_applied[self.body, :3] = self.ball.drag_force(self.ball_state()[1])",
+      "d.xfrc_applied[self.body, :3] = 0.0",
+      "tests/throwing/test_throw_scene.py::test_the_simulated_flight_has_the_models_drag"),
+    m("throwing_opening_delay_ignored", "the gripper told to open at the timed release, not its "
+      "opening delay before: the ball leaves 0.15 s late and misses",
+      "so101_kinematics/throwing/throw_run.py", "throw_at",
+      "run = ThrowRun(m, ball, tuned, open_at=release_at - delay)",
+      "run = ThrowRun(m, ball, tuned, open_at=release_at)",
+      "tests/throwing/test_throw_run.py::test_a_throw_lands_in_the_cup_where_the_model_says"),
+    m("throwing_linear_drag", "the drag linear in the speed, not quadratic: the model's flight "
+      "is wrong at every speed but one", "so101_kinematics/throwing/ball.py", "_acceleration",
+      "a = -k * speed * v", "a = -k * v",
+      "tests/throwing/test_ball.py::test_a_ball_at_its_terminal_speed_keeps_it"),
 ]
 
 

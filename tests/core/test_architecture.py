@@ -11,7 +11,7 @@ PACKAGE = Path(__file__).resolve().parents[2] / "so101_kinematics"
 COURSE_FILES = {"so101_forward_kinematics", "so101_mujoco_utils", "so101_inverse_kinematics",
                 "test_fk_mujoco", "test_ik_mujoco", "test_trajectory_mujoco", "pick_place_sim",
                 "pick_place_hw", "read_position", "virtual_so101", "so101_utils", "see_and_pick",
-                "follow_tag", "calibrate_camera", "draw", "light_paint"}
+                "follow_tag", "calibrate_camera", "draw", "light_paint", "throw"}
 MAY_IMPORT = {
     "core": {"core", "ik"},
     "ik": {"core", "ik"},
@@ -21,16 +21,19 @@ MAY_IMPORT = {
     "virtual": {"core", "sensors", "sim", "virtual"},
     "vision": {"core", "ik", "sensors", "sim", "vision"},
     "drawing": {"core", "ik", "sensors", "sim", "vision", "drawing"},
-    "lab": {"core", "ik", "sensors", "sim", "hw", "virtual", "vision", "drawing", "lab"},
-    "commands": {"core", "ik", "sensors", "sim", "hw", "virtual", "vision", "drawing", "lab",
-                 "commands"},
+    "throwing": {"core", "ik", "sensors", "sim", "throwing"},
+    "lab": {"core", "ik", "sensors", "sim", "hw", "virtual", "vision", "drawing", "throwing",
+            "lab"},
+    "commands": {"core", "ik", "sensors", "sim", "hw", "virtual", "vision", "drawing",
+                 "throwing", "lab", "commands"},
 }
 """Layer -> the layers it may import. hw and virtual are interchangeable backends: neither
 imports the other; the core imports no backend; sensors sit beside the core, under every
 backend (a sensor rides on a backend's transport, passed in); vision (cameras, tags, their
 poses) sits on the simulator, and neither backend imports it: the lab and the commands may;
 drawing (strokes, the pen's path, the simulator's ink, the light painting's exposure through
-a camera) sits on vision and the simulator;
+a camera) sits on vision and the simulator; throwing (the ball's flight, the release the
+servos reach, the throw) sits on the simulator;
 nothing imports the course's files."""
 
 
