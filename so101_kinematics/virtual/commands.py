@@ -182,6 +182,11 @@ class ParentCommands:
             return self.place_cube(*args)
         if name == "remove_cube":
             return self.remove_cube(*args)
+        if name == "place_target":  # drawn only in the cameras (virtual/camera_server.py)
+            if self.cameras is None:
+                raise ValueError("This virtual arm serves no camera: its target tag is drawn only "
+                                 "there. Fix: start it with --camera NAME --target X Y.")
+            return self.cameras.place_target(*args)
         if name == "joint_positions":
             return smu.get_configuration(self.m, self.d)
         if name == "commanded_positions":
