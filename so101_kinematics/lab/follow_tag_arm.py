@@ -121,6 +121,7 @@ class _Follower:
     def __init__(self, camera, K, dist, g_tc, seconds: float, tag=TARGET_TAG):
         self.camera, self.K, self.dist, self.g_tc = camera, K, dist, g_tc
         self.seconds, self.tag, self.height = seconds, tag, tag_height(tag)
+        self.refusing = False
         self.log = {"frames": 0, "seen_frames": 0, "held_frames": 0, "refused_frames": 0,
                     "stretched_frames": 0, "offset_px": [], "miss_mm": [], "refused": None}
 
@@ -143,8 +144,9 @@ class _Follower:
         return stamp
 
     def _refuse(self, session, why: str) -> None:
-        if self.log["refused"] != why:
+        if not self.refusing:  # once a refusal begins
             logger.warning("Not following: %s", why)
+        self.refusing = True
         self.log["refused"] = why
         self.log["refused_frames"] += 1
         session.hold(1.0 / FOLLOW_RATE, step=FOLLOW_STEP)
@@ -164,7 +166,7 @@ class _Follower:
                 session.hold(1.0 / FOLLOW_RATE, step=FOLLOW_STEP)
                 continue
             tag = tracker.predicted(now)
-            why = out_of_reach(tag, self.g_tc)
+            why = out_of_reach(tag, self.g_tc, self.height)
             if why is not None:
                 self._refuse(session, why)
                 continue
@@ -179,6 +181,7 @@ class _Follower:
             except (JointLimitError, ClearanceError) as error:  # refused before anything sent
                 self._refuse(session, str(error))
                 continue
+            self.refusing = False
             self.log["stretched_frames"] += move.duration > move.requested + 1e-9
 
 

@@ -265,9 +265,12 @@ def follow_reach(g_tc: np.ndarray, height: float = TAG_THICKNESS) -> tuple[float
     return _reach(np.ascontiguousarray(g_tc, dtype=float).tobytes(), float(height))
 
 
-def out_of_reach(tag: np.ndarray, g_tc: np.ndarray) -> str | None:
-    """Why the follower does not follow ``tag`` [m] (one line), or None when it does."""
-    near, far = follow_reach(g_tc, float(tag[2]))
+def out_of_reach(tag: np.ndarray, g_tc: np.ndarray, height: float = TAG_THICKNESS) -> str | None:
+    """Why the follower does not follow ``tag`` [m] (one line), or None when it does.
+
+    ``height``: the tag's face above the base frame [m], the one its reach was found at.
+    """
+    near, far = follow_reach(g_tc, height)
     offset = np.asarray(tag[:2]) - np.asarray(PAN_AXIS_POINT[:2])
     radius = float(np.hypot(*offset))
     bearing = math.degrees(math.atan2(offset[1], offset[0]))
