@@ -115,8 +115,8 @@ error or a run aborted (the arm's ending printed), 130 interrupted.""")
                      help=f"follow this long, {range_help(*DURATION_RANGE, 's')} (default 30)")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
-    return run_script(parser, argv, lambda args: _run(args, parser), refused=(OutputPathError, RenderError, VisionError,
-                                                   CalibrationError),
+    refused = (OutputPathError, RenderError, VisionError, CalibrationError)
+    return run_script(parser, argv, lambda args: _run(args, parser), refused=refused,
                       interrupted="nothing was written; existing output files are as they were.")
 
 

@@ -176,6 +176,8 @@ def execute(session: ArmSession, plan: Plan, start_pose: Configuration,
         start_pose: the measured starting pose (inside the calibrated range).
         return_on_abort: after an abort, move slowly back to ``start_pose``
             when the whole arm answers (else hold where it stopped).
+        then: a closed loop run after the plan's steps, before its return, given the
+            session: it moves through ``session.move`` and ``session.hold`` (their guards).
 
     Returns:
         The result. Torque is released only if the arm ended at ``start_pose``.

@@ -3,12 +3,12 @@
 The hardware half of ``see_and_pick.py --port PORT --camera ADDRESS``:
 
 1. **look**: one frame read by lerobot's own camera class (``lerobot_camera_so101_virtual``,
-   an ``OpenCVCamera`` for the virtual arm's served stream; ``vision/webcam.py``'s
-   ``Webcam`` for a device, ``/dev/videoN`` or an index), the tags found by the one
-   detection path (``vision/detect.py``) and laid on the table by ``detect.flat_pose`` with
-   the camera's ``K``, distortion and pose. Those are the model's camera (``camera_model``,
-   default ``overhead``: exact for the virtual arm, whose camera is the model's), or a real
-   camera's from the report ``calibrate_camera.py --photos DIR --mount fixed --json PATH``
+   an ``OpenCVCamera`` for the virtual arm's served stream, and lerobot's ``OpenCVCamera`` for
+   a device, ``/dev/videoN`` or an index, both as ``vision/webcam.py``'s ``Webcam``), the
+   tags found by the one detection path (``vision/detect.py``) and laid on the table by
+   ``detect.flat_pose`` with the camera's ``K``, distortion and pose. Those are the model's
+   camera (``camera_model``, default ``overhead``: exact for the virtual arm, whose camera is
+   the model's), or a real camera's from the report ``calibrate_camera.py --photos DIR --mount fixed --json PATH``
    wrote (``camera_calibration``);
 2. **plan**: the course's Cartesian pick-and-place (``cartesian_plan``, what
    ``pick_place_hw.py --pick/--place`` runs) from the cube's seen position and yaw to the
@@ -47,8 +47,10 @@ TABLE_TOP_Z = 0.0  # [m] the table top in the base frame (the lab's mount: --bas
 
 
 def tag_height(tag) -> float:
-    """[m] The face of ``tag`` lying flat in the base frame: the cube's on its top, the target's
-    on the table."""
+    """[m] The height of ``tag``'s face, lying flat, in the base frame.
+
+    The cube's tag on the top of a cube resting on the table, the target's on the table.
+    """
     cube_top = 2 * CUBE_HALF_SIZE if tag.name == CUBE_TAG.name else 0.0
     return TABLE_TOP_Z + cube_top + TAG_THICKNESS
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from so101_kinematics.errors import VisionError
 
-__all__ = ["Webcam", "is_device", "load_calibration", "load_camera_in_base",
+__all__ = ["Webcam", "load_calibration", "load_camera_in_base",
            "load_camera_in_gripper", "open_camera"]
 
 LEROBOT_FIX = "install the hardware extra (pip install -e '.[hw]')"
@@ -95,19 +95,16 @@ def load_camera_in_gripper(path: str | Path) -> np.ndarray:
                             "wrist camera's pose in the gripper frame")
 
 
-def is_device(address: str) -> bool:
-    """Whether ``address`` names a camera device (an index, ``/dev/videoN``), not a stream."""
-    return address.isdigit() or address.startswith("/dev/")
-
-
 def _is_stream(source) -> bool:
     return isinstance(source, str) and source.startswith(("http://", "https://"))
 
 
 def open_camera(address: str, width: int = 640, height: int = 480,
                 calibration: str | Path | None = None, max_age: float = 0.5) -> Webcam:
-    """The camera at ``address`` (an index, ``/dev/videoN``, a virtual arm's ``http://``
-    stream, a video file) opened by lerobot's camera class, as a :class:`Webcam`."""
+    """The camera at ``address`` opened by lerobot's camera class, as a :class:`Webcam`.
+
+    ``address``: an index, ``/dev/videoN``, a virtual arm's ``http://`` stream, a video file.
+    """
     source = int(address) if address.isdigit() else address
     return Webcam(source, width, height, calibration=calibration, max_age=max_age)
 

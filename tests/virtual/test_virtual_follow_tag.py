@@ -39,8 +39,8 @@ from so101_kinematics.calibration import load_calibration  # noqa: E402
 from so101_kinematics.fast_fk import forward_kinematics  # noqa: E402
 from so101_kinematics.frames import ARM_JOINTS  # noqa: E402
 from so101_kinematics.hw.run import ending  # noqa: E402
-from so101_kinematics.lab.follow_tag_arm import FOLLOW_STEP, follow_on_arm, wrist_view  # noqa: E402
 from so101_kinematics.ik.geometry import PAN_AXIS_POINT  # noqa: E402
+from so101_kinematics.lab.follow_tag_arm import FOLLOW_STEP, follow_on_arm, wrist_view  # noqa: E402
 from so101_kinematics.servo import COUNTS_PER_TURN  # noqa: E402
 from so101_kinematics.virtual.arm import VirtualSO101  # noqa: E402
 from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH  # noqa: E402
