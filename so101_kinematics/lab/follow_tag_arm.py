@@ -63,13 +63,13 @@ from so101_kinematics.vision.webcam import (
     open_camera,
 )
 
-__all__ = ["APPROACH_S", "FOLLOW_STEP", "LOOK_AT", "follow_on_arm", "look_plan", "wrist_view"]
+__all__ = ["LOOK_MOVE_S", "FOLLOW_STEP", "LOOK_AT", "follow_on_arm", "look_plan", "wrist_view"]
 
 logger = logging.getLogger(__name__)
 
 LOOK_AT = TagPath().centre
 """(x, y) [m] where the arm first looks for the tag: the simulator's tag path's centre."""
-APPROACH_S = 3.0
+LOOK_MOVE_S = 3.0
 """[s] The move to the look pose and the return from it (the speed cap may stretch them)."""
 FOLLOW_STEP = "follow"
 """The cycles' step name while following (and holding) in the run's log."""
@@ -111,8 +111,8 @@ def wrist_view(size: Sequence[int] = (640, 480), camera_calibration=None
 def look_plan(g_tc: np.ndarray, height: float) -> Plan:
     """To the pose that sees :data:`LOOK_AT` at the image's centre, then back at the end."""
     cfg = look_configuration(HOME_POSE, g_tc, np.array([*LOOK_AT, height]))
-    return Plan([Step("look", {**cfg, "gripper": GRIPPER_CLOSED}, APPROACH_S, 0.5)],
-                return_to_start=True, return_duration=APPROACH_S)
+    return Plan([Step("look", {**cfg, "gripper": GRIPPER_CLOSED}, LOOK_MOVE_S, 0.5)],
+                return_to_start=True, return_duration=LOOK_MOVE_S)
 
 
 class _Follower:

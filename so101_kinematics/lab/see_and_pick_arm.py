@@ -8,8 +8,8 @@ The hardware half of ``see_and_pick.py --port PORT --camera ADDRESS``:
    tags found by the one detection path (``vision/detect.py``) and laid on the table by
    ``detect.flat_pose`` with the camera's ``K``, distortion and pose. Those are the model's
    camera (``camera_model``, default ``overhead``: exact for the virtual arm, whose camera is
-   the model's), or a real camera's from the report ``calibrate_camera.py --photos DIR --mount fixed --json PATH``
-   wrote (``camera_calibration``);
+   the model's), or a real camera's from the report
+   ``calibrate_camera.py --photos DIR --mount fixed --json PATH`` wrote (``camera_calibration``);
 2. **plan**: the course's Cartesian pick-and-place (``cartesian_plan``, what
    ``pick_place_hw.py --pick/--place`` runs) from the cube's seen position and yaw to the
    target tag's;
