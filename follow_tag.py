@@ -17,7 +17,15 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number, range_help, run_script
-from so101_kinematics.errors import CalibrationError, OutputPathError, RenderError, VisionError
+from so101_kinematics.errors import (
+    CalibrationError,
+    ConnectionFailed,
+    InputError,
+    LerobotMissing,
+    OutputPathError,
+    RenderError,
+    VisionError,
+)
 from so101_kinematics.outputs import (
     MP4,
     add_overwrite_argument,
@@ -115,7 +123,8 @@ error or a run aborted (the arm's ending printed), 130 interrupted.""")
                      help=f"follow this long, {range_help(*DURATION_RANGE, 's')} (default 30)")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
-    refused = (OutputPathError, RenderError, VisionError, CalibrationError)
+    refused = (InputError, RenderError, VisionError, CalibrationError, ConnectionFailed,
+               LerobotMissing)  # a run on an arm refused before anything moved: one line
     return run_script(parser, argv, lambda args: _run(args, parser), refused=refused,
                       interrupted="nothing was written; existing output files are as they were.")
 

@@ -194,3 +194,27 @@ def test_options_that_do_not_go_together_are_one_line_and_exit_2(argv, says, cap
     assert follow_tag.main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and says in err, err
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_following_ends_as_every_run_back_at_the_start_and_released(capsys):
+    import os
+    import signal
+
+    with VirtualSO101(target=(*START, 0.0), cameras=["wrist"]) as arm:
+        # the look step takes about 5 s (the camera, the reach, the move): by 8 s it follows
+        timer = threading.Timer(8.0, os.kill, (os.getpid(), signal.SIGINT))
+        timer.start()
+        t0 = time.perf_counter()
+        try:
+            code = follow_tag.main(["--port", arm.port, "--camera", arm.camera_addresses["wrist"],
+                                    "--seconds", "30"])
+        finally:
+            timer.cancel()
+        took = time.perf_counter() - t0
+        torque = arm.torque_enabled()
+    err = capsys.readouterr().err
+    assert code == 1 and took < 20.0, err
+    assert "Stopping (Ctrl-C)" in err
+    assert err.strip().splitlines()[-1] == "Back at the starting pose, torque off."
+    assert not any(torque.values()), torque
