@@ -218,3 +218,10 @@ def test_ctrl_c_while_following_ends_as_every_run_back_at_the_start_and_released
     assert "Stopping (Ctrl-C)" in err
     assert err.strip().splitlines()[-1] == "Back at the starting pose, torque off."
     assert not any(torque.values()), torque
+
+
+def test_the_target_tag_moves_only_on_an_arm_that_draws_it():
+    with VirtualSO101() as arm, pytest.raises(ValueError) as error:
+        arm.place_target(0.24, 0.02)
+    message = str(error.value)
+    assert "\n" not in message and "Fix: start it with --camera NAME --target X Y" in message
