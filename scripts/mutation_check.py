@@ -632,6 +632,18 @@ MUTANTS: list[Mutant] = [
       "if camera_calibration is not None:", "if False:",
       "tests/virtual/test_virtual_see_and_pick.py::"
       "test_a_camera_calibration_file_is_the_camera_the_arm_sees_by"),
+    m("follow_arm_moves_on_a_lost_tag", "the follower on the arm keeps moving on an old "
+      "sighting: a hidden tag's last pose, predicted on at its velocity, drives the arm",
+      "so101_kinematics/lab/follow_tag_arm.py", "_Follower.__call__",
+      "if tracker.age(now) > FOLLOW_POSE_AGE:", "if False:",
+      "tests/virtual/test_virtual_follow_tag.py::"
+      "test_a_hidden_tag_leaves_the_arm_holding_torqued_where_it_was"),
+    m("follow_arm_reach_unchecked", "the follower on the arm chases a tag out of its reach "
+      "(the arm folds towards a pose it cannot take) instead of holding",
+      "so101_kinematics/lab/follow_tag_arm.py", "_Follower.__call__",
+      "if why is not None:", "if False:",
+      "tests/virtual/test_virtual_follow_tag.py::"
+      "test_a_tag_out_of_reach_is_refused_and_the_arm_holds"),
     # --- the drawing (issue 37) ---------------------------------------------------------------
     m("drawing_lead_behind", "the servo's lag led the wrong way (the plan minus tau v): the pen "
       "trails twice as far", DRAW_PLAN, "lead_commands", "led = q + tau * rate",

@@ -166,7 +166,8 @@ def after_abort(session: ArmSession, error: BaseException, start_pose: Configura
 
 
 def execute(session: ArmSession, plan: Plan, start_pose: Configuration,
-            return_on_abort: bool = True) -> RunResult:
+            return_on_abort: bool = True,
+            then: Callable[[ArmSession], None] | None = None) -> RunResult:
     """Run a validated plan on a torqued arm; every ending is a controlled one.
 
     Args:
@@ -175,6 +176,8 @@ def execute(session: ArmSession, plan: Plan, start_pose: Configuration,
         start_pose: the measured starting pose (inside the calibrated range).
         return_on_abort: after an abort, move slowly back to ``start_pose``
             when the whole arm answers (else hold where it stopped).
+        then: a closed loop run after the plan's steps, before its return, given the
+            session: it moves through ``session.move`` and ``session.hold`` (their guards).
 
     Returns:
         The result. Torque is released only if the arm ended at ``start_pose``.
@@ -191,7 +194,8 @@ def execute(session: ArmSession, plan: Plan, start_pose: Configuration,
 
     try:
         with gc_frozen(), stop_on_signals(session):
-            run_plan(plan, session.move, session.hold, initial=start_pose, on_step=on_step)
+            run_plan(plan, session.move, session.hold, initial=start_pose, on_step=on_step,
+                     then=None if then is None else lambda: then(session))
         result.returned_to_start = plan.return_to_start
     except (Exception, KeyboardInterrupt) as error:
         after_abort(session, error, start_pose, return_on_abort, result, plan)
@@ -302,7 +306,8 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
                on_cycle: Callable[[ArmSession, Cycle], None] | None = None,
                on_start: Callable[[Configuration, float], None] | None = None,
                gravity_ff: bool = True, base_height: float = 0.0,
-               velocity_ff: bool = False) -> RunResult:
+               velocity_ff: bool = False,
+               then: Callable[[ArmSession], None] | None = None) -> RunResult:
     """The whole hardware run: check, connect, confirm, torque on, run, return, torque off.
 
     Nothing is sent to the servos' goal registers and torque stays off until
@@ -329,6 +334,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
         gravity_ff: offset each goal by the sag the servos will have (``hw/feedforward.py``).
         base_height: the table is this far below the base frame [m]: no move goes into it.
         velocity_ff: lead each goal by the servos' lag x the planned velocity (``hw/lead.py``).
+        then: a closed loop after the plan's steps, before the return (see :func:`execute`).
 
     Raises:
         CalibrationError, PlanError, ConnectionFailed, LerobotMissing, NotConfirmed:
@@ -359,7 +365,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
             session.feedforward = feedforward = read_feedforward(bus, gravity_ff)
             session.velocity_lead = VelocityLead.for_feedforward(feedforward, velocity_ff)
             with_retries(lambda b: torque_on_in_place(b, feedforward, trims.to_wire(start)), bus)
-        return execute(session, plan, start, return_on_abort=return_on_abort)
+        return execute(session, plan, start, return_on_abort=return_on_abort, then=then)
     except MotionAborted:
         raise
     except BaseException:

@@ -3,13 +3,13 @@
 The hardware half of ``see_and_pick.py --port PORT --camera ADDRESS``:
 
 1. **look**: one frame read by lerobot's own camera class (``lerobot_camera_so101_virtual``,
-   an ``OpenCVCamera`` for the virtual arm's served stream; ``vision/webcam.py``'s
-   ``Webcam`` for a device, ``/dev/videoN`` or an index), the tags found by the one
-   detection path (``vision/detect.py``) and laid on the table by ``detect.flat_pose`` with
-   the camera's ``K``, distortion and pose. Those are the model's camera (``camera_model``,
-   default ``overhead``: exact for the virtual arm, whose camera is the model's), or a real
-   camera's from the report ``calibrate_camera.py --photos DIR --mount fixed --json PATH``
-   wrote (``camera_calibration``);
+   an ``OpenCVCamera`` for the virtual arm's served stream, and lerobot's ``OpenCVCamera`` for
+   a device, ``/dev/videoN`` or an index, both as ``vision/webcam.py``'s ``Webcam``), the
+   tags found by the one detection path (``vision/detect.py``) and laid on the table by
+   ``detect.flat_pose`` with the camera's ``K``, distortion and pose. Those are the model's
+   camera (``camera_model``, default ``overhead``: exact for the virtual arm, whose camera is
+   the model's), or a real camera's from the report
+   ``calibrate_camera.py --photos DIR --mount fixed --json PATH`` wrote (``camera_calibration``);
 2. **plan**: the course's Cartesian pick-and-place (``cartesian_plan``, what
    ``pick_place_hw.py --pick/--place`` runs) from the cube's seen position and yaw to the
    target tag's;
@@ -36,38 +36,29 @@ from so101_kinematics.sim.cube import build_model
 from so101_kinematics.sim.tag_textures import CUBE_TAG, TAG_THICKNESS, TARGET_TAG
 from so101_kinematics.vision.camera_model import camera_intrinsics, get_camera_pose_base
 from so101_kinematics.vision.detect import find_tag, flat_pose, no_tag_message
-from so101_kinematics.vision.webcam import Webcam, load_calibration, load_camera_in_base
+from so101_kinematics.vision.webcam import load_calibration, load_camera_in_base, open_camera
 
-__all__ = ["ARM_PLACE_TOLERANCE", "camera_view", "is_device", "look_through_lerobot",
-           "read_lerobot_frame", "see_and_pick_on_arm"]
+__all__ = ["ARM_PLACE_TOLERANCE", "camera_view", "look_through_lerobot",
+           "read_lerobot_frame", "see_and_pick_on_arm", "tag_height"]
 
 ARM_PLACE_TOLERANCE = 0.010
 """[m] placed: the cube's centre this near the target tag's (the course's arm figure)."""
 TABLE_TOP_Z = 0.0  # [m] the table top in the base frame (the lab's mount: --base-height)
 
 
-def is_device(address: str) -> bool:
-    """Whether ``address`` names a camera device (an index, ``/dev/videoN``), not a stream."""
-    return address.isdigit() or address.startswith("/dev/")
+def tag_height(tag) -> float:
+    """[m] The height of ``tag``'s face, lying flat, in the base frame.
+
+    The cube's tag on the top of a cube resting on the table, the target's on the table.
+    """
+    cube_top = 2 * CUBE_HALF_SIZE if tag.name == CUBE_TAG.name else 0.0
+    return TABLE_TOP_Z + cube_top + TAG_THICKNESS
 
 
 def read_lerobot_frame(address: str, size: Sequence[int] = (640, 480)) -> np.ndarray:
     """One RGB frame of the camera at ``address``, read by lerobot's own camera class."""
-    if is_device(address):
-        with Webcam(int(address) if address.isdigit() else address, *size) as webcam:
-            return webcam.read()
-    from lerobot.cameras.utils import make_cameras_from_configs
-
-    import lerobot_camera_so101_virtual  # noqa: F401 - registers the camera type
-    from lerobot_camera_so101_virtual import SO101VirtualCameraConfig
-
-    config = SO101VirtualCameraConfig(address=address, width=size[0], height=size[1], fps=30)
-    camera = make_cameras_from_configs({"see_and_pick": config})["see_and_pick"]
-    camera.connect()
-    try:
+    with open_camera(address, *size) as camera:
         return camera.read()
-    finally:
-        camera.disconnect()
 
 
 def camera_view(camera: str = "overhead", size: Sequence[int] = (640, 480),
@@ -101,14 +92,12 @@ def look_through_lerobot(address: str, camera: str = "overhead",
     """
     K, dist, g_bc = camera_view(camera, size, camera_calibration)
     image = read_lerobot_frame(address, size)
-    heights = {CUBE_TAG.name: TABLE_TOP_Z + 2 * CUBE_HALF_SIZE + TAG_THICKNESS,
-               TARGET_TAG.name: TABLE_TOP_Z + TAG_THICKNESS}
     poses = {}
     for tag in tags:
         seen = find_tag(image, K, tag, dist)
         if seen is None:
             raise TagNotInView(no_tag_message(tag, camera))
-        poses[tag.name] = flat_pose(seen, K, g_bc, heights[tag.name], dist)
+        poses[tag.name] = flat_pose(seen, K, g_bc, tag_height(tag), dist)
     return poses
 
 

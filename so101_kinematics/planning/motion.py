@@ -122,6 +122,7 @@ def run_plan(
     hold_position: Callable[[float], None],
     initial: Mapping[str, float] | None = None,
     on_step: Callable[[Step], None] | None = None,
+    then: Callable[[], None] | None = None,
 ) -> None:
     """Execute a validated plan through a backend.
 
@@ -131,6 +132,8 @@ def run_plan(
         hold_position: ``hold_position(duration)`` of the backend.
         initial: the pose to return to at the end (if ``plan.return_to_start``).
         on_step: called with each step before it starts (progress reporting).
+        then: called after the steps, before the return: a closed loop that moves through
+            the same backend (the tag follower, ``lab/follow_tag_arm.py``).
     """
     for step in plan.steps:
         if on_step is not None:
@@ -138,6 +141,8 @@ def run_plan(
         move_to_pose(step.configuration, step.duration)
         if step.hold > 0:
             hold_position(step.hold)
+    if then is not None:
+        then()
     if plan.return_to_start and initial is not None:
         if on_step is not None:
             on_step(Step("return_to_start", dict(initial), plan.return_duration, 0.0))

@@ -331,6 +331,19 @@ class VirtualSO101:
         """Take cube ``index`` off the table (the sensor then reports none there)."""
         self._call("remove_cube", index)
 
+    def place_target(self, x: float, y: float, yaw_deg: float = 0.0) -> None:
+        """Move the target tag (``target=``; drawn in the cameras) to (x, y) [m], ``yaw_deg``.
+
+        Raises:
+            ValueError: no target tag or no camera (start with ``target=`` and ``cameras=``).
+        """
+        x, y, yaw_deg = check_target_position((x, y, yaw_deg))
+        self._call("place_target", x, y, yaw_deg)
+
+    def hide_target(self) -> None:
+        """Hide the target tag from the cameras (as a hand over it); ``place_target`` shows it."""
+        self._call("place_target", 0.0, 0.0, 0.0, True)
+
     def inject(self, spec: str) -> None:
         """Inject faults (grammar in the module docstring), e.g. ``"drop:3:5,corrupt:2"``."""
         self._call("inject", parse_faults(spec, self.calibration))

@@ -25,9 +25,11 @@ from collections.abc import Sequence
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 import mujoco
+import numpy as np
 
 from so101_kinematics.errors import OpenCVMissing, RenderSettingError
 from so101_kinematics.sim.render import FrameRenderer, check_camera
+from so101_kinematics.sim.tag_textures import TARGET_TAG, tag_geom_name
 
 __all__ = ["CAMERA_FPS", "CameraServer", "JPEG_QUALITY", "check_camera_fps", "require_cv2"]
 
@@ -38,6 +40,7 @@ CAMERA_FPS = 30.0
 JPEG_QUALITY = 90
 """cv2.imencode's JPEG quality (0-100): a webcam's MJPG mode looks about like this."""
 BOUNDARY = "so101frame"
+HIDDEN_DEPTH = 0.5  # [m] a hidden target tag this far under the table: out of every view
 STALL_S = 5.0  # [s] a stream with no new frame for this long ends (the emulator stopped)
 
 
@@ -103,6 +106,7 @@ class CameraServer:
         self._frames: dict[str, tuple[int, bytes]] = {}  # name -> (number, JPEG)
         self.stats = {"frames": 0, "render_s": 0.0, "skipped": 0, "latency_s": 0.0}
         self._ready: list = []
+        self._table_z: float | None = None  # the target tag's height (place_target)
         self._renderer_thread = threading.Thread(target=self._render_loop, name="cameras",
                                                  daemon=True)
         self._renderer_thread.start()
@@ -138,6 +142,25 @@ class CameraServer:
         with self._cond:
             self._cond.notify_all()
         self._renderer_thread.join(5)
+
+    def place_target(self, x: float, y: float, yaw_deg: float = 0.0, hidden: bool = False) -> None:
+        """Lay the target tag (drawn in the cameras only) at (x, y) [m], turned ``yaw_deg`` [deg].
+
+        ``hidden``: under the table, out of every camera's view (a hand over the tag).
+
+        Raises:
+            ValueError: the arm was started without the target tag (one line, the fix).
+        """
+        name = tag_geom_name(TARGET_TAG)
+        body = mujoco.mj_name2id(self.render_model, mujoco.mjtObj.mjOBJ_BODY, name)
+        if body < 0:
+            raise ValueError("This virtual arm has no target tag. Fix: start it with --target X "
+                             "Y (and --camera NAME: the tag is drawn in its cameras).")
+        if self._table_z is None:
+            self._table_z = float(self.render_model.body_pos[body, 2])
+        half = np.radians(yaw_deg) / 2
+        self.render_model.body_quat[body] = [np.cos(half), 0.0, 0.0, np.sin(half)]
+        self.render_model.body_pos[body] = [x, y, self._table_z - (HIDDEN_DEPTH if hidden else 0)]
 
     def camera_stats(self) -> dict[str, float]:
         """Frames drawn and skipped, mean render + encode time and state-to-frame latency [ms]."""

@@ -173,15 +173,20 @@ class ParentCommands:
         self.cubes_removed = set(getattr(self, "cubes_removed", ())) | {index}
         self.mujoco.mj_forward(self.m, self.d)
 
+    def place_target(self, x: float, y: float, yaw_deg: float = 0.0, hidden: bool = False) -> None:
+        """Lay the target tag at (x, y) [m], turned ``yaw_deg``, or hide it (the cameras')."""
+        if self.cameras is None:
+            raise ValueError("This virtual arm serves no camera: its target tag is drawn only "
+                             "there. Fix: start it with --camera NAME --target X Y.")
+        self.cameras.place_target(x, y, yaw_deg, hidden)
+
     def command(self, name: str, args: tuple):
         """Answer one command of the parent process (``VirtualSO101``'s methods)."""
         smu = self.smu
         if name == "cube":
             return cube_sensor.decode(self.cube_reading(*args))
-        if name == "place_cube":
-            return self.place_cube(*args)
-        if name == "remove_cube":
-            return self.remove_cube(*args)
+        if name in ("place_cube", "remove_cube", "place_target"):
+            return getattr(self, name)(*args)
         if name == "joint_positions":
             return smu.get_configuration(self.m, self.d)
         if name == "commanded_positions":

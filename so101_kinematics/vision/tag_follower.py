@@ -30,6 +30,7 @@ optical axis meets the table from the tag's centre [mm].
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import asdict, dataclass, field
@@ -38,6 +39,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.errors import VisionError
 from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINT_RANGES_RAD
@@ -55,8 +57,9 @@ from so101_kinematics.vision.tags import get_tag_pose_base
 
 __all__ = [
     "DAMPING", "FOLLOW_CAMERA", "FOLLOW_POSE_AGE", "FOLLOW_RATE", "GAIN", "HEIGHT", "LOOK_TILT",
-    "PATHS", "SPEED_RANGE", "TagPath", "camera_goal", "camera_in_tool", "camera_task", "follow",
-    "follower_model", "resolved_rate_step",
+    "PATHS", "REACH_MARGIN", "SPEED_RANGE", "TagPath", "TagTracker", "camera_goal",
+    "camera_in_tool", "camera_task", "follow", "follow_reach", "follower_model",
+    "look_configuration", "out_of_reach", "resolved_rate_step",
 ]
 
 FOLLOW_CAMERA = "wrist"
@@ -79,6 +82,9 @@ VELOCITY_SMOOTHING = 0.25
 PATHS = ("circle", "line")
 SPEED_RANGE = (0.0, 0.08)
 """[m/s] Speeds a tag may slide at (the lab's 2 to 5 cm/s, and some margin)."""
+REACH_MARGIN = 0.01
+"""[m] A tag is followed only this far inside the reach (:func:`follow_reach`): never on the
+arm's stretched or folded edge, where a step turns the joints fast."""
 HIDDEN_Z = -0.5
 """[m] Where a hidden tag goes: under the table, out of every camera's view."""
 DOWN = np.array([0.0, 0.0, -1.0])
@@ -203,8 +209,15 @@ def camera_goal(tag: np.ndarray, g_tc: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return tag - axis * HEIGHT / math.cos(tilt), axis
 
 
-def _settle(cfg, g_tc: np.ndarray, tag: np.ndarray, cycles: int = 300) -> dict[str, float]:
-    """The configuration that sees ``tag`` as :func:`camera_goal` says (the step, iterated)."""
+def look_configuration(cfg, g_tc: np.ndarray, tag: np.ndarray,
+                       cycles: int = 300) -> dict[str, float]:
+    """The configuration [deg] that sees ``tag`` [m] as :func:`camera_goal` says.
+
+    The resolved-rate step iterated from ``cfg`` turned top-down (on the jaws-across branch).
+
+    Raises:
+        VisionError: the camera cannot get there (the tag is out of the follower's reach).
+    """
     cfg = dict(cfg, wrist_flex=90.0, wrist_roll=0.0)  # top-down, on the jaws-across branch
     goal = camera_goal(tag, g_tc)
     for _ in range(cycles):
@@ -217,8 +230,61 @@ def _settle(cfg, g_tc: np.ndarray, tag: np.ndarray, cycles: int = 300) -> dict[s
     return cfg
 
 
+def _reaches(g_tc: np.ndarray, radius: float, height: float) -> bool:
+    try:
+        look_configuration(HOME_POSE, g_tc, np.array([PAN_AXIS_POINT[0] + radius, 0.0,
+                                                         height]))
+    except VisionError:
+        return False
+    return True
+
+
+@functools.lru_cache(maxsize=8)
+def _reach(mount: bytes, height: float) -> tuple[float, float]:
+    g_tc = np.frombuffer(mount).reshape(4, 4)
+    inner = (0.05, 0.24)  # [m] from the pan axis: out of reach, then in (bisected)
+    outer = (0.24, 0.45)  # in reach, then out
+    for _ in range(12):  # to 0.05 mm
+        middle = sum(inner) / 2
+        inner = (middle, inner[1]) if not _reaches(g_tc, middle, height) else (inner[0], middle)
+        middle = sum(outer) / 2
+        outer = (middle, outer[1]) if _reaches(g_tc, middle, height) else (outer[0], middle)
+    return inner[1] + REACH_MARGIN, outer[0] - REACH_MARGIN
+
+
+def follow_reach(g_tc: np.ndarray, height: float = TAG_THICKNESS) -> tuple[float, float]:
+    """The tag's distance from the pan axis [m] the follower follows at: (nearest, farthest).
+
+    Where :func:`look_configuration` gets the camera to its goal (bisected along the arm's
+    plane; the goal turns with the pan, so every bearing alike), :data:`REACH_MARGIN` inside.
+
+    Args:
+        g_tc: the camera in the object frame (:func:`camera_in_tool`, or a calibration's).
+        height: the tag's face above the base frame [m] (on the table by default).
+    """
+    return _reach(np.ascontiguousarray(g_tc, dtype=float).tobytes(), float(height))
+
+
+def out_of_reach(tag: np.ndarray, g_tc: np.ndarray, height: float = TAG_THICKNESS) -> str | None:
+    """Why the follower does not follow ``tag`` [m] (one line), or None when it does.
+
+    ``height``: the tag's face above the base frame [m], the one its reach was found at.
+    """
+    near, far = follow_reach(g_tc, height)
+    offset = np.asarray(tag[:2]) - np.asarray(PAN_AXIS_POINT[:2])
+    radius = float(np.hypot(*offset))
+    bearing = math.degrees(math.atan2(offset[1], offset[0]))
+    pan = [math.degrees(v) for v in JOINT_RANGES_RAD["shoulder_pan"]]
+    if near <= radius <= far and pan[0] <= bearing <= pan[1]:
+        return None
+    return (f"the tag at ({tag[0]:.3f}, {tag[1]:.3f}) m is {radius * 100:.1f} cm from the "
+            f"shoulder_pan axis at {bearing:.0f} deg: the follower follows from {near * 100:.1f} "
+            f"to {far * 100:.1f} cm, at {pan[0]:.0f} to {pan[1]:.0f} deg; the arm holds. Fix: "
+            "move the tag nearer the middle of the reach, e.g. (0.24, 0) m.")
+
+
 @dataclass
-class _Tracker:
+class TagTracker:
     """The last sighting and the tag's smoothed velocity (what the controller knows)."""
 
     position: np.ndarray | None = None
@@ -226,6 +292,7 @@ class _Tracker:
     velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def update(self, position: np.ndarray, stamp: float) -> None:
+        """A sighting: the tag at ``position`` [m] in an image taken at ``stamp`` [s]."""
         if self.position is not None and 0.0 < stamp - self.stamp <= FOLLOW_POSE_AGE:
             seen = (position - self.position) / (stamp - self.stamp)
             self.velocity = (1 - VELOCITY_SMOOTHING) * self.velocity + VELOCITY_SMOOTHING * seen
@@ -234,7 +301,12 @@ class _Tracker:
         self.position, self.stamp = position, stamp
 
     def age(self, now: float) -> float:
+        """[s] How old the last sighting is at ``now``."""
         return now - self.stamp
+
+    def predicted(self, now: float) -> np.ndarray:
+        """[m] Where the tag is at ``now``: the last sighting moved on at the smoothed velocity."""
+        return self.position + self.velocity * self.age(now)
 
 
 def _truth(m, d, K) -> tuple[float, float]:
@@ -264,7 +336,7 @@ def _start(path: TagPath):
     g_tc = camera_in_tool(m, d)
     rest = scene.get_configuration(m, d)
     tag = np.array([*path.position(0.0), TAG_THICKNESS])
-    scene.set_initial_pose(d, dict(rest, **_settle(rest, g_tc, tag)))
+    scene.set_initial_pose(d, dict(rest, **look_configuration(rest, g_tc, tag)))
     stepping.hold_position(m, d, None, 0.5)  # the servos settle (their sag)
     return m, d, body, g_tc
 
@@ -343,7 +415,7 @@ def follow(path: TagPath, duration: float, *, effects: ImageEffects | None = WEB
 
 def _loop(m, d, body, g_tc, camera, path: TagPath, duration: float, viewer, inset) -> dict:
     """The control loop: see, want, step (or hold), one camera frame at a time; the log."""
-    tracker, t0, K = _Tracker(), d.time, camera.intrinsics()
+    tracker, t0, K = TagTracker(), d.time, camera.intrinsics()
     log = {"px": [], "mm": [], "lost": 0, "hidden": 0, "held": 0, "frames": 0,
            "first_held": None, "held_change": 0.0}
     held_at = None
@@ -377,7 +449,7 @@ def _loop(m, d, body, g_tc, camera, path: TagPath, duration: float, viewer, inse
             stepping.hold_position(m, d, viewer, dt)
             continue
         held_at = None
-        goal = camera_goal(tracker.position + tracker.velocity * tracker.age(d.time), g_tc)
+        goal = camera_goal(tracker.predicted(d.time), g_tc)
         cfg = resolved_rate_step(command, g_tc, goal, tracker.velocity,
                                  error=goal[0] - g_bc[:3, 3], dt=dt)
         stepping.move_to_pose(m, d, viewer, dict(command, **cfg), dt, profile="linear")

@@ -1,7 +1,9 @@
 """A real USB camera (or a recorded video) as a ``interfaces.Camera``, through lerobot.
 
 ``Webcam`` opens lerobot's ``OpenCVCamera`` (lerobot 0.4.4 and 0.6.1 both have a
-``fourcc`` setting: a device is asked for MJPG; a video file keeps its own codec). The
+``fourcc`` setting: a device is asked for MJPG; a video file keeps its own codec); a virtual
+arm's served camera (``http://...``) through its subclass ``so101_virtual``
+(``lerobot_camera_so101_virtual``), whose size is checked, not set. The
 colour order is handled once, by lerobot (``color_mode=RGB``): :meth:`Webcam.read`
 returns lerobot's image as it is. lerobot is imported only when a Webcam is made.
 
@@ -21,7 +23,8 @@ import numpy as np
 
 from so101_kinematics.errors import VisionError
 
-__all__ = ["Webcam", "load_calibration", "load_camera_in_base"]
+__all__ = ["Webcam", "load_calibration", "load_camera_in_base",
+           "load_camera_in_gripper", "open_camera"]
 
 LEROBOT_FIX = "install the hardware extra (pip install -e '.[hw]')"
 
@@ -48,6 +51,24 @@ def load_calibration(path: str | Path, width: int, height: int) -> tuple[np.ndar
     return K, dist
 
 
+def _load_mount_pose(path: str | Path, mount: str, key: str, where: str) -> np.ndarray:
+    """The 4x4 pose ``hand_eye.<mount>.<key>`` [m] of calibrate_camera.py's report."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise VisionError(f"camera calibration {path}: cannot read it ({exc!s}); give the "
+                          f"report calibrate_camera.py --photos DIR --json PATH wrote") from None
+    try:
+        g = np.asarray(data["hand_eye"][mount][key], dtype=float)
+    except (KeyError, TypeError, ValueError):
+        g = None
+    if g is None or g.shape != (4, 4) or not np.all(np.isfinite(g)):
+        raise VisionError(f"camera calibration {path}: no {where} in it; calibrate the "
+                          f"camera with calibrate_camera.py --photos DIR --mount {mount} --json "
+                          f"PATH (poses.csv beside the pictures)")
+    return g
+
+
 def load_camera_in_base(path: str | Path) -> np.ndarray:
     """The fixed camera's pose in the base frame ``g_bc`` (4x4 [m]) from a calibration report.
 
@@ -57,28 +78,43 @@ def load_camera_in_base(path: str | Path) -> np.ndarray:
     Raises:
         VisionError: a missing or malformed file, or one without the fixed camera's pose.
     """
-    try:
-        data = json.loads(Path(path).read_text())
-    except (OSError, ValueError) as exc:
-        raise VisionError(f"camera calibration {path}: cannot read it ({exc!s}); give the "
-                          f"report calibrate_camera.py --photos DIR --json PATH wrote") from None
-    try:
-        g_bc = np.asarray(data["hand_eye"]["fixed"]["camera_in_base"], dtype=float)
-    except (KeyError, TypeError, ValueError):
-        g_bc = None
-    if g_bc is None or g_bc.shape != (4, 4) or not np.all(np.isfinite(g_bc)):
-        raise VisionError(f"camera calibration {path}: no fixed camera's pose in the base frame "
-                          f"in it; calibrate the camera over the table with "
-                          f"calibrate_camera.py --photos DIR --mount fixed --json PATH "
-                          f"(poses.csv beside the pictures)")
-    return g_bc
+    return _load_mount_pose(path, "fixed", "camera_in_base",
+                            "fixed camera's pose in the base frame")
+
+
+def load_camera_in_gripper(path: str | Path) -> np.ndarray:
+    """The wrist camera's pose in the gripper frame (frame 5) ``g_gc`` (4x4 [m]).
+
+    The report is calibrate_camera.py's of the hand-eye calibration (``--mount wrist``,
+    with poses.csv).
+
+    Raises:
+        VisionError: a missing or malformed file, or one without the wrist camera's pose.
+    """
+    return _load_mount_pose(path, "wrist", "camera_in_gripper",
+                            "wrist camera's pose in the gripper frame")
+
+
+def _is_stream(source) -> bool:
+    return isinstance(source, str) and source.startswith(("http://", "https://"))
+
+
+def open_camera(address: str, width: int = 640, height: int = 480,
+                calibration: str | Path | None = None, max_age: float = 0.5) -> Webcam:
+    """The camera at ``address`` opened by lerobot's camera class, as a :class:`Webcam`.
+
+    ``address``: an index, ``/dev/videoN``, a virtual arm's ``http://`` stream, a video file.
+    """
+    source = int(address) if address.isdigit() else address
+    return Webcam(source, width, height, calibration=calibration, max_age=max_age)
 
 
 class Webcam:
     """A USB camera (index, ``/dev/videoN``) or a video file, read through lerobot.
 
     Args:
-        source: a device index, a device path or a video file.
+        source: a device index, a device path, a video file or a virtual arm's stream
+            (``http://127.0.0.1:PORT/NAME.mjpg``).
         width, height: the size asked for [px]; a camera giving another size is refused.
         fps: frames per second asked of a device (a file keeps its own).
         calibration: a calibration JSON (None: no intrinsics).
@@ -97,6 +133,15 @@ class Webcam:
         except ImportError:
             raise VisionError(f"Webcam needs lerobot: {LEROBOT_FIX}") from None
         self.name, self.width, self.height, self.max_age = str(source), width, height, max_age
+        self._K, self.dist = (load_calibration(calibration, width, height)
+                              if calibration is not None else (None, None))
+        if _is_stream(source):
+            from lerobot_camera_so101_virtual import SO101VirtualCamera, SO101VirtualCameraConfig
+
+            self._camera = SO101VirtualCamera(SO101VirtualCameraConfig(
+                address=source, width=width, height=height, fps=fps))
+            self._connect(source, warmup=True)  # the stream's first frames (1 s)
+            return
         is_file = isinstance(source, (str, Path)) and Path(source).is_file() \
             and not str(source).startswith("/dev/")
         where = source if isinstance(source, int) else Path(source)
@@ -108,14 +153,12 @@ class Webcam:
                                     width=None if is_file else width,
                                     height=None if is_file else height,
                                     fourcc=None if is_file else "MJPG")
-        self._K, self.dist = (load_calibration(calibration, width, height)
-                              if calibration is not None else (None, None))
         self._camera = OpenCVCamera(config)
         self._connect(source)
 
-    def _connect(self, source) -> None:
+    def _connect(self, source, warmup: bool = False) -> None:
         try:
-            self._camera.connect(warmup=False)
+            self._camera.connect(warmup=warmup)
         except ConnectionError:
             busy = " (is another program using it?)" if not isinstance(source, int) else ""
             raise VisionError(f"camera {source}: cannot open it{busy}; list the cameras with "
@@ -139,13 +182,25 @@ class Webcam:
         Raises:
             VisionError: no frame younger than ``max_age`` within ``max_age`` (a stale frame).
         """
+        return self.read_stamped()[0]
+
+    def read_stamped(self, newer_than: float | None = None) -> tuple[np.ndarray, float]:
+        """The newest frame (as :meth:`read`) and its capture time [s] (``perf_counter``).
+
+        Args:
+            newer_than: wait for a frame captured after this time [s] (the last one used).
+
+        Raises:
+            VisionError: no such frame younger than ``max_age`` within ``max_age``.
+        """
         cam, start = self._camera, time.perf_counter()
         while True:
             with cam.frame_lock:
                 frame, stamp = cam.latest_frame, cam.latest_timestamp
             now = time.perf_counter()
-            if frame is not None and stamp is not None and now - stamp <= self.max_age:
-                return np.ascontiguousarray(frame, dtype=np.uint8)
+            if frame is not None and stamp is not None and now - stamp <= self.max_age and (
+                    newer_than is None or stamp > newer_than):
+                return np.ascontiguousarray(frame, dtype=np.uint8), float(stamp)
             if now - start > self.max_age:
                 age = "none yet" if stamp is None else f"the newest is {now - stamp:.2f} s old"
                 raise VisionError(f"camera {self.name}: a stale frame ({age}, max_age "

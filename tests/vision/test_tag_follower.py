@@ -14,13 +14,20 @@ import numpy as np
 import pytest
 
 import follow_tag
+from so101_kinematics.constants import HOME_POSE
+from so101_kinematics.errors import VisionError
 from so101_kinematics.frames import ARM_JOINTS
 from so101_kinematics.ik.geometry import PAN_AXIS_POINT
 from so101_kinematics.vision.tag_follower import (
+    REACH_MARGIN,
     TagPath,
+    TagTracker,
     camera_goal,
     camera_task,
     follow,
+    follow_reach,
+    look_configuration,
+    out_of_reach,
     resolved_rate_step,
 )
 
@@ -68,6 +75,34 @@ def test_the_goal_sees_the_tag_at_the_centre_from_the_stated_height():
     along = tag - position  # the tag on the optical axis: at the image's centre
     np.testing.assert_allclose(np.cross(along, axis), 0.0, atol=1e-12)
     assert along @ axis > 0
+
+
+def test_the_reach_is_where_the_camera_gets_to_its_goal_kept_off_each_end():
+    near, far = follow_reach(G_TC)
+    bearing = math.radians(30.0)  # any bearing alike: the goal turns with the pan
+    out = np.array([math.cos(bearing), math.sin(bearing), 0.0])
+
+    def tag(radius):
+        return np.array([*PAN_AXIS_POINT[:2], 0.0]) + radius * out + [0.0, 0.0, 0.0002]
+
+    for radius in (near - REACH_MARGIN + 0.002, far + REACH_MARGIN - 0.002):
+        look_configuration(HOME_POSE, G_TC, tag(radius))  # gets there
+    for radius in (near - REACH_MARGIN - 0.002, far + REACH_MARGIN + 0.002):
+        with pytest.raises(VisionError, match="cannot see the tag"):
+            look_configuration(HOME_POSE, G_TC, tag(radius))
+    assert out_of_reach(tag((near + far) / 2), G_TC) is None
+    why = out_of_reach(tag(far + 0.001), G_TC)
+    assert "\n" not in why and "holds" in why and f"{far * 100:.1f} cm" in why
+
+
+def test_the_tracker_predicts_a_sliding_tag_and_ages_its_sighting():
+    tracker = TagTracker()
+    for k in range(40):  # 3 cm/s along y, a sighting every 1/30 s
+        tracker.update(np.array([0.24, 0.03 * k / 30, 0.0]), k / 30)
+    np.testing.assert_allclose(tracker.velocity, [0.0, 0.03, 0.0], atol=1e-6)
+    np.testing.assert_allclose(tracker.predicted(39 / 30 + 0.1), [0.24, 0.03 * 1.4, 0.0],
+                               atol=1e-6)
+    assert tracker.age(39 / 30 + 0.1) == pytest.approx(0.1)
 
 
 def test_one_step_moves_the_camera_towards_its_goal_by_the_gain():
