@@ -118,6 +118,7 @@ def _paint_on_arm(args: argparse.Namespace, json_path: Path | None) -> int:
         raise PlanError("--image with --port: the exposure is the simulator's (nothing was "
                         "run). Fix: leave out --image, or paint in the simulator first.")
     switch = TorchSwitch(*args.switch_gripper, *args.switch_lead_s)
+    switch.check()  # before the port is opened
     calibration = load_calibration(args.calibration or DEFAULT_CALIBRATION_PATH)
     report = paint_on_arm(args.port, calibration, _strokes(args), args.speed_mm_s, switch)
     light, late = report["light"], report["light"]["switch"]
