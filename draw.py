@@ -30,6 +30,7 @@ from so101_kinematics.drawing.ink_score import COVER_MM, STRAY_MM, save_drawing
 from so101_kinematics.drawing.page import PAGES, Page
 from so101_kinematics.drawing.pen import PenPose
 from so101_kinematics.drawing.pen_plan import DEFAULT_SPEED_MM_S
+from so101_kinematics.drawing.registration import read_page_pose
 from so101_kinematics.errors import (
     CalibrationError,
     ConnectionFailed,
@@ -78,15 +79,19 @@ arm that aborted or an unexpected error, 130 interrupted.""")
                         f"{range_help(*HEIGHT_RANGE, 'mm')} (default %(default)g)")
     parser.add_argument("--font", default=DEFAULT_FONT, help="the Hershey font (default "
                         "%(default)s: single-stroke Roman)")
-    parser.add_argument("--page", choices=tuple(PAGES), default="a5",
-                        help="the page, laid landscape (default %(default)s)")
+    parser.add_argument("--page", choices=tuple(PAGES), default=None,
+                        help="the page, laid landscape (default a5)")
     parser.add_argument("--page-at", type=number(-0.5, 0.5, "m"), nargs=2,
-                        metavar=("X", "Y"), default=PAGE_AT_DEFAULT,
+                        metavar=("X", "Y"), default=None,
                         help="the page's centre on the table [m] in the base frame (default "
-                        "%(default)s)")
-    parser.add_argument("--page-yaw", type=number(-180.0, 180.0, "deg"), default=0.0,
-                        metavar="DEG", help="the page turned about the vertical [deg] (0: its "
-                        "top away from the arm)")
+                        f"{PAGE_AT_DEFAULT[0]:g} {PAGE_AT_DEFAULT[1]:g})")
+    parser.add_argument("--page-yaw", type=number(-180.0, 180.0, "deg"), default=None,
+                        metavar="DEG", help="the page turned about the vertical [deg] (0, the "
+                        "default: its top away from the arm)")
+    parser.add_argument("--page-pose", type=Path, metavar="PATH",
+                        help="the page, its centre and turn from register_page.py's file (the "
+                        "marks touched on the real table), instead of --page, --page-at, "
+                        "--page-yaw")
     parser.add_argument("--tilt-deg", type=number(*TILT_RANGE, "deg"), default=0.0,
                         help="the pen's lean from the vertical in the arm's plane, tip away "
                         f"from the base, {range_help(*TILT_RANGE, 'deg')} (default %(default)g)")
@@ -123,7 +128,7 @@ arm that aborted or an unexpected error, 130 interrupted.""")
 
 def _check_outputs(args: argparse.Namespace) -> tuple[Path | None, Path | None]:
     """The --json and --image paths, checked before anything runs."""
-    inputs = [args.svg] if args.svg else []
+    inputs = [p for p in (args.svg, args.page_pose) if p]
     image = json_path = None
     if args.image is not None:
         image = check_output_path(args.image, "--image", inputs, args.overwrite,
@@ -154,16 +159,31 @@ def _run_on_arm(args: argparse.Namespace, page: Page, strokes, json_path: Path |
     print(f"Drew {count} stroke{'s' if count != 1 else ''} on the arm at {args.port}{ended}: "
           "the tip's read-back path "
           + ("was never on the page" if tip["mean_mm"] is None else
-             f"{tip['mean_mm']:.2f} mm mean, {tip['worst_mm']:.2f} mm worst from the strokes"))
+             f"{tip['mean_mm']:.2f} mm mean, {tip['worst_mm']:.2f} mm worst from the strokes, "
+             f"coverage {tip['coverage_pct']:.0f} %"))
     if json_path is not None:
         write_text_atomic(json_path, json.dumps(stamp(report, "draw.py"), indent=2) + "\n")
     return 0 if report["aborted"] is None else 1
 
 
+def _page(args: argparse.Namespace) -> Page:
+    """The page: from --page-pose's file, or from --page, --page-at and --page-yaw."""
+    given = [name for name, value in (("--page", args.page), ("--page-at", args.page_at),
+                                      ("--page-yaw", args.page_yaw)) if value is not None]
+    if args.page_pose is None:
+        name = args.page or "a5"
+        return Page(name, PAGES[name], tuple(args.page_at or PAGE_AT_DEFAULT),
+                    args.page_yaw or 0.0)
+    if given:
+        raise PlanError(f"--page-pose with {' and '.join(given)}: the file gives the page and "
+                        f"its pose. Fix: leave out {' and '.join(given)}, or --page-pose.")
+    return read_page_pose(args.page_pose)
+
+
 def _run(args: argparse.Namespace) -> int:
     """Check the outputs, draw, report (see :func:`main`)."""
     image, json_path = _check_outputs(args)
-    page = Page(args.page, PAGES[args.page], tuple(args.page_at), args.page_yaw)
+    page = _page(args)
     strokes = drawing_strokes(args.height_mm, page, args.text, args.svg, args.shape, args.font)
     if args.port:
         return _run_on_arm(args, page, strokes, json_path)

@@ -19,10 +19,18 @@ from pathlib import Path
 from so101_kinematics.cli import ArgumentParser, number, range_help, run_script
 from so101_kinematics.drawing.glyphs import DEFAULT_FONT, SHAPES, shape_strokes, text_strokes
 from so101_kinematics.drawing.light_paint import EXPOSURE_CAMERA, paint, save_exposure
+from so101_kinematics.drawing.light_switch import SWITCH_LEAD_S, TorchSwitch
 from so101_kinematics.drawing.pen_plan import DEFAULT_SPEED_MM_S
 from so101_kinematics.drawing.strokes import fit_to_height
 from so101_kinematics.drawing.svg_paths import svg_strokes
-from so101_kinematics.errors import OutputPathError, PlanError, UnreachableError
+from so101_kinematics.errors import (
+    CalibrationError,
+    ConnectionFailed,
+    LerobotMissing,
+    OutputPathError,
+    PlanError,
+    UnreachableError,
+)
 from so101_kinematics.outputs import (
     PNG,
     add_overwrite_argument,
@@ -33,6 +41,7 @@ from so101_kinematics.outputs import (
 )
 
 REPORT = report_of("light_paint.py")
+SWITCH = TorchSwitch()  # the torch's button under the moving jaw: the defaults
 SIZE_RANGE = (10.0, 150.0)  # [mm]
 SPEED_RANGE = (1.0, 200.0)  # [mm/s]
 
@@ -67,9 +76,27 @@ Exit code: 0 painted, 2 bad input (one line), 1 an unexpected error.""")
     parser.add_argument("--image", type=Path, metavar="PATH.png",
                         help="write the long exposure as a PNG")
     add_overwrite_argument(parser)
+    arm = parser.add_argument_group("on an arm (through lerobot's bus; the virtual arm too)")
+    arm.add_argument("--port", metavar="PORT",
+                     help="the arm's serial port: the same path through lerobot's bus, a torch "
+                     "on the fixed jaw switched by the gripper; the JSON's light has the "
+                     "planned and measured on/off times")
+    arm.add_argument("--calibration", type=Path, default=None, metavar="PATH",
+                     help="the arm's lerobot calibration (default: the virtual arm's)")
+    arm.add_argument("--switch-gripper", type=number(0.0, 100.0, "%"), nargs=3,
+                     metavar=("RELEASED", "CLICK", "PRESSED"),
+                     default=(SWITCH.released, SWITCH.click, SWITCH.pressed),
+                     help="the gripper [%%] with the torch's button released, at its click, "
+                     "held down (default %(default)s)")
+    arm.add_argument("--switch-lead-s", type=number(0.0, 1.0, "s"), nargs=2,
+                     default=SWITCH_LEAD_S, metavar=("ON", "OFF"),
+                     help="press this long before the light is wanted on, release this long "
+                     "before it is wanted off [s] (default %(default)s: the virtual arm's; a "
+                     "run's JSON light.switch says how late yours is: add it)")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
-    return run_script(parser, argv, _run, refused=(OutputPathError, PlanError))
+    refused = (OutputPathError, PlanError, CalibrationError, ConnectionFailed, LerobotMissing)
+    return run_script(parser, argv, _run, refused=refused)
 
 
 def _strokes(args: argparse.Namespace):
@@ -81,6 +108,33 @@ def _strokes(args: argparse.Namespace):
     return fit_to_height(raw, args.size_mm)
 
 
+def _paint_on_arm(args: argparse.Namespace, json_path: Path | None) -> int:
+    """--port: the light's path through lerobot's bus, the torch switched by the gripper."""
+    from so101_kinematics.calibration import load_calibration
+    from so101_kinematics.lab.light_arm import paint_on_arm
+    from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
+
+    if args.image is not None:
+        raise PlanError("--image with --port: the exposure is the simulator's (nothing was "
+                        "run). Fix: leave out --image, or paint in the simulator first.")
+    switch = TorchSwitch(*args.switch_gripper, *args.switch_lead_s)
+    switch.check()  # before the port is opened
+    calibration = load_calibration(args.calibration or DEFAULT_CALIBRATION_PATH)
+    report = paint_on_arm(args.port, calibration, _strokes(args), args.speed_mm_s, switch)
+    light, late = report["light"], report["light"]["switch"]
+    ended = "" if report["aborted"] is None else f" ABORTED ({report['aborted']})"
+    print(f"Painted on the arm at {args.port}{ended}: the light on "
+          f"{len(light['measured'])} times for {len(light['planned'])} strokes"
+          + ("" if late is None else f", switched {late['on_ms']:+.0f} ms (on) and "
+             f"{late['off_ms']:+.0f} ms (off) from the plan")
+          + ("" if light["mean_mm"] is None else
+             f"; the lit path {light['mean_mm']:.2f} mm mean from the strokes"))
+    if json_path is not None:
+        write_text_atomic(json_path, json.dumps(stamp(report, "light_paint.py"), indent=2)
+                          + "\n")
+    return 0 if report["aborted"] is None else 1
+
+
 def _run(args: argparse.Namespace) -> int:
     """Check the outputs, paint, report (see :func:`main`)."""
     inputs = [args.svg] if args.svg else []
@@ -89,6 +143,8 @@ def _run(args: argparse.Namespace) -> int:
     json_path = (None if args.json is None else check_output_path(
         args.json, "--json", inputs, args.overwrite, kind=REPORT))
     try:
+        if args.port:
+            return _paint_on_arm(args, json_path)
         report, exposure = paint(_strokes(args), args.speed_mm_s)
     except UnreachableError as error:
         raise PlanError(f"{error} (the board's points must be in reach with the light "

@@ -689,6 +689,26 @@ MUTANTS: list[Mutant] = [
       "is wrong at every speed but one", "so101_kinematics/throwing/ball.py", "_acceleration",
       "a = -k * speed * v", "a = -k * v",
       "tests/throwing/test_ball.py::test_a_ball_at_its_terminal_speed_keeps_it"),
+    m("drawing_arm_tip_pen_up_too", "the read-back tip scored on every cycle, the pen-up travel "
+      "between letters too", "so101_kinematics/lab/draw_arm.py", "draw_on_arm",
+      "            and path.down[int(c.step[len(SAMPLE):])]]",
+      "            and True]",
+      "tests/virtual/test_virtual_drawing.py"),
+    m("registration_turn_reversed", "the page's fitted turn of the wrong sign (the cross term "
+      "swapped)", "so101_kinematics/drawing/registration.py", "_rigid_fit",
+      "(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])", "(a[:, 1] * b[:, 0] - a[:, 0] * b[:, 1])",
+      "tests/drawing/test_registration.py::test_exact_touches_give_the_page_back"),
+    m("registration_no_order_hint", "a fit of points touched in the wrong order called a "
+      "moved page", "so101_kinematics/drawing/registration.py", "check_fit",
+      "        if other.rms_mm <= max_rms_mm:", "        if False:",
+      "tests/drawing/test_registration.py::test_touches_in_the_wrong_order_are_refused_with_"
+      "the_order_that_fits"),
+    m("light_switch_not_led", "the torch pressed when the light is wanted, not the jaw's lag "
+      "before", "so101_kinematics/drawing/light_switch.py", "gripper_goals",
+      "press, release = round(switch.lead_on_s / dt), round(switch.lead_off_s / dt)",
+      "press, release = 0, 0",
+      "tests/drawing/test_light_switch.py::test_the_press_starts_its_lead_before_the_light_and_"
+      "the_release_its_own", "tests/lab/test_light_arm.py"),
 ]
 
 

@@ -59,7 +59,7 @@ from so101_kinematics.vision.camera_model import (
 
 __all__ = [
     "BOARD_CENTRE", "EXPOSURE_CAMERA", "EXPOSURE_SIZE", "LIGHT_TILT_DEG", "SPREAD_PIECE_MM",
-    "board_to_base", "light_path", "measured_brightness", "paint", "save_exposure",
+    "base_to_board", "board_to_base", "light_path", "measured_brightness", "paint", "save_exposure",
     "score_exposure",
 ]
 
@@ -91,7 +91,8 @@ def board_to_base(points_mm: np.ndarray, centre=BOARD_CENTRE) -> np.ndarray:
                             centre[2] + points[:, 1]])
 
 
-def _base_to_board(points: np.ndarray, centre=BOARD_CENTRE) -> np.ndarray:
+def base_to_board(points: np.ndarray, centre=BOARD_CENTRE) -> np.ndarray:
+    """Base points (n, 3) [m] to the board's (u, v) [mm] (:func:`board_to_base`'s inverse)."""
     return np.column_stack([points[:, 1] - centre[1], points[:, 2] - centre[2]]) * 1000.0
 
 
@@ -169,7 +170,7 @@ def score_exposure(strokes: Sequence[np.ndarray], light: np.ndarray,
     that lags or jerks where its brightness assumed the plan's speed shows here.
     """
     on = brightness > 0.0
-    distance = distances_to_strokes(_base_to_board(light[on]), strokes)
+    distance = distances_to_strokes(base_to_board(light[on]), strokes)
     exposures = []
     lit = np.flatnonzero(on)
     for stretch in np.split(lit, np.flatnonzero(np.diff(lit) > 1) + 1):

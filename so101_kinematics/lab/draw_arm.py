@@ -18,10 +18,11 @@ from typing import Any
 import numpy as np
 
 from so101_kinematics.drawing.draw_run import ready_strokes
-from so101_kinematics.drawing.ink_score import distances_to_strokes
+from so101_kinematics.drawing.ink_score import COVER_MM, distances_to_strokes
 from so101_kinematics.drawing.page import Page, base_to_page
 from so101_kinematics.drawing.pen import PenPose, tip_position
 from so101_kinematics.drawing.pen_plan import DEFAULT_SPEED_MM_S, plan_drawing
+from so101_kinematics.drawing.strokes import resample
 from so101_kinematics.hw.run import run_on_arm
 from so101_kinematics.planning.motion import Plan, Step
 from so101_kinematics.planning.plans import GRIPPER_CLOSED
@@ -42,6 +43,17 @@ def drawing_plan(path) -> Plan:
     return Plan(steps, return_to_start=True, return_duration=APPROACH_S)
 
 
+def _coverage(strokes: Sequence[np.ndarray], tips: np.ndarray, samples: list[int]) -> float:
+    """The share [%] of the strokes with the read-back tip within ``COVER_MM``, as for ink.
+
+    The pen-down tips (n, 2) [mm] are one line per run of consecutive plan samples.
+    """
+    breaks = np.flatnonzero(np.diff(samples) > 1) + 1
+    lines = [np.vstack([part, part[-1:]]) for part in np.split(tips, breaks)]
+    targets = np.vstack([resample(s) for s in strokes])
+    return round(100.0 * float((distances_to_strokes(targets, lines) <= COVER_MM).mean()), 1)
+
+
 def draw_on_arm(port: str, calibration: Mapping[str, Any], strokes: Sequence[np.ndarray],
                 page: Page, pose: PenPose | None = None, speed: float = DEFAULT_SPEED_MM_S,
                 load: bool = True, **run_options) -> dict:
@@ -60,7 +72,8 @@ def draw_on_arm(port: str, calibration: Mapping[str, Any], strokes: Sequence[np.
 
     Returns:
         The report: ``arm_tip`` (``mean_mm``, ``worst_mm``: the read-back tip's distance from
-        the strokes on the pen-down cycles; ``cycles``), ``aborted`` (None, or why).
+        the strokes on the pen-down cycles; ``coverage_pct``: the share of the strokes it
+        passed within ``COVER_MM``, as the ink's; ``cycles``), ``aborted`` (None, or why).
 
     Raises:
         PlanError: strokes out of reach, a speed the servos cannot hold (nothing moved).
@@ -70,13 +83,15 @@ def draw_on_arm(port: str, calibration: Mapping[str, Any], strokes: Sequence[np.
     path = plan_drawing(page, prepared, pose, speed, CONTROL_DT, load=load)
     options = {"profile": "linear", "velocity_ff": True, "gravity_ff": True, **run_options}
     result = run_on_arm(port, calibration, drawing_plan(path), **options)
-    tips = [tip_position(c.measured)[:2] for c in result.cycles
+    down = [(int(c.step[len(SAMPLE):]), tip_position(c.measured)[:2]) for c in result.cycles
             if c.measured is not None and c.step.startswith(SAMPLE)
             and path.down[int(c.step[len(SAMPLE):])]]
-    figures = {"mean_mm": None, "worst_mm": None, "cycles": len(tips)}
-    if tips:
-        distance = distances_to_strokes(base_to_page(page, np.array(tips)), prepared)
+    figures = {"mean_mm": None, "worst_mm": None, "coverage_pct": 0.0, "cycles": len(down)}
+    if down:
+        tips = base_to_page(page, np.array([tip for _, tip in down]))
+        distance = distances_to_strokes(tips, prepared)
         figures.update(mean_mm=round(float(distance.mean()), 3),
-                       worst_mm=round(float(distance.max()), 3))
+                       worst_mm=round(float(distance.max()), 3),
+                       coverage_pct=_coverage(prepared, tips, [k for k, _ in down]))
     return {"arm_tip": figures, "strokes": len(prepared), "drawing_s": round(path.duration, 2),
             "aborted": None if result.aborted is None else str(result.aborted)}

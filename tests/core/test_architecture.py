@@ -11,7 +11,7 @@ PACKAGE = Path(__file__).resolve().parents[2] / "so101_kinematics"
 COURSE_FILES = {"so101_forward_kinematics", "so101_mujoco_utils", "so101_inverse_kinematics",
                 "test_fk_mujoco", "test_ik_mujoco", "test_trajectory_mujoco", "pick_place_sim",
                 "pick_place_hw", "read_position", "virtual_so101", "so101_utils", "see_and_pick",
-                "follow_tag", "calibrate_camera", "draw", "light_paint", "throw"}
+                "follow_tag", "calibrate_camera", "draw", "light_paint", "throw", "register_page"}
 MAY_IMPORT = {
     "core": {"core", "ik"},
     "ik": {"core", "ik"},
