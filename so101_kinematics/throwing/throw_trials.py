@@ -34,8 +34,8 @@ def cup_positions(count: int, seed: int) -> list[tuple[float, float]]:
     """``count`` cup positions (x, y) [m] on the table, drawn with ``seed``.
 
     Example:
-        >>> [round(math.hypot(*p), 3) for p in cup_positions(2, 0)]
-        [0.491, 0.381]
+        >>> [round(math.hypot(*p), 3) for p in cup_positions(2, 0)]  # distance, azimuth per cup
+        [0.491, 0.312]
     """
     rng = np.random.default_rng(seed)
     cups = []
