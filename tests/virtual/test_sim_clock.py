@@ -45,7 +45,7 @@ def stand_in():
     follower.close()
 
 
-# --- the clock alone ------------------------------------------------------------------------------
+# --- the clock alone -----------------------------------------------------------------------------
 def test_a_sleep_returns_with_the_arm_at_the_new_time(stand_in):
     assert stand_in.clock() == 0.0
     stand_in.sleep(0.25)
@@ -95,7 +95,7 @@ def test_without_the_emulator_the_time_goes_on_in_the_program_alone():
     assert clock.clock() == pytest.approx(2.0, abs=1e-8)
 
 
-# --- the virtual arm's physics on it ----------------------------------------------------------------
+# --- the virtual arm's physics on it -------------------------------------------------------------
 def physics_time(arm) -> float:
     """[s] the arm's physics has simulated (MuJoCo's d.time)."""
     return arm.reply_stats()["sim_time_s"]
@@ -131,7 +131,7 @@ def test_the_physics_never_slips_on_the_simulated_clock_but_does_on_the_wall_clo
         assert slipped >= STALL_S - 25 * STEP_S - 0.05  # all but 25 steps of the stop lost
 
 
-# --- the control loop through lerobot's bus on it ----------------------------------------------------
+# --- the control loop through lerobot's bus on it ------------------------------------------------
 MOVE_S, RATE_HZ = 0.6, 50.0  # a move of 0.6 s at 50 Hz: 30 cycles
 STALL_EVERY = 3  # the stalling program loses STALL_S of wall time every third cycle
 
