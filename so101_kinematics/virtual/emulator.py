@@ -26,11 +26,11 @@ from so101_kinematics.virtual.commands import ParentCommands
 from so101_kinematics.virtual.electrical import SUPPLY_V, THERMAL_TIME_S
 from so101_kinematics.virtual.hand import Hand
 from so101_kinematics.virtual.instructions import BusInstructions
-from so101_kinematics.virtual.protocol import take_packets
+from so101_kinematics.virtual.protocol import BROADCAST_ID, INST_SYNC_READ, take_packets
 from so101_kinematics.virtual.registers import GOAL_LOG_LENGTH, ServoRegisters
 from so101_kinematics.virtual.rules import check_rules
 from so101_kinematics.virtual.servo_memory import VirtualServo
-from so101_kinematics.virtual.sim_clock import ClockFollower
+from so101_kinematics.virtual.sim_clock import LEROBOT_TIMEOUT_S, ClockFollower
 
 __all__: list[str] = []
 
@@ -154,6 +154,11 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
             return
         now = time.perf_counter()
         if self.arm_time() < self.outage_until:  # the bus is down: requests lost, no answers
+            if self.sim_clock is not None:  # each request cost its asker lerobot's timeout
+                self.rx += chunk
+                for packet in take_packets(self.rx):
+                    if replies_awaited(packet):
+                        self.sim_clock.charge(LEROBOT_TIMEOUT_S)
             self.rx.clear()
             return
         baud = pty_baud_rate(self.master) or 0  # 0: a rate no servo speaks
@@ -165,7 +170,10 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
             del rx[:2]  # a stale partial packet: a servo's byte timeout would discard it
         rx += chunk
         for packet in take_packets(rx):
+            answered = self.replies
             self.handle(packet, now)
+            if self.sim_clock is not None and self.replies - answered < replies_awaited(packet):
+                self.sim_clock.charge(LEROBOT_TIMEOUT_S)  # the host waited for a reply in vain
         if rx:
             self.rx_partial_since = now
 
@@ -211,6 +219,17 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
         except Exception as exc:  # noqa: BLE001 - handed to the caller
             self.conn.send(("err", exc))
         return True
+
+
+def replies_awaited(packet: bytes) -> int:
+    """How many replies a host waits for after ``packet``: one from an addressed servo.
+
+    One per ID of a SYNC_READ, none after another broadcast.
+    """
+    target, inst, params = packet[2], packet[4], packet[5:-1]
+    if target != BROADCAST_ID:
+        return 1
+    return max(0, len(params) - 2) if inst == INST_SYNC_READ else 0
 
 
 def _camera_server(m, options: dict):

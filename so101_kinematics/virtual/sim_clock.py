@@ -7,22 +7,27 @@ The design, one socket pair between the two processes (:class:`VirtualSO101`'s
   up to the next whole nanosecond and one more (so a loop sleeping until a deadline
   is never left a hair short of it, and its busy-wait ends: ``spin`` is 0), sends the
   new time to the emulator as 8 bytes (integer nanoseconds, little-endian) and waits
-  for the emulator's answer, once it has stepped the MuJoCo arm up to the new time:
-  16 bytes, the time answered and the time its physics has reached (a whole step).
+  for the emulator's answer, once it has stepped the MuJoCo arm up to the new time.
   :meth:`SimClock.clock` returns the time without asking anyone.
 - The emulator (:class:`ClockFollower`, watched by its event loop beside the pty)
   first answers what is already on the bus (requests sent before the sleep act
   before it), then takes every 4 ms physics step up to the new time, however long
   that takes on the wall clock (never slipping, as the wall clock's emulator does
   when it falls more than 25 steps behind), then answers.
-- Nothing else moves the time: a program that stalls stalls the arm with it, and
-  the run is the same, cycle for cycle. The bus itself stays real: its bytes, the
-  emulator's reply latency and lerobot's 50 ms timeouts take wall time and no
-  simulated time. The faults timed by the arm (``outage:MS``, a hand's motion) run
-  on this clock too.
-- An answer to an older time (left unread by a signal handler that raised in the
-  middle of a sleep) is skipped; when the emulator has gone, a sleep returns at once and
-  the time goes on in the program alone.
+- Nothing else moves the time but the bus's silence: a request the emulator leaves
+  unanswered (an outage, a lost reply, a missing servo) costs the program lerobot's
+  timeout (:data:`LEROBOT_TIMEOUT_S`), and a late reply its lateness up to that, as
+  they do on a real arm; the emulator adds it (:meth:`ClockFollower.charge`) and says
+  so at once, and :meth:`SimClock.clock` takes that news first. A program that stalls
+  stalls the arm with it, and the run is the same, cycle for cycle. The bus's bytes,
+  the emulator's reply latency and lerobot's own waits take wall time and no other
+  simulated time. The faults timed by the arm (``outage:MS``, a hand's motion) run on
+  this clock too.
+- Every message from the emulator is 24 bytes: the time answered (the last sent), the
+  time its physics has reached, the program's time. One answering an older time than
+  the sleep's (news of a charge, or an answer left unread by a signal handler that
+  raised in the middle of a sleep) does not end the sleep; when the emulator has gone,
+  a sleep returns at once and the time goes on in the program alone.
 
 Example (a stand-in emulator that steps 4 ms at a time)::
 
@@ -49,11 +54,14 @@ import struct
 
 from so101_kinematics.errors import VirtualSO101Error
 
-__all__ = ["CATCH_UP_TIMEOUT_S", "ClockFollower", "SimClock"]
+__all__ = ["CATCH_UP_TIMEOUT_S", "ClockFollower", "LEROBOT_TIMEOUT_S", "SimClock"]
 
 CATCH_UP_TIMEOUT_S = 60.0  # [s] of wall time the emulator may take to step up to a new time
+LEROBOT_TIMEOUT_S = 0.05
+"""[s] lerobot waits this long for a reply before it gives up (its Feetech port handler: 50 ms
+plus the bytes' time): what an unanswered request costs the program."""
 _TIME = struct.Struct("<q")  # a sleep's new time: integer nanoseconds, little-endian
-_ANSWER = struct.Struct("<qq")  # the emulator's answer: the time answered, the physics' [ns]
+_NEWS = struct.Struct("<qqq")  # the emulator's: the time answered, the physics', the program's
 
 
 def _receive(sock: socket.socket, shape: struct.Struct) -> tuple | None:
@@ -89,8 +97,20 @@ class SimClock:
         self.reached_ns = 0  # the emulator's physics at the last answer [ns]
 
     def clock(self) -> float:
-        """The simulated time [s] since the arm powered up."""
+        """The simulated time [s] since the arm powered up (with the bus's silences)."""
+        while self._sock is not None and select.select([self._sock], [], [], 0.0)[0]:
+            self._take(_receive(self._sock, _NEWS))
         return self._ns / 1e9
+
+    def _take(self, news: tuple | None) -> int:
+        """Apply the emulator's news; returns the time it answers (-1: the emulator has gone)."""
+        if news is None:
+            self.close()
+            return -1
+        answered, reached, program = news
+        self._ns = max(self._ns, program)
+        self.reached_ns = max(self.reached_ns, reached)
+        return answered
 
     @property
     def reached(self) -> float:
@@ -104,8 +124,9 @@ class SimClock:
         self._ns += math.ceil(seconds * 1e9) + 1
         if self._sock is None:
             return
+        sent = self._ns
         try:
-            self._sock.sendall(_TIME.pack(self._ns))
+            self._sock.sendall(_TIME.pack(sent))
             while True:
                 ready, _, _ = select.select([self._sock], [], [], CATCH_UP_TIMEOUT_S)
                 if not ready:
@@ -113,15 +134,11 @@ class SimClock:
                         f"The virtual arm did not reach {self.clock():.3f} s of simulated time "
                         f"within {CATCH_UP_TIMEOUT_S:g} s. Fix: check that its emulator "
                         "process runs (a debugger, SIGSTOP) or start it again.")
-                answer = _receive(self._sock, _ANSWER)
-                if answer is None:
-                    break
-                answered, self.reached_ns = answer
-                if answered >= self._ns:  # else an answer to an earlier sleep: skipped
+                answered = self._take(_receive(self._sock, _NEWS))
+                if answered >= sent or answered < 0:  # else news of an earlier time
                     return
         except OSError:
-            pass
-        self.close()  # the emulator has gone: the time goes on here alone
+            self.close()  # the emulator has gone: the time goes on here alone
 
     def close(self) -> None:
         """Stop talking to the emulator (idempotent); later sleeps only advance the time."""
@@ -141,6 +158,8 @@ class ClockFollower:
         self.sock = socket.socket(fileno=fd)
         self.sock.setblocking(False)
         self.target_ns = 0  # the program's time [ns]: step the physics up to it
+        self.asked_ns = 0  # the last time the program sent [ns]
+        self.reached_ns = 0  # where the physics stands [ns] (the emulator's steps)
         self.pending = False  # an answer is owed
         self.open = True
 
@@ -165,17 +184,26 @@ class ClockFollower:
         if latest is None:
             self.open = False
             return False
-        self.target_ns = max(self.target_ns, latest[0])
+        self.asked_ns = latest[0]
+        self.target_ns = max(self.target_ns, self.asked_ns)
         self.pending = True
         return True
 
     def acknowledge(self, reached_ns: int) -> None:
         """Tell the program the physics has reached ``reached_ns`` [ns] (if it waits)."""
-        if not self.pending:
-            return
-        self.pending = False
+        self.reached_ns = reached_ns
+        if self.pending:
+            self.pending = False
+            self._tell()
+
+    def charge(self, seconds: float) -> None:
+        """The program waited ``seconds`` [s] on the bus for nothing: its time moves on."""
+        self.target_ns += round(seconds * 1e9)
+        self._tell()
+
+    def _tell(self) -> None:
         try:
-            self.sock.sendall(_ANSWER.pack(self.target_ns, reached_ns))
+            self.sock.sendall(_NEWS.pack(self.asked_ns, self.reached_ns, self.target_ns))
         except OSError:  # the program has gone: nobody to tell
             self.open = False
 

@@ -75,7 +75,8 @@ def test_an_answer_to_an_earlier_sleep_is_skipped():
 
     def emulator():  # answers an old time first (left unread by an interrupted sleep)
         (target,) = struct.unpack("<q", theirs.recv(8))
-        theirs.sendall(struct.pack("<qq", target - 1000, 0) + struct.pack("<qq", target, STEP_NS))
+        theirs.sendall(struct.pack("<qqq", target - 1000, 0, target - 1000)
+                       + struct.pack("<qqq", target, STEP_NS, target))
 
     thread = threading.Thread(target=emulator)
     thread.start()
