@@ -9,14 +9,18 @@ the same whether the program stalls or not.
 from __future__ import annotations
 
 import os
+import select
 import signal
 import socket
 import struct
+import termios
 import threading
 import time
+import tty
 
 import pytest
 
+import so101_kinematics.virtual.protocol as fp
 from so101_kinematics.hw.timing import RateLoop
 from so101_kinematics.virtual.arm import VirtualSO101
 from so101_kinematics.virtual.sim_clock import ClockFollower, SimClock
@@ -130,6 +134,25 @@ def test_the_physics_never_slips_on_the_simulated_clock_but_does_on_the_wall_clo
         slipped = (after["wall_time_s"] - after["sim_time_s"]) \
             - (before["wall_time_s"] - before["sim_time_s"])
         assert slipped >= STALL_S - 25 * STEP_S - 0.05  # all but 25 steps of the stop lost
+
+
+def test_an_unanswered_request_costs_the_program_lerobots_timeout():
+    with VirtualSO101(sim_clock=True) as arm:
+        fd = os.open(arm.port, os.O_RDWR | os.O_NOCTTY)
+        try:
+            tty.setraw(fd)
+            attrs = termios.tcgetattr(fd)
+            attrs[4] = attrs[5] = termios.B1000000  # the bus's 1 Mbit/s
+            termios.tcsetattr(fd, termios.TCSANOW, attrs)
+            os.write(fd, fp.instruction_packet(1, fp.INST_PING))  # shoulder_pan answers
+            assert select.select([fd], [], [], 5.0)[0] and os.read(fd, 64)
+            time.sleep(0.1)
+            assert arm.clock.clock() == 0.0  # an answered request costs no simulated time
+            os.write(fd, fp.instruction_packet(42, fp.INST_PING))  # nobody has ID 42
+            time.sleep(0.1)
+            assert arm.clock.clock() == pytest.approx(0.050)  # lerobot waited its 50 ms
+        finally:
+            os.close(fd)
 
 
 # --- the control loop through lerobot's bus on it ------------------------------------------------
