@@ -175,11 +175,13 @@ def main(argv: list[str] | None = None) -> int:
     """Run every drill and print (or write, with --write) the fault matrix."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--write", action="store_true", help=f"update {DOC_PATH.name}'s table")
+    parser.add_argument("--sim-clock", action="store_true",
+                        help="run the drills on the virtual arm's simulated clock")
     args = parser.parse_args(argv)
     drills = []
     for fault in FAULTS:
         for phase in PHASES:
-            drill = run_drill(fault, phase)
+            drill = run_drill(fault, phase, sim_clock=args.sim_clock)
             print(f"{fault:>26} @ {phase:<20} {drill.outcome} ({drill.seconds:.1f} s)",
                   file=sys.stderr, flush=True)
             drills.append(drill)

@@ -157,7 +157,7 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
             if self.sim_clock is not None:  # each request cost its asker lerobot's timeout
                 self.rx += chunk
                 for packet in take_packets(self.rx):
-                    if replies_awaited(packet):
+                    if _replies_awaited(packet):
                         self.sim_clock.charge(LEROBOT_TIMEOUT_S)
             self.rx.clear()
             return
@@ -172,7 +172,7 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
         for packet in take_packets(rx):
             answered = self.replies
             self.handle(packet, now)
-            if self.sim_clock is not None and self.replies - answered < replies_awaited(packet):
+            if self.sim_clock is not None and self.replies - answered < _replies_awaited(packet):
                 self.sim_clock.charge(LEROBOT_TIMEOUT_S)  # the host waited for a reply in vain
         if rx:
             self.rx_partial_since = now
@@ -187,11 +187,11 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
                 wake = max(now, self.t0 + (self.steps + 1) * self.dt)
                 timeout = wake - now
             else:  # the physics waits for the program's time, not the wall clock's
-                wake, timeout = now, SIM_IDLE_S if self.viewer or self.cameras else None
+                timeout = SIM_IDLE_S if self.viewer or self.cameras else None
                 watched += [follower] if follower.open else []
             ready, _, _ = select.select(watched, [], [], timeout)
-            # How long past its wake-up time the loop got the CPU back (descheduled).
-            self.max_gap = max(self.max_gap, time.perf_counter() - wake)
+            if follower is None:  # how long past its wake-up time it got the CPU back
+                self.max_gap = max(self.max_gap, time.perf_counter() - wake)
             if master in ready:
                 self.on_serial()
             if conn in ready and not self.on_command():
@@ -221,7 +221,7 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
         return True
 
 
-def replies_awaited(packet: bytes) -> int:
+def _replies_awaited(packet: bytes) -> int:
     """How many replies a host waits for after ``packet``: one from an addressed servo.
 
     One per ID of a SYNC_READ, none after another broadcast.
