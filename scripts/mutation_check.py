@@ -74,6 +74,7 @@ MARKERS, OUTPUTS = "so101_kinematics/markers.py", "so101_kinematics/outputs.py"
 T_OUT = "tests/core/test_outputs.py"
 REGISTERS = "so101_kinematics/virtual/registers.py"
 T_SDK = "tests/virtual/test_virtual_feetech_sdk.py"
+T_SIM_CLOCK = "tests/virtual/test_sim_clock.py"
 VISION_MODEL = "so101_kinematics/vision/camera_model.py"
 VISION_DETECT = "so101_kinematics/vision/detect.py"
 READINGS = "so101_kinematics/virtual/sensor_registers.py"
@@ -249,6 +250,23 @@ MUTANTS: list[Mutant] = [
       "if servo.torque and (not was_on or (regs[33] == STEP_MODE and old_mode != STEP_MODE)):",
       "if servo.torque and not was_on:",
       f"{T_SDK}::test_step_mode_moves_by_the_counts_written_from_where_the_joint_is"),
+    # --- the simulated clock (virtual/sim_clock.py) ------------------------------------------
+    m("sim_clock_physics_slips", "on the simulated clock the physics takes at most 25 steps a "
+      "sleep, as the wall clock's catch-up does: the arm lags the program's time",
+      REGISTERS, "ServoRegisters.step_physics",
+      "due = self.sim_clock.target_ns // self.dt_ns - self.steps",
+      "due = min(25, self.sim_clock.target_ns // self.dt_ns - self.steps)",
+      f"{T_SIM_CLOCK}::test_the_physics_never_slips_on_the_simulated_clock_but_does_on_the_wall_clock"),
+    m("sim_clock_silence_free", "a request nobody answers costs the program no simulated time "
+      "(a 0.5 s outage becomes 50 failed cycles instead of 5)",
+      "so101_kinematics/virtual/emulator.py", "_Emulator.on_serial",
+      "self.sim_clock.charge(LEROBOT_TIMEOUT_S)  # the host waited for a reply in vain", "pass",
+      f"{T_SIM_CLOCK}::test_an_unanswered_request_costs_the_program_lerobots_timeout"),
+    m("drill_loop_on_the_wall_clock", "the drill's control loop on the wall clock while its arm "
+      "waits for the simulated time", "so101_kinematics/lab/fault_drill.py", "run_drill",
+      "profile=profile, time_source=arm.clock)", "profile=profile, time_source=None)",
+      f"{T_SIM_CLOCK}::test_a_drill_of_the_fault_matrix_ends_as_the_policy_says_on_the_simulated"
+      "_clock"),
     # --- the control loop and its fault policy --------------------------------------------------
     m("misread_acted_on", "a reading outside the calibrated range taken as the arm's pose",
       "so101_kinematics/hw/misreads.py", "ReadingCheck.__call__",

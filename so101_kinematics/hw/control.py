@@ -45,6 +45,7 @@ from so101_kinematics.hw.lead import VelocityLead
 from so101_kinematics.hw.misreads import ReadingCheck
 from so101_kinematics.hw.timing import (
     DEFAULT_RATE_HZ,
+    SPIN_S,
     TRACKING_TOLERANCE_DEG,
     Cycle,
     RateLoop,
@@ -100,7 +101,8 @@ class ArmSession:
         outage_tolerance: how long the arm may go unobserved (every read
             failing) before the motion stops [s]; meanwhile the plan pauses.
         on_cycle: called with (session, cycle) after each cycle (tests, monitors, the log).
-        clock, sleep: time sources (tests).
+        clock, sleep: time sources (tests; the virtual arm's simulated clock).
+        spin: the last part of each wait busy-waited [s] (0 on a simulated clock).
         trims: per-joint offsets (the course's offset_config; ``so101_kinematics.trims``),
             added to every goal written and taken off every position read, here only.
         feedforward: the gravity feed-forward (``hw/feedforward.py``), or None: its
@@ -122,7 +124,7 @@ class ArmSession:
                  clock: Callable[[], float] = time.perf_counter,
                  sleep: Callable[[float], None] = time.sleep, trims: Trims | None = None,
                  feedforward: Feedforward | None = None, base_height: float = 0.0,
-                 velocity_lead: VelocityLead | None = None):
+                 velocity_lead: VelocityLead | None = None, spin: float = SPIN_S):
         check_profile(profile)
         check_rate(rate_hz)
         self.bus = bus
@@ -130,7 +132,7 @@ class ArmSession:
         self.feedforward = feedforward
         self.limits = self.trims.limits(calibrated_limits(bus.calibration))
         self.readings = ReadingCheck(self.limits)  # a misread is a failed read
-        self.loop = RateLoop(rate_hz, clock, sleep)
+        self.loop = RateLoop(rate_hz, clock, sleep, spin)
         self.profile = profile
         self.max_speed = dict(max_speed or speed_caps())
         if tracking_tolerance is None:

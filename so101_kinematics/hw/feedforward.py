@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 import statistics
 import time
+from collections.abc import Callable
 
 from so101_kinematics import servo
 from so101_kinematics.calibration import calibrated_limits
@@ -100,7 +101,9 @@ def describe_at_pose(bus, feedforward: Feedforward) -> str:
     return f"{feedforward.describe(pose)}; offsets at {where}"
 
 
-def torque_on_in_place(bus, feedforward: Feedforward | None, start=None) -> None:
+def torque_on_in_place(bus, feedforward: Feedforward | None, start=None, *,
+                       clock: Callable[[], float] = time.monotonic,
+                       sleep: Callable[[float], None] = time.sleep) -> None:
     """Torque on where the arm stands; with the feed-forward, held there without its sag.
 
     ``hw/bus.py``'s ``enable_torque_in_place`` sets each goal to the present position
@@ -115,6 +118,8 @@ def torque_on_in_place(bus, feedforward: Feedforward | None, start=None) -> None
         bus: the connected bus.
         feedforward: the arm's feed-forward, or None.
         start: joint -> position as written on the wire ([deg], gripper [0, 100]).
+        clock: the run's clock [s] (the wall's, or the virtual arm's simulated one).
+        sleep: the run's sleep [s], on the same clock.
     """
     enable_torque_in_place(bus)
     if feedforward is None or not feedforward.enabled:
@@ -126,16 +131,16 @@ def torque_on_in_place(bus, feedforward: Feedforward | None, start=None) -> None
     for k in range(1, steps + 1):
         s = k / steps
         bus.sync_write("Goal_Position", {j: here[j] + s * (goal[j] - here[j]) for j in goal})
-        time.sleep(RAMP_PERIOD_S)
-    deadline = time.monotonic() + SETTLE_TIMEOUT_S  # back where it stood, then go on
-    while time.monotonic() < deadline:
+        sleep(RAMP_PERIOD_S)
+    deadline = clock() + SETTLE_TIMEOUT_S  # back where it stood, then go on
+    while clock() < deadline:
         try:
             pose = read_pose(bus)
         except Exception:  # noqa: BLE001 - the control loop's own checks deal with a silent bus
             return
         if all(abs(pose[j] - target[j]) <= SETTLED_DEG for j in ARM_JOINTS):
             return
-        time.sleep(0.02)
+        sleep(0.02)
 
 
 def tracking_allowance(feedforward: Feedforward | None, tolerance: dict, previous: dict,

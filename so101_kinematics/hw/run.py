@@ -56,6 +56,7 @@ from so101_kinematics.hw.timing import (
     TRACKING_TOLERANCE_DEG,
     Cycle,
     Segment,
+    TimeSource,
     capped_duration,
     speed_caps,
     tracking_tolerances,
@@ -146,7 +147,9 @@ def after_abort(session: ArmSession, error: BaseException, start_pose: Configura
                 return
             if isinstance(error, TorqueLost):  # hold the limp joint where it sank, then return
                 with bus_errors("enabling torque again where the arm is"):
-                    with_retries(lambda b: torque_on_in_place(b, session.feedforward), bus)
+                    with_retries(lambda b: torque_on_in_place(
+                        b, session.feedforward, clock=session.loop.clock,
+                        sleep=session.loop.sleep), bus)
             if return_on_abort:
                 session.stop_reason = None
                 session.return_slowly(put_down(session, plan, held, error, start_pose))
@@ -306,7 +309,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
                on_cycle: Callable[[ArmSession, Cycle], None] | None = None,
                on_start: Callable[[Configuration, float], None] | None = None,
                gravity_ff: bool = True, base_height: float = 0.0,
-               velocity_ff: bool = False,
+               velocity_ff: bool = False, time_source: TimeSource | None = None,
                then: Callable[[ArmSession], None] | None = None) -> RunResult:
     """The whole hardware run: check, connect, confirm, torque on, run, return, torque off.
 
@@ -335,6 +338,9 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
         base_height: the table is this far below the base frame [m]: no move goes into it.
         velocity_ff: lead each goal by the servos' lag x the planned velocity (``hw/lead.py``).
         then: a closed loop after the plan's steps, before the return (see :func:`execute`).
+        time_source: the run's time (the control loop, the torque's ramp): None for the wall
+            clock, or a simulated one (the virtual arm's ``clock``, ``virtual/sim_clock.py``).
+            The bus's own waits (a port settling, lerobot's timeouts) stay on the wall clock.
 
     Raises:
         CalibrationError, PlanError, ConnectionFailed, LerobotMissing, NotConfirmed:
@@ -344,6 +350,9 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
     trims = as_trims(trims)
     validate_plan_for_arm(plan, calibration, source, trims, base_height)
     check_run_settings(rate_hz, max_joint_speed, tracking_tolerance)
+    ramp_time = {} if time_source is None else {"clock": time_source.clock,
+                                                "sleep": time_source.sleep}
+    loop_time = {} if time_source is None else {**ramp_time, "spin": time_source.spin}
     bus = connect(port, calibration, robot_id=robot_id, write_calibration=write_calibration)
     armed = False
     try:
@@ -351,7 +360,7 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
         session = ArmSession(
             bus, rate_hz=rate_hz, profile=profile, max_speed=speed_caps(max_joint_speed),
             tracking_tolerance=tracking_tolerances(tracking_tolerance), on_cycle=on_cycle,
-            trims=trims, base_height=base_height)
+            trims=trims, base_height=base_height, **loop_time)
         session.command = dict(start)
         first = plan.steps[0]
         if on_start is not None:
@@ -364,7 +373,8 @@ def run_on_arm(port: str, calibration: Mapping[str, Any], plan: Plan, *,
             configure_as_course(bus, "pick_place_hw")
             session.feedforward = feedforward = read_feedforward(bus, gravity_ff)
             session.velocity_lead = VelocityLead.for_feedforward(feedforward, velocity_ff)
-            with_retries(lambda b: torque_on_in_place(b, feedforward, trims.to_wire(start)), bus)
+            with_retries(lambda b: torque_on_in_place(b, feedforward, trims.to_wire(start),
+                                                      **ramp_time), bus)
         return execute(session, plan, start, return_on_abort=return_on_abort, then=then)
     except MotionAborted:
         raise

@@ -1,6 +1,8 @@
 """Time on the real arm: the deadline scheduler, the loop's timeline records, the speed cap.
 
-:class:`RateLoop` runs the control loop on a fixed grid of deadlines;
+:class:`RateLoop` runs the control loop on a fixed grid of deadlines, on the wall
+clock or on any :class:`TimeSource` (the virtual arm's simulated clock,
+``virtual/sim_clock.py``);
 :func:`capped_duration` stretches a move that would exceed a joint's speed
 cap; :func:`check_rate` bounds the loop's rate.
 """
@@ -10,7 +12,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, Protocol
 
 from so101_kinematics.errors import PlanError
 from so101_kinematics.frames import JOINTS
@@ -19,8 +21,8 @@ from so101_kinematics.planning.profiles import PROFILES, SPEED_CAPPED_PROFILES
 
 __all__ = [
     "Cycle", "DEFAULT_RATE_HZ", "MAX_GRIPPER_SPEED_PCT_S", "MAX_JOINT_SPEED_DEG_S",
-    "MAX_RATE_HZ", "MIN_RATE_HZ", "RateLoop", "SPEED_CAP_LIMIT_DEG_S", "Segment",
-    "TRACKING_TOLERANCE_DEG", "capped_duration", "check_profile", "check_rate",
+    "MAX_RATE_HZ", "MIN_RATE_HZ", "RateLoop", "SPEED_CAP_LIMIT_DEG_S", "SPIN_S", "Segment",
+    "TRACKING_TOLERANCE_DEG", "TimeSource", "capped_duration", "check_profile", "check_rate",
     "loop_timing_stats", "peak_speed_factor", "speed_caps", "stretch_warning",
     "tracking_tolerances",
 ]
@@ -106,6 +108,24 @@ def stretch_warning(step: str, start: Mapping[str, float], goal: Mapping[str, fl
 
 
 # --- Deadline scheduler ----------------------------------------------------------
+class TimeSource(Protocol):
+    """Where a run's time comes from, when not from the wall clock.
+
+    ``clock()`` [s] and ``sleep(seconds)`` as ``time.perf_counter`` and ``time.sleep``;
+    ``spin`` [s]: the last part of each wait the loop busy-waits (``SPIN_S`` on the wall
+    clock, whose sleep wakes late; 0 where a sleep is exact, as the virtual arm's simulated
+    clock: ``virtual/sim_clock.py``'s ``SimClock``).
+    """
+
+    spin: float
+
+    def clock(self) -> float:
+        """Now [s]."""
+
+    def sleep(self, seconds: float) -> None:
+        """Let ``seconds`` [s] pass."""
+
+
 class RateLoop:
     """Fixed-rate, deadline-scheduled loop: ``next_deadline += period``, sleep, spin the last bit.
 

@@ -3,7 +3,9 @@
 Each drill starts a fresh virtual arm, runs a short pick-and-place through
 the real hardware path (lerobot's bus, :func:`so101_kinematics.hw.run.run_on_arm`, the
 streamed CSV log), injects the fault at the first cycle of a phase, and
-records how the run ended and how the arm was left. The fault matrix in
+records how the run ended and how the arm was left. With ``sim_clock`` the drill runs on
+the virtual arm's simulated clock (``virtual/sim_clock.py``): the control loop and the
+physics take simulated time, only the bus's bytes and timeouts take wall time. The fault matrix in
 docs/hardware_safety.md is :func:`main`'s output: ``python -m so101_kinematics.lab.fault_drill``.
 """
 
@@ -75,7 +77,7 @@ class Drill:
     cycles: int
     log_rows: int
     last_line: str
-    seconds: float
+    seconds: float  # [s] of wall time the drill took
 
     @property
     def outcome(self) -> str:
@@ -107,7 +109,8 @@ def _injector(arm, fault: str, step: str):
 
 
 def run_drill(fault: str, phase: str, folder: str | Path | None = None,
-              velocity_ff: bool = False, profile: str = "minimum_jerk") -> Drill:
+              velocity_ff: bool = False, profile: str = "minimum_jerk",
+              sim_clock: bool = False) -> Drill:
     """Run the drill plan on a fresh virtual arm with ``fault`` injected at ``phase``.
 
     Args:
@@ -116,6 +119,8 @@ def run_drill(fault: str, phase: str, folder: str | Path | None = None,
         folder: where the CSV log goes (default: a temporary folder).
         velocity_ff: run with the velocity lead (``--velocity-ff``, ``hw/lead.py``).
         profile: the moves' time scaling (``--profile``).
+        sim_clock: run the arm and the control loop on the virtual arm's simulated clock
+            (default: the wall clock).
     """
     from so101_kinematics.virtual.arm import VirtualSO101
     from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
@@ -124,7 +129,8 @@ def run_drill(fault: str, phase: str, folder: str | Path | None = None,
     folder = Path(folder or tempfile.mkdtemp(prefix="so101-drill-"))
     log_path = folder / f"{fault}-{phase}.csv".replace(" ", "_")
     started = time.perf_counter()
-    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH) as arm:
+    with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, sim_clock=sim_clock) as arm:
+        sleep = time.sleep if arm.clock is None else arm.clock.sleep
         start = arm.joint_positions()
         inject = _injector(arm, FAULTS[fault], PHASES[phase])
         log = CycleLog(log_path)
@@ -135,12 +141,12 @@ def run_drill(fault: str, phase: str, folder: str | Path | None = None,
 
         try:
             result = run_on_arm(arm.port, calibration, drill_plan(), on_cycle=on_cycle,
-                                velocity_ff=velocity_ff, profile=profile)
+                                velocity_ff=velocity_ff, profile=profile, time_source=arm.clock)
         except MotionAborted as error:
             result = error.result
         finally:
             log.close()
-        time.sleep(0.3)  # a held arm must still be where it was; a released one may settle
+        sleep(0.3)  # a held arm must still be where it was; a released one may settle
         final, torque = result.final_pose or arm.joint_positions(), arm.torque_enabled()
         goals = arm.goal_log()
     by_id = {cal.id: cal for cal in calibration.values()}
@@ -169,11 +175,13 @@ def main(argv: list[str] | None = None) -> int:
     """Run every drill and print (or write, with --write) the fault matrix."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--write", action="store_true", help=f"update {DOC_PATH.name}'s table")
+    parser.add_argument("--sim-clock", action="store_true",
+                        help="run the drills on the virtual arm's simulated clock")
     args = parser.parse_args(argv)
     drills = []
     for fault in FAULTS:
         for phase in PHASES:
-            drill = run_drill(fault, phase)
+            drill = run_drill(fault, phase, sim_clock=args.sim_clock)
             print(f"{fault:>26} @ {phase:<20} {drill.outcome} ({drill.seconds:.1f} s)",
                   file=sys.stderr, flush=True)
             drills.append(drill)

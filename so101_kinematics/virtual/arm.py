@@ -22,9 +22,10 @@ Design
   the pty, the servo registers and the MuJoCo simulation of
   ``model/scene.xml`` in a single-threaded event loop: it answers the bus
   first and steps the physics (the model's 4 ms steps) to keep up with the wall clock in
-  between. Nothing of the emulator runs in the client's process (lerobot
-  busy-polls the port; a Python thread there slows it, and a second thread in
-  the emulator would fight for its GIL). The parent object talks to it over a
+  between; with ``sim_clock=True``, to keep up with the program's simulated time instead
+  (:attr:`VirtualSO101.clock`, ``virtual/sim_clock.py``). Nothing of the emulator runs in
+  the client's process (lerobot busy-polls the port; a Python thread there slows it, and
+  a second thread in the emulator would fight for its GIL). The parent object talks to it over a
   socket pair. Measured on 2 busy cores (load 3), a 6-motor sync_read +
   sync_write cycle of lerobot: 0.36-0.38 ms median without wire timing
   (lerobot's own cost 0.13 ms, the emulator 0.23-0.25 ms), 1.06-1.24 ms with
@@ -115,6 +116,7 @@ from so101_kinematics.virtual.electrical import SUPPLY_V, THERMAL_TIME_S
 from so101_kinematics.virtual.faults import parse_faults
 from so101_kinematics.virtual.rules import check_rules
 from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH, load_calibration
+from so101_kinematics.virtual.sim_clock import SimClock
 
 __all__ = ["VirtualSO101"]
 
@@ -167,6 +169,10 @@ class VirtualSO101:
         target: (x [m], y [m][, yaw [deg]]): the target tag (``sim/tag_textures.py``) on the
             table there, in the base frame, drawn for the served cameras (which also see the
             first cube's tag); visual only, the physics has no such body.
+        sim_clock: run the arm on a simulated clock the program drives (:attr:`clock`,
+            ``virtual/sim_clock.py``): time passes only when it calls ``clock.sleep``, and
+            the physics takes every step up to it, however busy the machine. Default: the
+            wall clock.
 
     Raises:
         CalibrationError: the calibration is unusable.
@@ -186,7 +192,7 @@ class VirtualSO101:
                  cube=None, base_height: float = 0.0, variant: str | None = None,
                  rules: Mapping[str, str] | None = None, cameras: Sequence[str] = (),
                  camera_size: Sequence[int] = (640, 480), camera_fps: float = CAMERA_FPS,
-                 target: Sequence[float] | None = None):
+                 target: Sequence[float] | None = None, sim_clock: bool = False):
         self.calibration = load_calibration(calibration)
         supply = (KIT_SUPPLY_V if leader else SUPPLY_V) if supply is None else supply
         chosen_rules = check_rules(rules)
@@ -218,10 +224,19 @@ class VirtualSO101:
         code = (f"import sys; sys.path.insert(0, {str(REPO)!r}); "
                 "from so101_kinematics.virtual import emulator; "
                 f"emulator.emulator_main({child_sock.fileno()})")
+        passed = [child_sock]
+        self.clock: SimClock | None = None
+        """The simulated clock (``clock()``, ``sleep(seconds)``, ``spin``), or None: the wall's."""
+        if sim_clock:
+            ours, theirs = socket.socketpair()
+            self.clock = SimClock(ours)
+            options["sim_clock_fd"] = theirs.fileno()
+            passed.append(theirs)
         self._process = subprocess.Popen([sys.executable, "-c", code],
-                                         pass_fds=(child_sock.fileno(),), stdin=subprocess.DEVNULL,
-                                         env=env)
-        child_sock.close()
+                                         pass_fds=[p.fileno() for p in passed],
+                                         stdin=subprocess.DEVNULL, env=env)
+        for sock in passed:
+            sock.close()
         self._conn = Connection(parent_sock.detach())
         self._conn.send(options)
         if not self._conn.poll(startup_timeout):
@@ -269,6 +284,8 @@ class VirtualSO101:
             self._process.kill()
             self._process.wait(5)
         self._conn.close()
+        if self.clock is not None:
+            self.clock.close()
         self._process = None
 
     def __del__(self):
@@ -424,9 +441,10 @@ class VirtualSO101:
 
     def hand_wait(self, settle: float = 0.3) -> None:
         """Wait until the hand's motion has ended, then ``settle`` [s] more."""
+        sleep = time.sleep if self.clock is None else self.clock.sleep
         while (remaining := self._call("hand_remaining")) > 0:
-            time.sleep(min(0.05, remaining))
-        time.sleep(settle)
+            sleep(min(0.05, remaining))
+        sleep(settle)
 
     def hand_release(self) -> None:
         """The hand lets go of the arm (a limp arm then sags under gravity)."""

@@ -20,14 +20,15 @@ class ParentCommands:
     """Faults and the parent's commands, applied to the emulator's servos and simulation.
 
     Expects the emulator's state on the instance (``servos``, ``by_joint``,
-    ``m``, ``d``, ``smu``, ``goal_log``, the reply statistics and the pty).
+    ``m``, ``d``, ``smu``, ``goal_log``, the reply statistics, the pty and ``arm_time()``: an
+    outage lasts its milliseconds on the arm's clock, wall or simulated).
     """
 
     def inject(self, faults: list[tuple]) -> None:
         """Apply parsed faults (``arm.parse_faults``): the bus, a servo, or the cable."""
         for kind, servo_id, arg in faults:
             if kind == "outage":
-                self.outage_until = time.perf_counter() + arg / 1000.0
+                self.outage_until = self.arm_time() + arg / 1000.0  # on the arm's clock
                 logger.info("fault injected: bus outage of %g ms", arg)
                 continue
             if kind == "latency":

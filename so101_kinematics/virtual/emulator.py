@@ -2,7 +2,9 @@
 
 It runs in its own interpreter, started by :class:`so101_kinematics.virtual.arm.VirtualSO101`
 (entry point :func:`emulator_main`), and serves the bus and steps the physics
-in one single-threaded event loop; the parent's commands arrive on a socket pair.
+in one single-threaded event loop; the parent's commands arrive on a socket pair. The
+physics keeps up with the wall clock, or, with ``sim_clock``, with the program's simulated
+time (``virtual/sim_clock.py``, on a second socket pair).
 What the instructions do is ``virtual/instructions.py``'s, what the registers do to the
 arm ``virtual/registers.py``'s.
 """
@@ -24,15 +26,17 @@ from so101_kinematics.virtual.commands import ParentCommands
 from so101_kinematics.virtual.electrical import SUPPLY_V, THERMAL_TIME_S
 from so101_kinematics.virtual.hand import Hand
 from so101_kinematics.virtual.instructions import BusInstructions
-from so101_kinematics.virtual.protocol import take_packets
+from so101_kinematics.virtual.protocol import BROADCAST_ID, INST_SYNC_READ, take_packets
 from so101_kinematics.virtual.registers import GOAL_LOG_LENGTH, ServoRegisters
 from so101_kinematics.virtual.rules import check_rules
 from so101_kinematics.virtual.servo_memory import VirtualServo
+from so101_kinematics.virtual.sim_clock import LEROBOT_TIMEOUT_S, ClockFollower
 
 __all__: list[str] = []
 
 logger = logging.getLogger("virtual_so101")
 
+SIM_IDLE_S = 1 / 60  # [s] the simulated clock's loop wakes this often for a viewer or cameras
 TCGETS2 = 0x802C542A  # Linux ioctl: struct termios2, whose c_ospeed is the exact rate [bit/s]
 
 
@@ -66,6 +70,9 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
             self.m = smu.load_model()
         self.d = mujoco.MjData(self.m)
         self.dt = float(self.m.opt.timestep)
+        self.dt_ns = round(self.dt * 1e9)
+        clock_fd = options.get("sim_clock_fd")  # virtual/sim_clock.py: the program's time
+        self.sim_clock = None if clock_fd is None else ClockFollower(clock_fd)
         self.servos: dict[int, VirtualServo] = {}
         for joint, cal in options["calibration"].items():
             servo = VirtualServo(joint, cal, self.m)
@@ -127,6 +134,10 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
         self.t0 = time.perf_counter()
         self.steps = 0
 
+    def arm_time(self) -> float:
+        """Now on the arm's clock [s]: the program's simulated time, else ``perf_counter``."""
+        return time.perf_counter() if self.sim_clock is None else self.sim_clock.now
+
     # --- protocol -------------------------------------------------------------------------
     def serve_serial(self) -> None:
         """Answer any request already on the bus (called from long parent commands)."""
@@ -142,7 +153,12 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
             time.sleep(0.001)
             return
         now = time.perf_counter()
-        if now < self.outage_until:  # the bus is down: requests are lost, nobody answers
+        if self.arm_time() < self.outage_until:  # the bus is down: requests lost, no answers
+            if self.sim_clock is not None:  # each request cost its asker lerobot's timeout
+                self.rx += chunk
+                for packet in take_packets(self.rx):
+                    if _replies_awaited(packet):
+                        self.sim_clock.charge(LEROBOT_TIMEOUT_S)
             self.rx.clear()
             return
         baud = pty_baud_rate(self.master) or 0  # 0: a rate no servo speaks
@@ -154,37 +170,66 @@ class _Emulator(BusInstructions, ServoRegisters, ParentCommands, Hand):
             del rx[:2]  # a stale partial packet: a servo's byte timeout would discard it
         rx += chunk
         for packet in take_packets(rx):
+            answered = self.replies
             self.handle(packet, now)
+            if self.sim_clock is not None and self.replies - answered < _replies_awaited(packet):
+                self.sim_clock.charge(LEROBOT_TIMEOUT_S)  # the host waited for a reply in vain
         if rx:
             self.rx_partial_since = now
 
     def run(self) -> None:
         self.conn.send(("ready", self.port))
-        master, conn = self.master, self.conn
+        master, conn, follower = self.master, self.conn, self.sim_clock
         while True:
             now = time.perf_counter()
-            wake = max(now, self.t0 + (self.steps + 1) * self.dt)
             watched = [conn] if self.unplugged else [master, conn]
-            ready, _, _ = select.select(watched, [], [], wake - now)
-            # How long past its wake-up time the loop got the CPU back (descheduled).
-            self.max_gap = max(self.max_gap, time.perf_counter() - wake)
+            if follower is None:
+                wake = max(now, self.t0 + (self.steps + 1) * self.dt)
+                timeout = wake - now
+            else:  # the physics waits for the program's time, not the wall clock's
+                timeout = SIM_IDLE_S if self.viewer or self.cameras else None
+                watched += [follower] if follower.open else []
+            ready, _, _ = select.select(watched, [], [], timeout)
+            if follower is None:  # how long past its wake-up time it got the CPU back
+                self.max_gap = max(self.max_gap, time.perf_counter() - wake)
             if master in ready:
                 self.on_serial()
-            if conn in ready:
-                try:
-                    name, args = conn.recv()
-                except (EOFError, OSError):
-                    return
-                if name == "close":
-                    conn.send(("ok", None))
-                    return
-                try:
-                    conn.send(("ok", self.command(name, args)))
-                except Exception as exc:  # noqa: BLE001 - handed to the caller
-                    conn.send(("err", exc))
+            if conn in ready and not self.on_command():
+                return
+            if follower in ready:
+                self.serve_serial()  # the requests sent before the sleep act first
+                follower.receive()
             self.step_physics()
+            if follower is not None:
+                follower.acknowledge(self.steps * self.dt_ns)
             if self.cameras is not None:
                 self.cameras.tick(self.d, time.perf_counter())
+
+    def on_command(self) -> bool:
+        """Obey one of the parent's commands; False when the emulator is to stop."""
+        try:
+            name, args = self.conn.recv()
+        except (EOFError, OSError):
+            return False
+        if name == "close":
+            self.conn.send(("ok", None))
+            return False
+        try:
+            self.conn.send(("ok", self.command(name, args)))
+        except Exception as exc:  # noqa: BLE001 - handed to the caller
+            self.conn.send(("err", exc))
+        return True
+
+
+def _replies_awaited(packet: bytes) -> int:
+    """How many replies a host waits for after ``packet``: one from an addressed servo.
+
+    One per ID of a SYNC_READ, none after another broadcast.
+    """
+    target, inst, params = packet[2], packet[4], packet[5:-1]
+    if target != BROADCAST_ID:
+        return 1
+    return max(0, len(params) - 2) if inst == INST_SYNC_READ else 0
 
 
 def _camera_server(m, options: dict):
@@ -251,6 +296,8 @@ def emulator_main(fd: int) -> None:
             emulator.viewer.close()
         if emulator.cameras is not None:
             emulator.cameras.close()
+        if emulator.sim_clock is not None:
+            emulator.sim_clock.close()
         if not emulator.unplugged:
             os.close(emulator.master)
             os.close(emulator.slave)

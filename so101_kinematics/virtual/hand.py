@@ -26,7 +26,6 @@ Rules:
 from __future__ import annotations
 
 import math
-import time
 
 from so101_kinematics.clearance import check_path
 from so101_kinematics.errors import ClearanceError
@@ -42,9 +41,12 @@ class HandError(ValueError):
 
 
 class Hand:
-    """The hand's state and motion (a mixin of the emulator; expects ``m``, ``d``, ``by_joint``)."""
+    """The hand's state and motion (a mixin of the emulator).
 
-    hand_path: list[tuple[float, dict[str, float]]]  # (time [s, perf_counter], targets)
+    Expects ``m``, ``d``, ``by_joint`` and ``arm_time()`` (the arm's clock, wall or simulated).
+    """
+
+    hand_path: list[tuple[float, dict[str, float]]]  # (time [s, the arm's clock], targets)
     hand_grip: dict[str, float]  # joint -> current target [rad]
 
     def hand_move(self, waypoints: list[dict[str, float]]) -> float:
@@ -73,7 +75,7 @@ class Hand:
         for w in waypoints:
             points.append(dict(points[-1], **w))
         self._check_table(points)
-        now = time.perf_counter()
+        now = self.arm_time()
         path = [(now, points[0])]
         for a, b in zip(points, points[1:], strict=False):
             span = max(abs(b[j] - a[j]) for j in a)
@@ -90,7 +92,7 @@ class Hand:
         """[s] until the hand's path ends (0 when it holds still)."""
         if not self.hand_path:
             return 0.0
-        return max(0.0, self.hand_path[-1][0] - time.perf_counter())
+        return max(0.0, self.hand_path[-1][0] - self.arm_time())
 
     def hand_release(self, joint: str | None = None) -> None:
         """The hand lets go (of ``joint``, default all): those joints are free (limp) again."""
@@ -105,7 +107,7 @@ class Hand:
         """Set the gripped joints' spring targets for now, and carry the arm's weight."""
         if not self.hand_grip:
             return
-        now = time.perf_counter()
+        now = self.arm_time()
         path = self.hand_path
         targets = path[-1][1] if path else {}
         for (t0, a), (t1, b) in zip(path, path[1:], strict=False):

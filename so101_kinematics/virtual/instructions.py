@@ -54,6 +54,7 @@ from so101_kinematics.virtual.protocol import (
     collide,
     status_packet,
 )
+from so101_kinematics.virtual.sim_clock import LEROBOT_TIMEOUT_S
 
 __all__ = ["BusInstructions"]
 
@@ -75,7 +76,7 @@ class BusInstructions:
     """The protocol side of the emulator: one instruction packet in, the bus's replies out.
 
     Expects the emulator's state on the instance (``listening``, ``host_baud``,
-    ``wire_timing``, ``wire_free``, ``master``, the reply statistics) and the
+    ``wire_timing``, ``wire_free``, ``master``, the reply statistics, ``sim_clock``) and the
     register methods of :class:`~so101_kinematics.virtual.registers.ServoRegisters`.
     """
 
@@ -219,6 +220,8 @@ class BusInstructions:
             return
         if self.latency_left > 0:  # late replies (injected): the whole batch waits
             self.latency_left -= 1
+            if self.sim_clock is not None:  # the host waited that long, or gave up
+                self.sim_clock.charge(min(self.latency, LEROBOT_TIMEOUT_S))
             out = [(ready + self.latency, packet) for ready, packet in out]
             t_ready += self.latency
             if not self.wire_timing:

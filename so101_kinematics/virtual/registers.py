@@ -90,7 +90,8 @@ GOAL_LOG_LENGTH = 1_000_000  # Goal_Position writes kept (about 30 min of a 100 
 class ServoRegisters(SensorReadings):
     """The servos' registers applied to the MuJoCo arm (a mixin of the emulator's event loop).
 
-    Expects ``m``, ``d``, ``mujoco``, ``dt``, ``t0``, ``steps``, ``servos``,
+    Expects ``m``, ``d``, ``mujoco``, ``dt``, ``t0``, ``steps``, ``sim_clock`` (None: the wall
+    clock), ``dt_ns``, ``servos``,
     ``by_joint``, ``goal_log``, ``viewer``, ``next_view``, ``supply`` [V],
     ``voltage`` [0.1 V] and ``thermal_time_s`` on the instance.
     """
@@ -158,13 +159,22 @@ class ServoRegisters(SensorReadings):
             self.bank.reset_target(servo.index, round(angle * servo_facts.COUNTS_PER_RAD))
 
     def step_physics(self) -> None:
-        """Step the simulation up to the wall clock (at most 25 steps behind: then time slips)."""
-        due = int((time.perf_counter() - self.t0) / self.dt) - self.steps
-        if due <= 0:
-            return
-        if due > 25:  # fell behind (busy machine): let simulated time slip
-            self.steps += due - 25
-            due = 25
+        """Step the simulation up to its clock.
+
+        The wall clock by default (at most 25 steps behind: then time slips); the program's
+        simulated time with ``sim_clock`` (``virtual/sim_clock.py``): every step, never slipping.
+        """
+        if self.sim_clock is not None:
+            due = self.sim_clock.target_ns // self.dt_ns - self.steps
+            if due <= 0:
+                return
+        else:
+            due = int((time.perf_counter() - self.t0) / self.dt) - self.steps
+            if due <= 0:
+                return
+            if due > 25:  # fell behind (busy machine): let simulated time slip
+                self.steps += due - 25
+                due = 25
         m, d, step = self.m, self.d, self.mujoco.mj_step
         stalled = [s for s in self.by_joint.values() if s.stalled_at is not None]
         acts, qadr, torques, bias = self.bank_acts, self.bank_qadr, self.bank.torques, \
