@@ -2,7 +2,7 @@
 
 The board lies on the table, square ``i`` (0-8, row by row) at ``centre + pitch * (col - 1,
 1 - row)`` in the world (row 0 towards +y). Each arm's pieces wait on its own left-hand side
-(its base frame's +y), in a row parallel to its reach. A piece is the course's 26 mm cube.
+(``ArmBase.side``), in two rows. A piece is the course's 26 mm cube.
 
 The pitch 50 mm (a 150 mm board) comes from the reach: the course's top-down plan with its
 slide and lift solves from 0.12 to 0.27 m off the pan axis (``vision/see_and_pick.py``), and
@@ -67,6 +67,13 @@ class Board:
         """[m] From the board's centre to its edge (the outer squares' far sides)."""
         return 1.5 * self.pitch
 
+    def lines(self) -> tuple[tuple[float, float, float, float], ...]:
+        """The board's grid as lines on the table: (x, y, half along x, half along y) [m]."""
+        x, y, half, width = *self.centre, self.half_width(), 0.001
+        cuts = (-half, -0.5 * self.pitch, 0.5 * self.pitch, half)
+        return (tuple((x + c, y, width, half) for c in cuts)
+                + tuple((x, y + c, half, width) for c in cuts))
+
     def check(self) -> None:
         """Refuse a pitch too small for a piece and the open jaws between pieces.
 
@@ -85,7 +92,8 @@ def game_pieces(bases: tuple[ArmBase, ArmBase]) -> tuple[Piece, ...]:
     pieces = []
     for base, mark in zip(bases, PIECES, strict=True):
         for k in range(PIECES[mark]):
-            x, y, _ = world_from_base(base, (*SUPPLY_SPOTS[k], 0.0))
+            spot_x, spot_y = SUPPLY_SPOTS[k]
+            x, y, _ = world_from_base(base, (spot_x, base.side * spot_y, 0.0))
             pieces.append(Piece(f"{mark.lower()}_{k + 1}", x, y, MARK_COLOURS[mark]))
     return tuple(pieces)
 

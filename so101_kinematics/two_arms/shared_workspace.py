@@ -22,8 +22,8 @@ import numpy as np
 from so101_kinematics.errors import ClearanceError
 
 __all__ = [
-    "MIN_ARM_DISTANCE", "PATH_SAMPLE_S", "ZONE_MARGIN", "ArmDistanceWatch", "arm_distance",
-    "check_path", "in_zone",
+    "MIN_ARM_DISTANCE", "PATH_SAMPLE_S", "WATCH_EVERY", "ZONE_MARGIN", "ArmDistanceWatch",
+    "arm_distance", "check_path", "in_zone",
 ]
 
 MIN_ARM_DISTANCE = 0.02
@@ -32,6 +32,8 @@ ZONE_MARGIN = 0.03
 """[m] The board's area: its rectangle widened by this on every side."""
 PATH_SAMPLE_S = 0.04
 """[s] Between two checked goals along a planned path."""
+WATCH_EVERY = 5
+"""Physics steps between two measurements when a video syncs every step (20 ms)."""
 _SEARCH = 0.1
 """[m] Pairs of geoms whose bounding spheres are farther apart than this are not measured."""
 
@@ -115,18 +117,25 @@ class ArmDistanceWatch:
         self.collisions = 0
         self.least_distance = _SEARCH
         self._touching = False
+        self._calls = 0
 
     def is_running(self) -> bool:
         """The inner viewer's state (always true without one)."""
         return self.inner is None or self.inner.is_running()
 
     def sync(self) -> None:
-        """Measure, count a new touch, forward."""
+        """Measure (every ``WATCH_EVERY`` calls when synced every step), count a touch, forward."""
+        self._calls += 1
+        if not self.sync_every_step or self._calls % WATCH_EVERY == 0:
+            self._measure()
+        if self.inner is not None:
+            self.inner.sync()
+
+    def _measure(self) -> None:
+        """The arms' distance now; a new touch is a collision."""
         distance = arm_distance(self.m, self.d, self.arms[0].geoms, self.arms[1].geoms)
         self.least_distance = min(self.least_distance, distance)
         touching = distance <= 0.0
         if touching and not self._touching:
             self.collisions += 1
         self._touching = touching
-        if self.inner is not None:
-            self.inner.sync()

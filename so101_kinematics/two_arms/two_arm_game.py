@@ -14,13 +14,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict
+from pathlib import Path
 
 import mujoco
 
 from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.errors import PlanError, UnreachableError
+from so101_kinematics.markers import png_metadata
+from so101_kinematics.outputs import atomic_output
 from so101_kinematics.planning.cartesian_plan import cartesian_plan
 from so101_kinematics.sim import actuation
+from so101_kinematics.sim.render import QUALITY, FrameRenderer
 from so101_kinematics.two_arms.game_board import (
     Board,
     check_move,
@@ -36,20 +40,25 @@ from so101_kinematics.two_arms.shared_workspace import (
 )
 from so101_kinematics.two_arms.tictactoe import EMPTY, full_game, winner
 from so101_kinematics.two_arms.two_arm_scene import (
+    CAMERA,
     ArmBase,
     base_from_world,
     build_two_arm_model,
     check_bases,
 )
 
-__all__ = ["GAMES", "MOVE_DURATION", "PARK_POSE", "board_zone", "check_reach", "run_game"]
+__all__ = [
+    "GAMES", "MOVE_DURATION", "PARK_POSE", "board_zone", "check_reach", "park_pose", "run_game",
+    "save_frame",
+]
 
 GAMES = ("tictactoe",)
 PARK_POSE = dict(HOME_POSE, shoulder_pan=-90.0, gripper=0.0)
 """[deg] Where an arm waits while the other plays: the rest pose (``home``) turned a quarter
-towards its own pieces (its base frame's +y), jaws closed: out of the board's area and away
-from the other arm. (The see-and-pick's look pose, gripper up over the base, was tried: the
-wrist's flip up from the board sweeps the jaws within 18 mm of the other arm.)"""
+towards its own pieces (its base frame's +y; -y: ``park_pose``), jaws closed: out of the
+board's area and away from the other arm. (The see-and-pick's look pose, gripper up over the
+base, was tried: the wrist's flip up from the board swept the jaws within 18 mm of the other
+arm, bases 0.40 m apart.)"""
 MOVE_DURATION = 1.5
 """[s] Each main move of a pick-and-place (the short ones near the piece take half)."""
 HOLD_DURATION = 0.3
@@ -59,6 +68,11 @@ LIFT_HEIGHT = 0.06
 """[m] The lift and carry above the pieces (the course's 0.10 m is beyond the wrist's range
 above the board's near squares: 0.15 m from the base at 0.11 m up needs wrist_flex 96 deg)."""
 """[s] The move back to the park pose."""
+
+
+def park_pose(base: ArmBase) -> dict[str, float]:
+    """:data:`PARK_POSE` on ``base``'s own side (``ArmBase.side``)."""
+    return dict(PARK_POSE, shoulder_pan=base.side * PARK_POSE["shoulder_pan"])
 
 
 def board_zone(board: Board) -> tuple[float, float, float, float]:
@@ -83,10 +97,10 @@ def _plan(base: ArmBase, pick_world, place_world, yaw: float):
                               move_duration=MOVE_DURATION,
                               hold_duration=HOLD_DURATION)
     except UnreachableError as error:
-        reason = str(error).split(" Fix:")[0]
+        reason = str(error).split(" Fix:")[0].rstrip(".")
         raise PlanError(f"the board or the pieces are out of the {base.name} arm's reach "
                         f"({reason}). Fix: put the board between the arms (--layout facing, "
-                        "--spacing 0.40) or a smaller --pitch-mm.") from None
+                        "--spacing 0.46) or a smaller --pitch-mm.") from None
 
 
 def check_reach(bases, board: Board, pieces) -> None:
@@ -117,7 +131,8 @@ def _run_moves(m, d, viewer, arm: SceneArm, other: SceneArm, steps, zone, what: 
 
 
 def run_game(bases: tuple[ArmBase, ArmBase], board: Board, game: str = "tictactoe",
-             opening: int = 4, servo: dict | None = None, video=None) -> dict:
+             opening: int = 4, servo: dict | None = None, video=None,
+             image: Path | None = None) -> dict:
     """Play a whole game in the simulator; the report (JSON-ready).
 
     Args:
@@ -128,6 +143,7 @@ def run_game(bases: tuple[ArmBase, ArmBase], board: Board, game: str = "tictacto
         servo: keywords of ``actuation.use_servo`` (default: the faithful STS3215).
         video: None, or a callable (m, d) -> a video recorder (``sim/video.py``'s), closed
             here: complete after the game, discarded when it fails.
+        image: a PNG of the board at the end, from the ``two_arms`` camera (or None).
 
     Returns:
         ``completed``, ``collisions``, ``moves`` (each with ``piece_error_mm``), the board.
@@ -143,11 +159,11 @@ def run_game(bases: tuple[ArmBase, ArmBase], board: Board, game: str = "tictacto
     board.check()
     pieces = game_pieces(bases)
     check_reach(bases, board, pieces)
-    m = build_two_arm_model(bases, pieces, servo)
+    m = build_two_arm_model(bases, pieces, servo, board.lines())
     d, scratch = mujoco.MjData(m), mujoco.MjData(m)
     arms = (SceneArm(m, bases[0]), SceneArm(m, bases[1]))
     for arm in arms:
-        arm.set_initial_pose(d, PARK_POSE)
+        arm.set_initial_pose(d, park_pose(arm.base))
     recorder = video(m, d) if video is not None else None
     try:
         report = _play(m, d, scratch, arms, board, pieces, opening,
@@ -158,8 +174,27 @@ def run_game(bases: tuple[ArmBase, ArmBase], board: Board, game: str = "tictacto
         raise
     if recorder is not None:
         recorder.close()
+    if image is not None:
+        save_frame(m, d, image)
     return report | {"game": game, "bases": [asdict(b) for b in bases], "board": asdict(board),
                      "servo": actuation.servo_spec(m).describe()}
+
+
+def save_frame(m: mujoco.MjModel, d: mujoco.MjData, path: Path,
+               size: tuple[int, int] = (960, 720)) -> None:
+    """Write what the ``two_arms`` camera sees now as a PNG of ours (``markers.py``)."""
+    from PIL import Image, PngImagePlugin
+
+    renderer = FrameRenderer(m, d, size, CAMERA, quality=QUALITY["fast"])
+    try:
+        pixels = renderer.render()
+    finally:
+        renderer.close()
+    marker = PngImagePlugin.PngInfo()
+    for key, text in png_metadata("two_arms.py --image").items():
+        marker.add_text(key, text)
+    with atomic_output(path) as temporary:
+        Image.fromarray(pixels).save(temporary, format="PNG", pnginfo=marker)
 
 
 def _play(m, d, scratch, arms, board: Board, pieces, opening: int,
@@ -175,7 +210,7 @@ def _play(m, d, scratch, arms, board: Board, pieces, opening: int,
         plan = _plan(arm.base, before[piece], board.square(square),
                      _piece_yaw(d, piece, arm.base))
         steps = [(s.name, s.configuration, s.duration, s.hold) for s in plan.steps]
-        steps.append(("park", PARK_POSE, PARK_DURATION, 0.3))
+        steps.append(("park", park_pose(arm.base), PARK_DURATION, 0.3))
         what = f"{arm.name} arm: {piece} to square {square}"
         least = min(least, _run_moves(m, d, watch, arm, other, steps, zone, what, scratch))
         expected = expected[:square] + (mark,) + expected[square + 1:]

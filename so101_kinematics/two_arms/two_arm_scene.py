@@ -13,6 +13,9 @@ A base pose is (x [m], y [m], yaw [deg]) in the world, whose origin is on the ta
 - ``facing``: the arms face each other across the origin, ``spacing`` apart (left at
   ``(-spacing / 2, 0, 0)``, right at ``(spacing / 2, 0, 180)``);
 - ``side``: side by side, both facing +x, ``spacing`` apart in y (left at +y).
+
+Each arm keeps its pieces and parks on its own side: in ``facing`` its base frame's +y (the
+two sides are opposite in the world), in ``side`` its outer side.
 """
 
 from __future__ import annotations
@@ -59,12 +62,15 @@ class ArmBase:
         x: [m] in the world.
         y: [m] in the world.
         yaw: [deg] about the vertical (0: the arm reaches along the world's +x).
+        side: +1 when the arm's own pieces and its park pose are on its base frame's +y,
+            -1 on its -y (away from the other arm).
     """
 
     name: str
     x: float
     y: float
     yaw: float
+    side: float = 1.0
 
     @property
     def prefix(self) -> str:
@@ -109,7 +115,7 @@ def arm_bases(layout: str = "facing", spacing: float = 0.40) -> tuple[ArmBase, A
     half = 0.5 * float(spacing)
     if layout == "facing":
         return ArmBase("left", -half, 0.0, 0.0), ArmBase("right", half, 0.0, 180.0)
-    return ArmBase("left", 0.0, half, 0.0), ArmBase("right", 0.0, -half, 0.0)
+    return ArmBase("left", 0.0, half, 0.0), ArmBase("right", 0.0, -half, 0.0, side=-1.0)
 
 
 def check_bases(bases: tuple[ArmBase, ArmBase]) -> None:
@@ -159,7 +165,9 @@ def _arm_spec() -> mujoco.MjSpec:
 
 
 def build_two_arm_model(bases: tuple[ArmBase, ArmBase], pieces: tuple[Piece, ...] = (),
-                        servo: dict | None = None) -> mujoco.MjModel:
+                        servo: dict | None = None,
+                        lines: tuple[tuple[float, float, float, float], ...] = ()
+                        ) -> mujoco.MjModel:
     """Compile the table with two arms at ``bases`` and free ``pieces`` on it.
 
     Args:
@@ -167,6 +175,8 @@ def build_two_arm_model(bases: tuple[ArmBase, ArmBase], pieces: tuple[Piece, ...
         pieces: cubes resting on the table.
         servo: keywords of ``actuation.use_servo`` (default: the faithful STS3215, the
             project's default), applied to both arms.
+        lines: lines drawn on the table, each (x, y, half length along x, half along y) [m]
+            (visual only: no contact, no mass; the physics unchanged).
 
     Returns:
         The model: 12 joints and actuators named ``left_*`` and ``right_*``, then the
@@ -185,6 +195,10 @@ def build_two_arm_model(bases: tuple[ArmBase, ArmBase], pieces: tuple[Piece, ...
     for piece in pieces:
         add_cube(parent, [piece.x, piece.y, CUBE_HALF_SIZE], [1.0, 0.0, 0.0, 0.0], name=piece.name)
         parent.geom(piece.name).rgba = list(piece.rgba)
+    for x, y, half_x, half_y in lines:
+        parent.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, pos=[x, y, 0.0002],
+                                  size=[half_x, half_y, 0.0002], contype=0, conaffinity=0,
+                                  density=0.0, group=1, rgba=[0.2, 0.2, 0.2, 1.0])
     parent.worldbody.add_camera(name=CAMERA, pos=[0.0, -0.62, 0.50], fovy=50.0,
                                 xyaxes=[1.0, 0.0, 0.0, 0.0, 0.6, 0.8])
     m = parent.compile()
