@@ -34,9 +34,9 @@ from so101_kinematics.outputs import (
     stamp,
     write_text_atomic,
 )
-from so101_kinematics.two_arms.game_board import DEFAULT_PITCH, Board
+from so101_kinematics.two_arms.game_board import DEFAULT_PITCH, GameBoard
 from so101_kinematics.two_arms.two_arm_game import run_game
-from so101_kinematics.two_arms.two_arm_scene import CAMERA, LAYOUTS, arm_bases
+from so101_kinematics.two_arms.two_arm_scene import GAME_CAMERA, LAYOUTS, arm_bases
 
 REPORT = report_of("two_arms.py")  # --json replaces only a report of this program
 SPACING_RANGE = (0.0, 1.0)  # [m]: the bases' overlap and the reach are checked on the layout
@@ -82,9 +82,9 @@ line; nothing run), 1 an unexpected error, 130 interrupted.""")
                         "--video)")
     parser.add_argument("--json", type=Path, metavar="PATH", help="write the report as JSON")
     parser.add_argument("--video", type=Path, metavar="PATH.mp4",
-                        help=f"film the game from the '{CAMERA}' camera")
+                        help=f"film the game from the '{GAME_CAMERA}' camera")
     parser.add_argument("--image", type=Path, metavar="PATH.png",
-                        help=f"a picture of the board at the end, from the '{CAMERA}' camera")
+                        help=f"a picture of the board at the end (the '{GAME_CAMERA}' camera)")
     parser.add_argument("--ports", nargs=2, metavar=("A", "B"),
                         help="two arms' serial ports (not built yet: refused)")
     add_overwrite_argument(parser)
@@ -131,13 +131,13 @@ def _run(args: argparse.Namespace) -> int:
     video, image, json_path = _check_outputs(args)
     bases = arm_bases(args.layout, args.spacing)
     centre = args.board_at or ((0.0, 0.0) if args.layout == "facing" else (0.20, 0.0))
-    board = Board(tuple(centre), args.pitch_mm / 1e3)
+    board = GameBoard(tuple(centre), args.pitch_mm / 1e3)
     recorder = None
     if video is not None:
         from so101_kinematics.sim.video import VideoRecorder
 
         def recorder(m, d):
-            return VideoRecorder(m, d, video, fps=VIDEO_FPS, size=VIDEO_SIZE, camera=CAMERA,
+            return VideoRecorder(m, d, video, fps=VIDEO_FPS, size=VIDEO_SIZE, camera=GAME_CAMERA,
                                  progress=False)
 
     started = time.perf_counter()

@@ -340,22 +340,28 @@ def _offset(entry: list, spec: ServoSpec, goal: list[float]) -> list[float]:
 
     The offsets are re-evaluated when a goal moved ``FEEDFORWARD_REFRESH_DEG``; between,
     the last ones are added to the goal as it moves. ``goal`` holds six joints per arm;
-    each arm's offsets come from its own six.
+    each arm has its own feed-forward, evaluated on its own six (so an arm beside another
+    moves as it would alone).
     """
-    at, deltas = entry[2], entry[3]
-    if at is None or max(abs(g - a) for g, a in zip(goal, at, strict=True)) > _REFRESH_RAD:
-        feedforward = entry[4]
-        if feedforward is None:
-            feedforward = entry[4] = gravity.Feedforward(
-                dict(zip(JOINTS, spec.settings, strict=True)), spec.volts, spec.variant)
-        deltas = entry[3] = []
-        for start in range(0, len(goal), len(JOINTS)):
-            cfg = {j: math.degrees(g) for j, g in zip(JOINTS, goal[start:], strict=False)}
+    size = len(JOINTS)
+    if entry[2] is None:
+        arms = len(goal) // size
+        entry[2], entry[3], entry[4] = [None] * arms, [None] * arms, [None] * arms
+    out = []
+    for k, (at, deltas) in enumerate(zip(entry[2], entry[3], strict=True)):
+        own = goal[k * size:(k + 1) * size]
+        if at is None or max(abs(g - a) for g, a in zip(own, at, strict=True)) > _REFRESH_RAD:
+            feedforward = entry[4][k]
+            if feedforward is None:
+                feedforward = entry[4][k] = gravity.Feedforward(
+                    dict(zip(JOINTS, spec.settings, strict=True)), spec.volts, spec.variant)
+            cfg = {j: math.degrees(g) for j, g in zip(JOINTS, own, strict=True)}
             cfg["gripper"] = 50.0  # the jaw's weight barely moves with the opening
             sent = feedforward.apply(cfg)
-            deltas += [math.radians(sent[j] - cfg[j]) for j in JOINTS[:5]] + [0.0]
-        entry[2] = goal
-    return [g + o for g, o in zip(goal, deltas, strict=True)]
+            deltas = entry[3][k] = [math.radians(sent[j] - cfg[j]) for j in JOINTS[:5]] + [0.0]
+            entry[2][k] = own
+        out += [g + o for g, o in zip(own, deltas, strict=True)]
+    return out
 
 
 _REFRESH_RAD = math.radians(FEEDFORWARD_REFRESH_DEG)

@@ -24,7 +24,7 @@ from so101_kinematics.two_arms.two_arm_scene import ArmBase, Piece, world_from_b
 
 __all__ = [
     "DEFAULT_PITCH", "MARK_COLOURS", "PIECES", "PLACE_TOLERANCE_MM", "SUPPLY_SPOTS",
-    "TILT_TOLERANCE_DEG", "Board", "MoveCheck", "check_move", "game_pieces", "piece_pose",
+    "TILT_TOLERANCE_DEG", "GameBoard", "MoveCheck", "check_move", "game_pieces", "piece_pose",
     "read_board",
 ]
 
@@ -46,7 +46,7 @@ MOVED_MM = 3.0
 
 
 @dataclass(frozen=True)
-class Board:
+class GameBoard:
     """The 3x3 board: its centre (x, y) [m] in the world and its pitch [m]."""
 
     centre: tuple[float, float] = (0.0, 0.0)
@@ -56,7 +56,7 @@ class Board:
         """Where a piece's centre goes on square ``index`` (0-8): (x, y, z) [m] in the world.
 
         Example:
-            >>> [round(v, 3) for v in Board((0.0, 0.0), 0.05).square(0)]
+            >>> [round(v, 3) for v in GameBoard((0.0, 0.0), 0.05).square(0)]
             [-0.05, 0.05, 0.013]
         """
         row, col = divmod(int(index), 3)
@@ -108,7 +108,7 @@ def _mark_of(name: str) -> str:
     return name.split("_")[0].upper()
 
 
-def read_board(m: mujoco.MjModel, d: mujoco.MjData, board: Board,
+def read_board(m: mujoco.MjModel, d: mujoco.MjData, board: GameBoard,
                pieces: tuple[Piece, ...]) -> tuple[str, ...]:
     """The board as the simulation has it: each square's mark ("" empty), from the pieces' poses.
 
@@ -150,7 +150,7 @@ class MoveCheck:
         return "; ".join(reasons)
 
 
-def check_move(m: mujoco.MjModel, d: mujoco.MjData, board: Board, pieces: tuple[Piece, ...],
+def check_move(m: mujoco.MjModel, d: mujoco.MjData, board: GameBoard, pieces: tuple[Piece, ...],
                moved: str, square: int, before: dict[str, np.ndarray]) -> MoveCheck:
     """Judge a move from the simulation: ``moved`` on ``square``, the others as ``before``.
 

@@ -1,6 +1,6 @@
 """The two arms' shared workspace: the rule every planned path passes, and the run's watch.
 
-The rule, checked on every planned move before it runs (:func:`check_path`), at its goals
+The rule, checked on every planned move before it runs (:func:`check_shared_path`), at its goals
 every ``PATH_SAMPLE_S`` along the path, the other arm where it is commanded:
 
 1. one arm in the board's area at a time: the moving arm's object frame may enter the
@@ -23,7 +23,7 @@ from so101_kinematics.errors import ClearanceError
 
 __all__ = [
     "MIN_ARM_DISTANCE", "PATH_SAMPLE_S", "WATCH_EVERY", "ZONE_MARGIN", "ArmDistanceWatch",
-    "arm_distance", "check_path", "in_zone",
+    "arm_distance", "check_shared_path", "in_zone",
 ]
 
 MIN_ARM_DISTANCE = 0.02
@@ -59,7 +59,7 @@ def in_zone(point, zone: tuple[float, float, float, float]) -> bool:
     return zone[0] <= point[0] <= zone[1] and zone[2] <= point[1] <= zone[3]
 
 
-def check_path(m: mujoco.MjModel, scratch: mujoco.MjData, moving, other, rows: np.ndarray,
+def check_shared_path(m: mujoco.MjModel, scratch: mujoco.MjData, moving, other, rows: np.ndarray,
                other_goals: np.ndarray, zone, what: str) -> float:
     """Refuse a planned move that breaks the shared-workspace rule; the least distance [m].
 

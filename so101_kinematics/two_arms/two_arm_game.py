@@ -26,7 +26,7 @@ from so101_kinematics.planning.cartesian_plan import cartesian_plan
 from so101_kinematics.sim import actuation
 from so101_kinematics.sim.render import QUALITY, FrameRenderer
 from so101_kinematics.two_arms.game_board import (
-    Board,
+    GameBoard,
     check_move,
     game_pieces,
     piece_pose,
@@ -36,11 +36,11 @@ from so101_kinematics.two_arms.scene_arm import SceneArm
 from so101_kinematics.two_arms.shared_workspace import (
     ZONE_MARGIN,
     ArmDistanceWatch,
-    check_path,
+    check_shared_path,
 )
 from so101_kinematics.two_arms.tictactoe import EMPTY, full_game, winner
 from so101_kinematics.two_arms.two_arm_scene import (
-    CAMERA,
+    GAME_CAMERA,
     ArmBase,
     base_from_world,
     build_two_arm_model,
@@ -48,8 +48,8 @@ from so101_kinematics.two_arms.two_arm_scene import (
 )
 
 __all__ = [
-    "GAMES", "MOVE_DURATION", "PARK_POSE", "board_zone", "check_reach", "park_pose", "run_game",
-    "save_frame",
+    "GAMES", "MOVE_DURATION", "PARK_POSE", "board_zone", "check_board_reach", "park_pose",
+    "run_game", "save_frame",
 ]
 
 GAMES = ("tictactoe",)
@@ -75,7 +75,7 @@ def park_pose(base: ArmBase) -> dict[str, float]:
     return dict(PARK_POSE, shoulder_pan=base.side * PARK_POSE["shoulder_pan"])
 
 
-def board_zone(board: Board) -> tuple[float, float, float, float]:
+def board_zone(board: GameBoard) -> tuple[float, float, float, float]:
     """The board's area: (x_low, x_high, y_low, y_high) [m] in the world, with the margin."""
     half = board.half_width() + ZONE_MARGIN
     x, y = board.centre
@@ -103,7 +103,7 @@ def _plan(base: ArmBase, pick_world, place_world, yaw: float):
                         "--spacing 0.46) or a smaller --pitch-mm.") from None
 
 
-def check_reach(bases, board: Board, pieces) -> None:
+def check_board_reach(bases, board: GameBoard, pieces) -> None:
     """Refuse a board or pieces out of either arm's reach, before anything moves.
 
     Every square from each arm's first piece, and each arm's every piece to the centre square.
@@ -122,7 +122,7 @@ def _run_moves(m, d, viewer, arm: SceneArm, other: SceneArm, steps, zone, what: 
     least = math.inf
     for name, cfg, duration, hold in steps:
         rows = arm.path(m, d, cfg, duration)
-        least = min(least, check_path(m, scratch, arm, other, rows,
+        least = min(least, check_shared_path(m, scratch, arm, other, rows,
                                       d.ctrl[other.actuators].copy(), zone, f"{what} ({name})"))
         arm.move_to_pose(m, d, viewer, cfg, duration)
         if hold:
@@ -130,7 +130,7 @@ def _run_moves(m, d, viewer, arm: SceneArm, other: SceneArm, steps, zone, what: 
     return least
 
 
-def run_game(bases: tuple[ArmBase, ArmBase], board: Board, game: str = "tictactoe",
+def run_game(bases: tuple[ArmBase, ArmBase], board: GameBoard, game: str = "tictactoe",
              opening: int = 4, servo: dict | None = None, video=None,
              image: Path | None = None) -> dict:
     """Play a whole game in the simulator; the report (JSON-ready).
@@ -158,7 +158,7 @@ def run_game(bases: tuple[ArmBase, ArmBase], board: Board, game: str = "tictacto
     check_bases(bases)
     board.check()
     pieces = game_pieces(bases)
-    check_reach(bases, board, pieces)
+    check_board_reach(bases, board, pieces)
     m = build_two_arm_model(bases, pieces, servo, board.lines())
     d, scratch = mujoco.MjData(m), mujoco.MjData(m)
     arms = (SceneArm(m, bases[0]), SceneArm(m, bases[1]))
@@ -185,7 +185,7 @@ def save_frame(m: mujoco.MjModel, d: mujoco.MjData, path: Path,
     """Write what the ``two_arms`` camera sees now as a PNG of ours (``markers.py``)."""
     from PIL import Image, PngImagePlugin
 
-    renderer = FrameRenderer(m, d, size, CAMERA, quality=QUALITY["fast"])
+    renderer = FrameRenderer(m, d, size, GAME_CAMERA, quality=QUALITY["fast"])
     try:
         pixels = renderer.render()
     finally:
@@ -197,7 +197,7 @@ def save_frame(m: mujoco.MjModel, d: mujoco.MjData, path: Path,
         Image.fromarray(pixels).save(temporary, format="PNG", pnginfo=marker)
 
 
-def _play(m, d, scratch, arms, board: Board, pieces, opening: int,
+def _play(m, d, scratch, arms, board: GameBoard, pieces, opening: int,
           watch: ArmDistanceWatch) -> dict:
     """The game's moves, each planned, checked, run and judged (see :func:`run_game`)."""
     arms[0].hold_position(m, d, watch, 0.5)

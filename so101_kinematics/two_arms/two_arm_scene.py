@@ -34,7 +34,7 @@ from so101_kinematics.sim.cube import add_cube
 from so101_kinematics.sim.meshes import ensure_meshes
 
 __all__ = [
-    "ARM_NAMES", "BASE_RADIUS", "CAMERA", "LAYOUTS", "ArmBase", "Piece", "arm_bases",
+    "ARM_NAMES", "BASE_RADIUS", "GAME_CAMERA", "LAYOUTS", "ArmBase", "Piece", "arm_bases",
     "base_from_world", "build_two_arm_model", "check_bases", "world_from_base",
 ]
 
@@ -42,13 +42,13 @@ ARM_NAMES = ("left", "right")
 """The arms' names; each arm's joints, actuators and bodies carry ``<name>_`` before the
 course's names (lerobot's bimanual ``left_`` / ``right_`` keys)."""
 LAYOUTS = ("facing", "side")
-CAMERA = "two_arms"
+GAME_CAMERA = "two_arms"
 """The camera that films the game: 0.62 m in front of the board's centre (world -y), 0.50 m
 up, looking down at the table's origin at 37 deg."""
-BASE_RADIUS = 0.065
-"""[m] The base's footprint, a circle about the base frame's origin: the mounting plate
-reaches 0.063 m from it (``model/so101.xml``'s base meshes, their bounding boxes). Two bases
-closer than twice this overlap."""
+BASE_RADIUS = 0.072
+"""[m] The base's footprint, a circle about the base frame's origin: the farthest vertex of
+the base body's meshes (``model/so101.xml``'s ``base_so101_v2``) is 0.0718 m from it. Two
+bases closer than twice this overlap."""
 _OPTIONS = ("timestep", "integrator", "cone", "impratio", "disableflags", "enableflags")
 """The physics options the arm's file sets, copied onto the two-arm model."""
 
@@ -199,7 +199,7 @@ def build_two_arm_model(bases: tuple[ArmBase, ArmBase], pieces: tuple[Piece, ...
         parent.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, pos=[x, y, 0.0002],
                                   size=[half_x, half_y, 0.0002], contype=0, conaffinity=0,
                                   density=0.0, group=1, rgba=[0.2, 0.2, 0.2, 1.0])
-    parent.worldbody.add_camera(name=CAMERA, pos=[0.0, -0.62, 0.50], fovy=50.0,
+    parent.worldbody.add_camera(name=GAME_CAMERA, pos=[0.0, -0.62, 0.50], fovy=50.0,
                                 xyaxes=[1.0, 0.0, 0.0, 0.0, 0.6, 0.8])
     m = parent.compile()
     actuation.use_servo(m, **(servo or {}))
