@@ -2,12 +2,15 @@
 
 The board lies on the table, square ``i`` (0-8, row by row) at ``centre + pitch * (col - 1,
 1 - row)`` in the world (row 0 towards +y). Each arm's pieces wait on its own left-hand side
-(``ArmBase.side``), in two rows. A piece is the course's 26 mm cube.
+(``ArmBase.side``), on an arc about its pan axis. A piece is the course's 26 mm cube.
 
-The pitch 50 mm (a 150 mm board) comes from the reach: the course's top-down plan with its
-slide and lift solves from 0.12 to 0.27 m off the pan axis (``vision/see_and_pick.py``), and
-with the bases 0.40 m apart the squares then lie 0.11 to 0.26 m from each pan axis (the far
-corner's 0.26 m); a 26 mm piece leaves 24 mm between neighbours for the open jaws.
+The pitch 55 mm (a 165 mm board) comes from the reach: the course's top-down plan with its
+slide and lift solves from 0.12 to 0.27 m off the pan axis (``vision/see_and_pick.py``'s
+``PICK_RADIUS``), and with the bases 0.46 m apart across the board the squares' centres lie
+0.136 to 0.252 m from each pan axis (at 0.40 m the near squares are 0.11 m off, too near for
+the lift); 55 mm leaves 29 mm between two pieces for the jaws (at 50 mm only a release
+opening of 25 to 27 % neither pushed the next piece nor dragged the placed one,
+``two_arm_game.RELEASE_OPENING``).
 """
 
 from __future__ import annotations
@@ -20,23 +23,29 @@ import numpy as np
 
 from so101_kinematics.constants import CUBE_HALF_SIZE, CUBE_SIZE
 from so101_kinematics.errors import PlanError
+from so101_kinematics.ik.geometry import PAN_AXIS_POINT
 from so101_kinematics.two_arms.two_arm_scene import ArmBase, Piece, world_from_base
 
 __all__ = [
-    "DEFAULT_PITCH", "MARK_COLOURS", "PIECES", "PLACE_TOLERANCE_MM", "SUPPLY_SPOTS",
+    "DEFAULT_PITCH", "MARK_COLOURS", "PIECES", "PLACE_TOLERANCE_MM", "SUPPLY_BEARINGS",
+    "SUPPLY_RADIUS",
     "TILT_TOLERANCE_DEG", "GameBoard", "MoveCheck", "check_move", "game_pieces", "piece_pose",
     "read_board",
 ]
 
-DEFAULT_PITCH = 0.050
-"""[m] The distance between two squares' centres (see the module's docstring)."""
+DEFAULT_PITCH = 0.055
+"""[m] The distance between two squares' centres (see the module's docstring): 50 mm
+completed the game with the jaws released at 25 to 27 %, 55 mm from 25 to 30 %."""
 PIECES = {"X": 5, "O": 4}
 """How many pieces each mark has: X moves first, so at most five X and four O."""
 MARK_COLOURS = {"X": (0.85, 0.25, 0.2, 1.0), "O": (0.25, 0.45, 0.85, 1.0)}
-SUPPLY_SPOTS = ((0.04, 0.15), (0.11, 0.15), (0.18, 0.15), (0.04, 0.22), (0.11, 0.22))
-"""[m] Where each arm's pieces wait, (x, y) in its own base frame, in the order they are
-played: two rows beside the arm, 70 mm apart both ways (at a 45 mm pitch in one row, the
-open jaws picking one piece pushed its neighbour 20 mm)."""
+SUPPLY_RADIUS = 0.19
+"""[m] The waiting pieces' distance from their arm's pan axis."""
+SUPPLY_BEARINGS = (42.0, 58.0, 74.0, 90.0, 106.0)
+"""[deg] Their bearings about the pan axis, from the arm's forward (+x) towards its side, in
+the order they are played: 53 mm apart on one arc. The jaws close along the radius at a
+top-down grasp, so no piece waits radially behind another (two rows 70 mm apart pushed the
+piece behind 27 mm as the jaws closed; a row at a 45 mm pitch, 20 mm)."""
 PLACE_TOLERANCE_MM = 5.0
 """[mm] A placed piece's centre from its square's centre, horizontally (issue 38)."""
 TILT_TOLERANCE_DEG = 5.0
@@ -92,8 +101,10 @@ def game_pieces(bases: tuple[ArmBase, ArmBase]) -> tuple[Piece, ...]:
     pieces = []
     for base, mark in zip(bases, PIECES, strict=True):
         for k in range(PIECES[mark]):
-            spot_x, spot_y = SUPPLY_SPOTS[k]
-            x, y, _ = world_from_base(base, (spot_x, base.side * spot_y, 0.0))
+            bearing = math.radians(SUPPLY_BEARINGS[k])
+            spot = (PAN_AXIS_POINT[0] + SUPPLY_RADIUS * math.cos(bearing),
+                    PAN_AXIS_POINT[1] + base.side * SUPPLY_RADIUS * math.sin(bearing), 0.0)
+            x, y, _ = world_from_base(base, spot)
             pieces.append(Piece(f"{mark.lower()}_{k + 1}", x, y, MARK_COLOURS[mark]))
     return tuple(pieces)
 

@@ -53,7 +53,7 @@ __all__ = [
 ]
 
 GAMES = ("tictactoe",)
-PARK_POSE = dict(HOME_POSE, shoulder_pan=-90.0, gripper=0.0)
+PARK_POSE = dict(HOME_POSE, shoulder_pan=-90.0, wrist_flex=-90.0, gripper=0.0)
 """[deg] Where an arm waits while the other plays: the rest pose (``home``) turned a quarter
 towards its own pieces (its base frame's +y; -y: ``park_pose``), jaws closed: out of the
 board's area and away from the other arm. (The see-and-pick's look pose, gripper up over the
@@ -64,6 +64,11 @@ MOVE_DURATION = 1.5
 HOLD_DURATION = 0.3
 """[s] The pause after each of the plan's key configurations."""
 PARK_DURATION = 1.5
+RELEASE_OPENING = 25.0
+"""[0, 100] The jaws' opening that lets a piece go on the board and backs off it. The plan's
+50 pushed the piece on the next square (radially beyond, 50 mm pitch) 13-34 mm as the jaws
+opened; 30 still 5-7 mm; 20 dragged the released piece 6 mm on the retreat."""
+RELEASE_STEPS = ("final_open", "retreat", "depart")
 LIFT_HEIGHT = 0.06
 """[m] The lift and carry above the pieces (the course's 0.10 m is beyond the wrist's range
 above the board's near squares: 0.15 m from the base at 0.11 m up needs wrist_flex 96 deg)."""
@@ -101,6 +106,11 @@ def _plan(base: ArmBase, pick_world, place_world, yaw: float):
         raise PlanError(f"the board or the pieces are out of the {base.name} arm's reach "
                         f"({reason}). Fix: put the board between the arms (--layout facing, "
                         "--spacing 0.46) or a smaller --pitch-mm.") from None
+
+
+def _released(name: str, cfg: dict[str, float]) -> dict[str, float]:
+    """The place's steps with the jaws opened to :data:`RELEASE_OPENING`; the others as given."""
+    return dict(cfg, gripper=RELEASE_OPENING) if name in RELEASE_STEPS else cfg
 
 
 def check_board_reach(bases, board: GameBoard, pieces) -> None:
@@ -209,7 +219,8 @@ def _play(m, d, scratch, arms, board: GameBoard, pieces, opening: int,
         before = {p.name: piece_pose(d, p.name)[0] for p in pieces}
         plan = _plan(arm.base, before[piece], board.square(square),
                      _piece_yaw(d, piece, arm.base))
-        steps = [(s.name, s.configuration, s.duration, s.hold) for s in plan.steps]
+        steps = [(s.name, _released(s.name, s.configuration), s.duration, s.hold)
+                 for s in plan.steps]
         steps.append(("park", park_pose(arm.base), PARK_DURATION, 0.3))
         what = f"{arm.name} arm: {piece} to square {square}"
         least = min(least, _run_moves(m, d, watch, arm, other, steps, zone, what, scratch))
