@@ -36,12 +36,16 @@ from so101_kinematics.outputs import (
 )
 from so101_kinematics.two_arms.game_board import DEFAULT_PITCH, GameBoard
 from so101_kinematics.two_arms.two_arm_game import run_game
-from so101_kinematics.two_arms.two_arm_scene import GAME_CAMERA, LAYOUTS, arm_bases
+from so101_kinematics.two_arms.two_arm_scene import (
+    DEFAULT_SPACING,
+    GAME_CAMERA,
+    LAYOUTS,
+    arm_bases,
+)
 
 REPORT = report_of("two_arms.py")  # --json replaces only a report of this program
 SPACING_RANGE = (0.0, 1.0)  # [m]: the bases' overlap and the reach are checked on the layout
 PITCH_RANGE = (10.0, 200.0)  # [mm]
-SPACING_DEFAULT = 0.46  # [m]: facing, the board's squares 0.14 to 0.25 m from each pan axis
 VIDEO_SIZE = (640, 480)  # [px]
 VIDEO_FPS = 30.0  # [frames/s]
 
@@ -66,7 +70,7 @@ line; nothing run), 1 an unexpected error, 130 interrupted.""")
     parser.add_argument("--layout", choices=LAYOUTS, default="facing",
                         help="the bases: facing each other across the board, or side by side "
                         "(default %(default)s)")
-    parser.add_argument("--spacing", type=number(*SPACING_RANGE, "m"), default=SPACING_DEFAULT,
+    parser.add_argument("--spacing", type=number(*SPACING_RANGE, "m"), default=DEFAULT_SPACING,
                         metavar="M", help="the bases' distance [m] (default %(default)g)")
     parser.add_argument("--board-at", type=number(-0.5, 0.5, "m"), nargs=2, metavar=("X", "Y"),
                         default=None, help="the board's centre on the table [m] (default: "

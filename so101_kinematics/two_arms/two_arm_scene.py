@@ -34,14 +34,17 @@ from so101_kinematics.sim.cube import add_cube
 from so101_kinematics.sim.meshes import ensure_meshes
 
 __all__ = [
-    "ARM_NAMES", "BASE_RADIUS", "GAME_CAMERA", "LAYOUTS", "ArmBase", "Piece", "arm_bases",
-    "base_from_world", "build_two_arm_model", "check_bases", "world_from_base",
+    "ARM_NAMES", "BASE_RADIUS", "DEFAULT_SPACING", "GAME_CAMERA", "LAYOUTS", "ArmBase", "Piece",
+    "arm_bases", "base_from_world", "build_two_arm_model", "check_bases", "world_from_base",
 ]
 
 ARM_NAMES = ("left", "right")
 """The arms' names; each arm's joints, actuators and bodies carry ``<name>_`` before the
 course's names (lerobot's bimanual ``left_`` / ``right_`` keys)."""
 LAYOUTS = ("facing", "side")
+DEFAULT_SPACING = 0.46
+"""[m] The bases' distance by default: facing across the board, its squares 0.136 to 0.252 m
+from each pan axis (``game_board.py``)."""
 GAME_CAMERA = "two_arms"
 """The camera that films the game: 0.62 m in front of the board's centre (world -y), 0.50 m
 up, looking down at the table's origin at 37 deg."""
@@ -95,7 +98,7 @@ class Piece:
     rgba: tuple[float, float, float, float]
 
 
-def arm_bases(layout: str = "facing", spacing: float = 0.40) -> tuple[ArmBase, ArmBase]:
+def arm_bases(layout: str = "facing", spacing: float = DEFAULT_SPACING) -> tuple[ArmBase, ArmBase]:
     """The two bases of a layout (see the module's docstring).
 
     Args:
@@ -129,7 +132,7 @@ def check_bases(bases: tuple[ArmBase, ArmBase]) -> None:
     if distance < 2 * BASE_RADIUS:
         raise PlanError(f"the arms' bases are {distance:.3f} m apart: they overlap (each base "
                         f"is {BASE_RADIUS:g} m in radius: at least {2 * BASE_RADIUS:g} m apart). "
-                        "Fix: a larger --spacing, e.g. 0.40.")
+                        f"Fix: a larger --spacing, e.g. {DEFAULT_SPACING:g}.")
 
 
 def world_from_base(base: ArmBase, point) -> np.ndarray:
