@@ -91,7 +91,7 @@ def check_shared_path(m: mujoco.MjModel, scratch: mujoco.MjData, moving, other, 
                                  "area first (its park pose).")
         least = min(least, arm_distance(m, scratch, moving.geoms, other.geoms))
         if least < MIN_ARM_DISTANCE:
-            raise ClearanceError(f"{at}: the arms would come {least * 1e3:.0f} mm apart (at "
+            raise ClearanceError(f"{at}: the arms would come {least * 1e3:.1f} mm apart (at "
                                  f"least {MIN_ARM_DISTANCE * 1e3:g} mm). Fix: park the "
                                  f"{other.name} arm first, or place the bases farther apart.")
     return least

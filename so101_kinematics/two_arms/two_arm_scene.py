@@ -58,15 +58,11 @@ _OPTIONS = ("timestep", "integrator", "cone", "impratio", "disableflags", "enabl
 
 @dataclass(frozen=True)
 class ArmBase:
-    """Where one arm's base stands: its name and pose in the world.
+    """Where one arm's base stands: its name ("left" or "right") and pose in the world.
 
-    Attributes:
-        name: "left" or "right".
-        x: [m] in the world.
-        y: [m] in the world.
-        yaw: [deg] about the vertical (0: the arm reaches along the world's +x).
-        side: +1 when the arm's own pieces and its park pose are on its base frame's +y,
-            -1 on its -y (away from the other arm).
+    ``x``, ``y`` [m] in the world; ``yaw`` [deg] about the vertical (0: the arm reaches along
+    the world's +x); ``side`` +1 when the arm's own pieces and its park pose are on its base
+    frame's +y, -1 on its -y (away from the other arm).
     """
 
     name: str
@@ -77,7 +73,7 @@ class ArmBase:
 
     @property
     def prefix(self) -> str:
-        """The prefix of this arm's names in the model ("left_")."""
+        """The prefix of this arm's names in the model (``"left_"``)."""
         return f"{self.name}_"
 
 
@@ -85,11 +81,8 @@ class ArmBase:
 class Piece:
     """A game piece: the course's free cube (``sim/cube.py``), named and coloured.
 
-    Attributes:
-        name: body, joint and geom name ("x_1", "o_2").
-        x: [m] its centre in the world.
-        y: [m].
-        rgba: its colour.
+    ``name`` is its body, joint and geom name ("x_1", "o_2"); ``x``, ``y`` [m] its centre in
+    the world; ``rgba`` its colour.
     """
 
     name: str

@@ -67,7 +67,7 @@ def test_a_path_that_brings_the_arms_too_close_is_refused(scene):
     left.set_initial_pose(d, park_pose(left.base))
     other = _goals(right, d, _reaching(right, (0.03, 0.0, 0.05)))
     rows = _path_to(m, d, left, _reaching(left, (-0.01, 0.0, 0.05)))
-    with pytest.raises(ClearanceError, match=r"would come -?\d+ mm apart \(at least 20 mm\)"):
+    with pytest.raises(ClearanceError, match=r"would come -?[\d.]+ mm apart \(at least 20 mm\)"):
         check_shared_path(m, mujoco.MjData(m), left, right, rows, other, NOWHERE, "left arm")
 
 
