@@ -4,10 +4,11 @@
 each arm (``game_board.py``), plays a whole game between two perfect players
 (``tictactoe.py``): the left arm moves X, the right arm O. Each move is the course's
 Cartesian pick-and-place (``planning/cartesian_plan.py``) in the moving arm's base frame,
-then back to its park pose (the rest pose with the gripper turned up, out of the board's
-area); every planned path passes the shared-workspace rule (``shared_workspace.py``)
-before it runs. After each move the simulation is read back: the piece on its square,
-upright, no other piece moved, and the board as the game has it.
+then back to its park pose (the rest pose with the gripper turned up, turned a quarter
+towards its own side: out of the board's area); every planned path passes the
+shared-workspace rule (``shared_workspace.py``) before it runs. After each move the
+simulation is read back: the piece on its square, upright, no other piece moved, and the
+board as the game has it.
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from so101_kinematics.two_arms.shared_workspace import (
 )
 from so101_kinematics.two_arms.tictactoe import EMPTY, full_game, winner
 from so101_kinematics.two_arms.two_arm_scene import (
+    DEFAULT_SPACING,
     GAME_CAMERA,
     ArmBase,
     base_from_world,
@@ -54,16 +56,17 @@ __all__ = [
 
 GAMES = ("tictactoe",)
 PARK_POSE = dict(HOME_POSE, shoulder_pan=-90.0, wrist_flex=-90.0, gripper=0.0)
-"""[deg] Where an arm waits while the other plays: the rest pose (``home``) turned a quarter
-towards its own pieces (its base frame's +y; -y: ``park_pose``), jaws closed: out of the
-board's area and away from the other arm. (The see-and-pick's look pose, gripper up over the
-base, was tried: the wrist's flip up from the board swept the jaws within 18 mm of the other
+"""[deg] Where an arm waits while the other plays: the see-and-pick's look pose (the rest pose
+``home`` with the gripper turned up) turned a quarter towards its own pieces (its base frame's
++y; -y: ``park_pose``), jaws closed: out of the board's area and away from the other arm.
+(Not turned, the wrist's flip up from the board swept the jaws within 18 mm of the other
 arm, bases 0.40 m apart.)"""
 MOVE_DURATION = 1.5
 """[s] Each main move of a pick-and-place (the short ones near the piece take half)."""
 HOLD_DURATION = 0.3
 """[s] The pause after each of the plan's key configurations."""
 PARK_DURATION = 1.5
+"""[s] The move back to the park pose."""
 RELEASE_OPENING = 25.0
 """[0, 100] The jaws' opening that lets a piece go on the board and backs off it. The plan's
 50 pushed the piece on the next square (radially beyond, 50 mm pitch) 13-34 mm as the jaws
@@ -72,7 +75,6 @@ RELEASE_STEPS = ("final_open", "retreat", "depart")
 LIFT_HEIGHT = 0.06
 """[m] The lift and carry above the pieces (the course's 0.10 m is beyond the wrist's range
 above the board's near squares: 0.15 m from the base at 0.11 m up needs wrist_flex 96 deg)."""
-"""[s] The move back to the park pose."""
 
 
 def park_pose(base: ArmBase) -> dict[str, float]:
@@ -105,7 +107,7 @@ def _plan(base: ArmBase, pick_world, place_world, yaw: float):
         reason = str(error).split(" Fix:")[0].rstrip(".")
         raise PlanError(f"the board or the pieces are out of the {base.name} arm's reach "
                         f"({reason}). Fix: put the board between the arms (--layout facing, "
-                        "--spacing 0.46) or a smaller --pitch-mm.") from None
+                        f"--spacing {DEFAULT_SPACING:g}) or a smaller --pitch-mm.") from None
 
 
 def _released(name: str, cfg: dict[str, float]) -> dict[str, float]:
@@ -132,8 +134,9 @@ def _run_moves(m, d, viewer, arm: SceneArm, other: SceneArm, steps, zone, what: 
     least = math.inf
     for name, cfg, duration, hold in steps:
         rows = arm.path(m, d, cfg, duration)
-        least = min(least, check_shared_path(m, scratch, arm, other, rows,
-                                      d.ctrl[other.actuators].copy(), zone, f"{what} ({name})"))
+        other_goals = d.ctrl[other.actuators].copy()
+        least = min(least, check_shared_path(m, scratch, arm, other, rows, other_goals, zone,
+                                             f"{what} ({name})"))
         arm.move_to_pose(m, d, viewer, cfg, duration)
         if hold:
             arm.hold_position(m, d, viewer, hold)
