@@ -34,11 +34,11 @@ from so101_kinematics.outputs import (
     stamp,
     write_text_atomic,
 )
-from so101_kinematics.two_arms.game_board import DEFAULT_PITCH, GameBoard
+from so101_kinematics.two_arms.game_board import LAYOUT_BOARDS, GameBoard
 from so101_kinematics.two_arms.two_arm_game import run_game
 from so101_kinematics.two_arms.two_arm_scene import (
-    DEFAULT_SPACING,
     GAME_CAMERA,
+    LAYOUT_SPACING,
     LAYOUTS,
     arm_bases,
 )
@@ -70,15 +70,17 @@ line; nothing run), 1 an unexpected error, 130 interrupted.""")
     parser.add_argument("--layout", choices=LAYOUTS, default="facing",
                         help="the bases: facing each other across the board, or side by side "
                         "(default %(default)s)")
-    parser.add_argument("--spacing", type=number(*SPACING_RANGE, "m"), default=DEFAULT_SPACING,
-                        metavar="M", help="the bases' distance [m] (default %(default)g)")
+    parser.add_argument("--spacing", type=number(*SPACING_RANGE, "m"), metavar="M",
+                        help="the bases' distance [m] (default: facing "
+                        f"{LAYOUT_SPACING['facing']:g}, side {LAYOUT_SPACING['side']:g})")
     parser.add_argument("--board-at", type=number(-0.5, 0.5, "m"), nargs=2, metavar=("X", "Y"),
-                        default=None, help="the board's centre on the table [m] (default: "
-                        "between the bases, or 0.20 m in front of them side by side)")
-    parser.add_argument("--pitch-mm", type=number(*PITCH_RANGE, "mm"),
-                        default=DEFAULT_PITCH * 1e3, metavar="MM",
-                        help=f"the squares' pitch, {range_help(*PITCH_RANGE, 'mm')} "
-                        "(default %(default)g)")
+                        help="the board's centre on the table [m] (default: facing "
+                        f"{_xy(LAYOUT_BOARDS['facing'])}, between the bases; side "
+                        f"{_xy(LAYOUT_BOARDS['side'])}, in front of them)")
+    parser.add_argument("--pitch-mm", type=number(*PITCH_RANGE, "mm"), metavar="MM",
+                        help=f"the squares' pitch, {range_help(*PITCH_RANGE, 'mm')} (default: "
+                        f"facing {LAYOUT_BOARDS['facing'].pitch * 1e3:g}, side "
+                        f"{LAYOUT_BOARDS['side'].pitch * 1e3:g})")
     parser.add_argument("--opening", type=int, choices=range(9), default=4, metavar="SQUARE",
                         help="X's first square, 0-8 row by row (default %(default)s: the centre)")
     parser.add_argument("--headless", action="store_true",
@@ -97,6 +99,11 @@ line; nothing run), 1 an unexpected error, 130 interrupted.""")
                         help="show the traceback of an unexpected error")
     return run_script(parser, argv, _run, refused=(OutputPathError, PlanError, RenderSettingError),
                       interrupted="nothing was written; existing output files are as they were.")
+
+
+def _xy(board: GameBoard) -> str:
+    """A board's centre as the option reads it: "0.18 0"."""
+    return f"{board.centre[0]:g} {board.centre[1]:g}"
 
 
 def _check_outputs(args: argparse.Namespace) -> tuple[Path | None, Path | None, Path | None]:
@@ -134,8 +141,9 @@ def _run(args: argparse.Namespace) -> int:
     _check_ports(args.ports)
     video, image, json_path = _check_outputs(args)
     bases = arm_bases(args.layout, args.spacing)
-    centre = args.board_at or ((0.0, 0.0) if args.layout == "facing" else (0.20, 0.0))
-    board = GameBoard(tuple(centre), args.pitch_mm / 1e3)
+    default = LAYOUT_BOARDS[args.layout]
+    board = GameBoard(tuple(args.board_at or default.centre),
+                      default.pitch if args.pitch_mm is None else args.pitch_mm / 1e3)
     recorder = None
     if video is not None:
         from so101_kinematics.sim.video import VideoRecorder

@@ -27,7 +27,8 @@ from so101_kinematics.ik.geometry import PAN_AXIS_POINT
 from so101_kinematics.two_arms.two_arm_scene import ArmBase, Piece, world_from_base
 
 __all__ = [
-    "DEFAULT_PITCH", "MARK_COLOURS", "PIECES", "PLACE_TOLERANCE_MM", "SUPPLY_BEARINGS",
+    "DEFAULT_PITCH", "LAYOUT_BOARDS", "MARK_COLOURS", "PIECES", "PLACE_TOLERANCE_MM",
+    "SUPPLY_BEARINGS",
     "SUPPLY_RADIUS",
     "TILT_TOLERANCE_DEG", "GameBoard", "MoveCheck", "check_move", "game_pieces", "piece_pose",
     "read_board",
@@ -94,6 +95,14 @@ class GameBoard:
             raise PlanError(f"board pitch {self.pitch * 1e3:g} mm is outside [{least * 1e3:g}, "
                             "200] mm (a 26 mm piece and 18 mm for the open jaws beside it). "
                             f"Fix: --pitch-mm {DEFAULT_PITCH * 1e3:g}.")
+
+
+LAYOUT_BOARDS = {"facing": GameBoard((0.0, 0.0), DEFAULT_PITCH),
+                 "side": GameBoard((0.18, 0.0), 0.046)}
+"""The board by default, per layout (``two_arm_scene.LAYOUTS``): between the facing arms at
+55 mm; in front of the arms side by side at 46 mm (a 138 mm board 0.18 m ahead: at 50 mm its
+far corner is out of reach; nearer, the carry brings the arms within 20 mm). Every opening
+completes the game on both (``docs/final_project_two_arms.md``)."""
 
 
 def game_pieces(bases: tuple[ArmBase, ArmBase]) -> tuple[Piece, ...]:

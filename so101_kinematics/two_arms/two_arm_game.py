@@ -41,8 +41,8 @@ from so101_kinematics.two_arms.shared_workspace import (
 )
 from so101_kinematics.two_arms.tictactoe import EMPTY, full_game, winner
 from so101_kinematics.two_arms.two_arm_scene import (
-    DEFAULT_SPACING,
     GAME_CAMERA,
+    LAYOUT_SPACING,
     ArmBase,
     base_from_world,
     build_two_arm_model,
@@ -105,9 +105,10 @@ def _plan(base: ArmBase, pick_world, place_world, yaw: float):
                               hold_duration=HOLD_DURATION)
     except UnreachableError as error:
         reason = str(error).split(" Fix:")[0].rstrip(".")
+        spacing = LAYOUT_SPACING["facing"]
         raise PlanError(f"the board or the pieces are out of the {base.name} arm's reach "
                         f"({reason}). Fix: put the board between the arms (--layout facing, "
-                        f"--spacing {DEFAULT_SPACING:g}) or a smaller --pitch-mm.") from None
+                        f"--spacing {spacing:g}) or a smaller --pitch-mm.") from None
 
 
 def _released(name: str, cfg: dict[str, float]) -> dict[str, float]:

@@ -34,7 +34,7 @@ from so101_kinematics.sim.cube import add_cube
 from so101_kinematics.sim.meshes import ensure_meshes
 
 __all__ = [
-    "ARM_NAMES", "BASE_RADIUS", "DEFAULT_SPACING", "GAME_CAMERA", "LAYOUTS", "ArmBase", "Piece",
+    "ARM_NAMES", "BASE_RADIUS", "GAME_CAMERA", "LAYOUTS", "LAYOUT_SPACING", "ArmBase", "Piece",
     "arm_bases", "base_from_world", "build_two_arm_model", "check_bases", "world_from_base",
 ]
 
@@ -42,9 +42,10 @@ ARM_NAMES = ("left", "right")
 """The arms' names; each arm's joints, actuators and bodies carry ``<name>_`` before the
 course's names (lerobot's bimanual ``left_`` / ``right_`` keys)."""
 LAYOUTS = ("facing", "side")
-DEFAULT_SPACING = 0.46
-"""[m] The bases' distance by default: facing across the board, its squares 0.136 to 0.252 m
-from each pan axis (``game_board.py``)."""
+LAYOUT_SPACING = {"facing": 0.46, "side": 0.30}
+"""[m] The bases' distance by default, per layout: facing across the board, its squares 0.136
+to 0.252 m from each pan axis; side by side, the board's far corner 0.26 m from each pan axis
+and the arms' boxes 26 mm apart at the closest (``game_board.LAYOUT_BOARDS``)."""
 GAME_CAMERA = "two_arms"
 """The camera that films the game: 0.62 m in front of the board's centre (world -y), 0.50 m
 up, looking down at the table's origin at 37 deg."""
@@ -91,12 +92,12 @@ class Piece:
     rgba: tuple[float, float, float, float]
 
 
-def arm_bases(layout: str = "facing", spacing: float = DEFAULT_SPACING) -> tuple[ArmBase, ArmBase]:
+def arm_bases(layout: str = "facing", spacing: float | None = None) -> tuple[ArmBase, ArmBase]:
     """The two bases of a layout (see the module's docstring).
 
     Args:
         layout: one of ``LAYOUTS``.
-        spacing: the bases' distance [m].
+        spacing: the bases' distance [m] (default: the layout's ``LAYOUT_SPACING``).
 
     Raises:
         PlanError: an unknown layout.
@@ -108,7 +109,7 @@ def arm_bases(layout: str = "facing", spacing: float = DEFAULT_SPACING) -> tuple
     if layout not in LAYOUTS:
         raise PlanError(f"layout {layout!r} is not one of {', '.join(LAYOUTS)}. Fix: use "
                         "--layout facing (across the board) or --layout side.")
-    half = 0.5 * float(spacing)
+    half = 0.5 * float(LAYOUT_SPACING[layout] if spacing is None else spacing)
     if layout == "facing":
         return ArmBase("left", -half, 0.0, 0.0), ArmBase("right", half, 0.0, 180.0)
     return ArmBase("left", 0.0, half, 0.0), ArmBase("right", 0.0, -half, 0.0, side=-1.0)
@@ -125,7 +126,7 @@ def check_bases(bases: tuple[ArmBase, ArmBase]) -> None:
     if distance < 2 * BASE_RADIUS:
         raise PlanError(f"the arms' bases are {distance:.3f} m apart: they overlap (each base "
                         f"is {BASE_RADIUS:g} m in radius: at least {2 * BASE_RADIUS:g} m apart). "
-                        f"Fix: a larger --spacing, e.g. {DEFAULT_SPACING:g}.")
+                        f"Fix: a larger --spacing, e.g. {LAYOUT_SPACING['facing']:g}.")
 
 
 def world_from_base(base: ArmBase, point) -> np.ndarray:

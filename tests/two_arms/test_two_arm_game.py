@@ -5,7 +5,12 @@ from __future__ import annotations
 import pytest
 
 from so101_kinematics.errors import PlanError
-from so101_kinematics.two_arms.game_board import PLACE_TOLERANCE_MM, GameBoard, game_pieces
+from so101_kinematics.two_arms.game_board import (
+    LAYOUT_BOARDS,
+    PLACE_TOLERANCE_MM,
+    GameBoard,
+    game_pieces,
+)
 from so101_kinematics.two_arms.two_arm_game import (
     board_zone,
     check_board_reach,
@@ -32,8 +37,10 @@ def test_a_board_out_of_either_arms_reach_is_refused_in_one_line():
     assert "\n" not in message and "out of the left arm's reach" in message and "Fix:" in message
 
 
-def test_the_default_board_is_in_both_arms_reach():
-    check_board_reach(BASES, GameBoard(), game_pieces(BASES))
+@pytest.mark.parametrize("layout", ["facing", "side"])
+def test_each_layouts_board_is_in_both_arms_reach(layout):
+    bases = arm_bases(layout)
+    check_board_reach(bases, LAYOUT_BOARDS[layout], game_pieces(bases))
 
 
 def test_the_board_area_is_the_board_widened_by_the_margin():
@@ -47,9 +54,10 @@ def test_each_arm_parks_towards_its_own_side():
 
 
 @pytest.mark.slow
-def test_a_whole_game_in_the_simulator_meets_the_issues_acceptance():
+@pytest.mark.parametrize("layout", ["facing", "side"])
+def test_a_whole_game_in_the_simulator_meets_the_issues_acceptance(layout):
     """Issue 38: a full game, every piece within 5 mm of its square, no collision."""
-    report = run_game(BASES, GameBoard())
+    report = run_game(arm_bases(layout), LAYOUT_BOARDS[layout])
     assert report["completed"] and report["collisions"] == 0
     moves = report["moves"]
     assert len(moves) == 9 and [m["arm"] for m in moves] == ["left", "right"] * 4 + ["left"]
