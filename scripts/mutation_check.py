@@ -727,6 +727,19 @@ MUTANTS: list[Mutant] = [
       "press, release = 0, 0",
       "tests/drawing/test_light_switch.py::test_the_press_starts_its_lead_before_the_light_and_"
       "the_release_its_own", "tests/lab/test_light_arm.py"),
+    # --- two arms on one board (issue 38) ---------------------------------------------------
+    m("two_arms_one_feedforward", "one gravity feed-forward for both arms of a model: its "
+      "direction memory mixes them, an arm moves the other", "so101_kinematics/sim/actuation.py",
+      "_offset", "feedforward = entry[4][k]\n", "feedforward = entry[4][0]\n",
+      "tests/two_arms/test_scene_arm.py::test_moving_one_arm_leaves_the_other_still"),
+    m("two_arms_board_shared", "the shared-workspace rule never asks where the other arm is: "
+      "both arms may reach into the board at once", "so101_kinematics/two_arms/shared_workspace.py",
+      "check_shared_path", "and in_zone(scratch.site_xpos[other.tool_site], zone)):",
+      "and True):",
+      "tests/two_arms/test_shared_workspace.py::test_a_path_into_the_board_while_the_other_arm_"
+      "is_there_is_refused",
+      "tests/two_arms/test_shared_workspace.py::test_a_path_with_the_other_arm_parked_passes_and_"
+      "says_how_close"),
 ]
 
 

@@ -18,6 +18,10 @@ follows it depends on the model's servo (:func:`use_servo`):
   and a ``<joint>_vel`` velocity actuator per joint, 12 controls) keeps the course's
   own actuators: ``scene.load_model`` sets no servo on it (:func:`has_velocity_actuators`),
   and :func:`use_servo` refuses it, so the course's gains are what drives it.
+
+A model with several arms (issue 38's two arms: joints ``left_shoulder_pan``, ...,
+``right_gripper``, :func:`arm_prefixes`) gets one servo per joint of every arm, the
+same registers on each, and each arm's own gravity feed-forward.
 """
 
 from __future__ import annotations
@@ -36,7 +40,8 @@ from so101_kinematics.frames import JOINTS
 from so101_kinematics.sim.sts3215 import ServoBank
 
 __all__ = [
-    "IDEAL_GAINS", "VELOCITY_SUFFIX", "expected_sag", "forget", "has_velocity_actuators",
+    "IDEAL_GAINS", "VELOCITY_SUFFIX", "arm_prefixes", "expected_sag", "forget",
+    "has_velocity_actuators",
     "lerobot_settings", "servo_spec", "step", "use_servo", "velocity_actuators",
 ]
 
@@ -131,7 +136,7 @@ def use_servo(m: mujoco.MjModel, mode: str = "sts3215", volts: float = DEFAULT_V
     spec = ServoSpec(mode, float(volts), variant, lerobot_settings(p, i), bool(feedforward))
     _SPECS[m] = spec
     acts = _actuators(m)
-    dofs = [int(m.joint(j).dofadr[0]) for j in JOINTS]
+    dofs = [int(m.joint(p + j).dofadr[0]) for p in arm_prefixes(m) for j in JOINTS]
     if mode == "ideal":
         kp, kv, force, damping = IDEAL_GAINS
         m.actuator_gainprm[acts, 0] = kp
@@ -140,7 +145,7 @@ def use_servo(m: mujoco.MjModel, mode: str = "sts3215", volts: float = DEFAULT_V
         m.actuator_forcerange[acts] = (-force, force)
         m.dof_damping[dofs] = damping
     else:
-        bank = ServoBank(spec.settings, spec.volts, variant)
+        bank = ServoBank(spec.settings * len(arm_prefixes(m)), spec.volts, variant)
         kp = np.array(bank.stiffness())
         chosen = servo.VARIANTS[variant]
         m.actuator_gainprm[acts, 0] = kp
@@ -214,8 +219,25 @@ def servo_spec(m: mujoco.MjModel) -> ServoSpec | None:
 _PLANTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
+def arm_prefixes(m: mujoco.MjModel) -> tuple[str, ...]:
+    """The prefixes of the arms in ``m``: ``("",)`` for the course's one arm.
+
+    Two arms attached with a prefix (each joint named prefix + joint) give e.g.
+    ``("left_", "right_")``.
+
+    Example:
+        >>> import mujoco
+        >>> xml = '<mujoco><worldbody><body><joint name="left_shoulder_pan"/><geom size="1"/>'
+        >>> arm_prefixes(mujoco.MjModel.from_xml_string(xml + '</body></worldbody></mujoco>'))
+        ('left_',)
+    """
+    first = JOINTS[0]
+    names = [m.joint(i).name for i in range(m.njnt)]
+    return tuple(name[:-len(first)] for name in names if name.endswith(first)) or ("",)
+
+
 def _actuators(m: mujoco.MjModel) -> np.ndarray:
-    return np.array([int(m.actuator(j).id) for j in JOINTS])
+    return np.array([int(m.actuator(p + j).id) for p in arm_prefixes(m) for j in JOINTS])
 
 
 def _index(values: list[int]):
@@ -229,8 +251,10 @@ class _Plant:
     """Per-model indices (slices when consecutive) and the controls' ranges."""
 
     def __init__(self, m: mujoco.MjModel):
-        self.acts = _index([int(m.actuator(j).id) for j in JOINTS])
-        self.qadr = _index([int(m.joint(j).qposadr[0]) for j in JOINTS])
+        prefixes = arm_prefixes(m)
+        self.arms = len(prefixes)
+        self.acts = _index([int(m.actuator(p + j).id) for p in prefixes for j in JOINTS])
+        self.qadr = _index([int(m.joint(p + j).qposadr[0]) for p in prefixes for j in JOINTS])
         self.lower = m.actuator_ctrlrange[self.acts, 0].tolist()
         self.upper = m.actuator_ctrlrange[self.acts, 1].tolist()
 
@@ -281,7 +305,8 @@ def step(m: mujoco.MjModel, d: mujoco.MjData, n: int = 1, commands=None,
         plant = _PLANTS[m] = _Plant(m)
     entry = _BANKS.get(d)
     if entry is None or entry[1] != d.time:  # new, or stepped or reset by someone else
-        entry = [ServoBank(spec.settings, spec.volts, spec.variant), d.time, None, None, None]
+        entry = [ServoBank(spec.settings * plant.arms, spec.volts, spec.variant), d.time, None,
+                 None, None]
         _BANKS[d] = entry
     bank, feedforward = entry[0], spec.feedforward
     acts, qadr, dt = plant.acts, plant.qadr, m.opt.timestep
@@ -314,20 +339,29 @@ def _offset(entry: list, spec: ServoSpec, goal: list[float]) -> list[float]:
     """``goal`` [rad] plus the gravity feed-forward (``gravity.Feedforward``, as on the arm).
 
     The offsets are re-evaluated when a goal moved ``FEEDFORWARD_REFRESH_DEG``; between,
-    the last ones are added to the goal as it moves.
+    the last ones are added to the goal as it moves. ``goal`` holds six joints per arm;
+    each arm has its own feed-forward, evaluated on its own six (so an arm beside another
+    moves as it would alone).
     """
-    at, deltas = entry[2], entry[3]
-    if at is None or max(abs(g - a) for g, a in zip(goal, at, strict=True)) > _REFRESH_RAD:
-        feedforward = entry[4]
-        if feedforward is None:
-            feedforward = entry[4] = gravity.Feedforward(
-                dict(zip(JOINTS, spec.settings, strict=True)), spec.volts, spec.variant)
-        cfg = {j: math.degrees(g) for j, g in zip(JOINTS, goal, strict=True)}
-        cfg["gripper"] = 50.0  # the jaw's weight barely moves with the opening
-        sent = feedforward.apply(cfg)
-        deltas = entry[3] = [math.radians(sent[j] - cfg[j]) for j in JOINTS[:5]] + [0.0]
-        entry[2] = goal
-    return [g + o for g, o in zip(goal, deltas, strict=True)]
+    size = len(JOINTS)
+    if entry[2] is None:
+        arms = len(goal) // size
+        entry[2], entry[3], entry[4] = [None] * arms, [None] * arms, [None] * arms
+    out = []
+    for k, (at, deltas) in enumerate(zip(entry[2], entry[3], strict=True)):
+        own = goal[k * size:(k + 1) * size]
+        if at is None or max(abs(g - a) for g, a in zip(own, at, strict=True)) > _REFRESH_RAD:
+            feedforward = entry[4][k]
+            if feedforward is None:
+                feedforward = entry[4][k] = gravity.Feedforward(
+                    dict(zip(JOINTS, spec.settings, strict=True)), spec.volts, spec.variant)
+            cfg = {j: math.degrees(g) for j, g in zip(JOINTS, own, strict=True)}
+            cfg["gripper"] = 50.0  # the jaw's weight barely moves with the opening
+            sent = feedforward.apply(cfg)
+            deltas = entry[3][k] = [math.radians(sent[j] - cfg[j]) for j in JOINTS[:5]] + [0.0]
+            entry[2][k] = own
+        out += [g + o for g, o in zip(own, deltas, strict=True)]
+    return out
 
 
 _REFRESH_RAD = math.radians(FEEDFORWARD_REFRESH_DEG)

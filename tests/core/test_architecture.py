@@ -11,7 +11,8 @@ PACKAGE = Path(__file__).resolve().parents[2] / "so101_kinematics"
 COURSE_FILES = {"so101_forward_kinematics", "so101_mujoco_utils", "so101_inverse_kinematics",
                 "test_fk_mujoco", "test_ik_mujoco", "test_trajectory_mujoco", "pick_place_sim",
                 "pick_place_hw", "read_position", "virtual_so101", "so101_utils", "see_and_pick",
-                "follow_tag", "calibrate_camera", "draw", "light_paint", "throw", "register_page"}
+                "follow_tag", "calibrate_camera", "draw", "light_paint", "throw", "register_page",
+                "two_arms"}
 MAY_IMPORT = {
     "core": {"core", "ik"},
     "ik": {"core", "ik"},
@@ -22,10 +23,11 @@ MAY_IMPORT = {
     "vision": {"core", "ik", "sensors", "sim", "vision"},
     "drawing": {"core", "ik", "sensors", "sim", "vision", "drawing"},
     "throwing": {"core", "ik", "sensors", "sim", "throwing"},
+    "two_arms": {"core", "ik", "sensors", "sim", "two_arms"},
     "lab": {"core", "ik", "sensors", "sim", "hw", "virtual", "vision", "drawing", "throwing",
-            "lab"},
+            "two_arms", "lab"},
     "commands": {"core", "ik", "sensors", "sim", "hw", "virtual", "vision", "drawing",
-                 "throwing", "lab", "commands"},
+                 "throwing", "two_arms", "lab", "commands"},
 }
 """Layer -> the layers it may import. hw and virtual are interchangeable backends: neither
 imports the other; the core imports no backend; sensors sit beside the core, under every

@@ -20,7 +20,7 @@ REPO = Path(__file__).resolve().parents[2]
 TESTS = REPO / "tests"
 PACKAGE = REPO / "so101_kinematics"
 AREAS = {"core", "sim", "hw", "virtual", "checker", "planning", "ik", "lab", "vision", "drawing",
-         "throwing", "course_files", "tools", "docs"}
+         "throwing", "two_arms", "course_files", "tools", "docs"}
 """tests/<area>/: a package subfolder, ``core`` for the package's top-level modules,
 ``course_files`` for the course's files at the root, ``tools`` for dev.sh, CI, the benchmarks
 and this suite, ``docs`` for the documentation."""
