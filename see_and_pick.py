@@ -18,7 +18,9 @@ from pathlib import Path
 from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number, range_help, run_script
 from so101_kinematics.errors import (
     CalibrationError,
+    ConnectionFailed,
     CubePositionError,
+    LerobotMissing,
     OutputPathError,
     PlanError,
     RenderError,
@@ -65,10 +67,14 @@ STS3215 servos move the arm, which starts only on a sighting at most
 {MAX_POSE_AGE:g} s old. Placed: the cube's centre within {PLACE_TOLERANCE * 1000:g} mm of the target
 tag's centre (the simulator's truth).
 
+On an arm (--port, --camera) the last line says where the arm is and
+whether it is torqued, as its servos read back, however the run ended.
+
 Exit code: 0 done (even if a cube was not placed: the report says why;
-unless --strict), 1 a cube not placed (with --strict) or an unexpected error,
-2 bad input or, without --trials, no tag in view or a cube out of reach (one
-line; nothing moved), 130 interrupted.""")
+unless --strict), 1 a cube not placed (with --strict), a run on the arm
+aborted (a fault, a refused goal, a stop signal: its reason, then the arm's
+last line) or an unexpected error, 2 bad input or, without --trials, no tag
+in view or a cube out of reach (one line; nothing moved), 130 interrupted.""")
     parser.add_argument("--headless", action="store_true",
                         help="no viewer (this program always runs offscreen; a video with "
                         "--video)")
@@ -110,7 +116,8 @@ line; nothing moved), 130 interrupted.""")
                         help="exit 1 unless every trial placed its cube")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
-    refused = (OutputPathError, PlanError, RenderError, CubePositionError, CalibrationError)
+    refused = (OutputPathError, PlanError, RenderError, CubePositionError, CalibrationError,
+               ConnectionFailed, LerobotMissing)  # on an arm: refused before anything moved
     return run_script(parser, argv, _run, refused=refused,
                       interrupted="nothing was written; existing output files are as they were.")
 
@@ -151,8 +158,13 @@ def _print_trial(index: int, result) -> None:
 
 
 def _run_on_arm(args: argparse.Namespace, json_path: Path | None) -> int:
-    """--port and --camera: one look, pick and place through lerobot (``lab/see_and_pick_arm``)."""
+    """--port and --camera: look, pick and place through lerobot; the run's ending as its last line.
+
+    ``lab/see_and_pick_arm``; the last line is ``hw/run.ending``'s, from the servos' read-back.
+    """
     from so101_kinematics.calibration import load_calibration
+    from so101_kinematics.hw.run import RELEASE_HINT, ending
+    from so101_kinematics.hw.signals import signals_as_interrupt
     from so101_kinematics.lab.see_and_pick_arm import ARM_PLACE_TOLERANCE, see_and_pick_on_arm
     from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
@@ -161,10 +173,12 @@ def _run_on_arm(args: argparse.Namespace, json_path: Path | None) -> int:
               f"{'--camera ADDRESS' if args.port else '--port PORT'}: the arm is driven through "
               "its port and looks through the camera. Fix: give both.", file=sys.stderr)
         return EXIT_BAD_INPUT
-    calibration = load_calibration(args.calibration or DEFAULT_CALIBRATION_PATH)
-    try:
-        report = see_and_pick_on_arm(args.port, args.camera, calibration,
-                                     camera_calibration=args.camera_calibration)
+    calibration_path = args.calibration or DEFAULT_CALIBRATION_PATH
+    calibration = load_calibration(calibration_path)
+    try:  # SIGTERM and SIGHUP as Ctrl-C: the run's own stop during the motion, else exit 130
+        with signals_as_interrupt():
+            report, result = see_and_pick_on_arm(args.port, args.camera, calibration,
+                                                 camera_calibration=args.camera_calibration)
     except VisionError as error:  # no tag in view, no camera, a bad calibration: nothing moved
         print(f"error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
@@ -180,7 +194,12 @@ def _run_on_arm(args: argparse.Namespace, json_path: Path | None) -> int:
     if json_path is not None:
         write_text_atomic(json_path, json.dumps(stamp(report, "see_and_pick.py"), indent=2)
                           + "\n")
-    return 1 if args.strict and not trial["placed"] else 0
+    aborted = result.aborted is not None
+    if aborted:
+        print(f"ABORTED: {result.aborted}.", file=sys.stderr)
+    release = RELEASE_HINT.format(port=args.port, arm=f"--calibration {calibration_path}")
+    print(ending(result, release), file=sys.stderr if aborted else sys.stdout)
+    return 1 if aborted or (args.strict and not trial["placed"]) else 0
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -14,9 +14,12 @@ The hardware half of ``see_and_pick.py --port PORT --camera ADDRESS``:
    ``pick_place_hw.py --pick/--place`` runs) from the cube's seen position and yaw to the
    target tag's;
 3. **move**: ``hw/run.py``'s ``run_on_arm`` through lerobot's ``FeetechMotorsBus``, the
-   checks before torque on and the fault policy as ``pick_place_hw.py``'s;
+   checks before torque on and the fault policy as ``pick_place_hw.py``'s: a fault, a refused
+   goal or a stop signal ends as every run does, and the run's result (``hw/run.ending``: the
+   last line, from the servos' read-back) comes back completed or aborted alike;
 4. **score**: the camera looks again; the cube tag's centre against the target's first seen
-   (the camera alone), or the bus's cube sensor when the tag is hidden (the virtual arm).
+   (the camera alone), or the bus's cube sensor when the tag is hidden or the camera is gone
+   (the virtual arm).
 """
 
 from __future__ import annotations
@@ -28,8 +31,8 @@ import mujoco
 import numpy as np
 
 from so101_kinematics.constants import CUBE_HALF_SIZE
-from so101_kinematics.errors import TagNotInView
-from so101_kinematics.hw.run import run_on_arm
+from so101_kinematics.errors import TagNotInView, VisionError
+from so101_kinematics.hw.run import MotionAborted, RunResult, run_on_arm
 from so101_kinematics.hw.teach import grasp_outcome
 from so101_kinematics.planning.cartesian_plan import cartesian_plan
 from so101_kinematics.sim.cube import build_model
@@ -103,27 +106,33 @@ def look_through_lerobot(address: str, camera: str = "overhead",
 
 def see_and_pick_on_arm(port: str, address: str, calibration: Mapping[str, Any], *,
                         camera: str = "overhead", size: Sequence[int] = (640, 480),
-                        camera_calibration=None, **run_options) -> dict:
-    """Look, plan, run on the arm at ``port``, look again: the report of one trial.
+                        camera_calibration=None, **run_options) -> tuple[dict, RunResult]:
+    """Look, plan, run on the arm at ``port``, look again: the report of one trial, the run.
 
     Returns:
-        A dict: ``success_rate``, ``trials`` (one: ``picked``, ``placed``,
-        ``placed_error_mm``, ...), ``cube_seen`` and ``target_seen`` (x, y [m], yaw [deg]).
+        The report: ``success_rate``, ``trials`` (one: ``picked``, ``placed``,
+        ``placed_error_mm``, ``aborted``, ...), ``cube_seen`` and ``target_seen`` (x, y [m],
+        yaw [deg]); and ``run_on_arm``'s result, completed or aborted (its ``ending`` is the
+        run's last line).
 
     Raises:
         TagNotInView: no tag before the run (nothing moved).
+        VisionError, PlanError, HardwareError: refused before anything moved (one line).
     """
     seen = look_through_lerobot(address, camera, size, camera_calibration=camera_calibration)
     cube, target = seen[CUBE_TAG.name], seen[TARGET_TAG.name]
     yaw = float(np.degrees(np.arctan2(cube[1, 0], cube[0, 0])))
     plan = cartesian_plan((*cube[:2, 3], CUBE_HALF_SIZE), (*target[:2, 3], CUBE_HALF_SIZE),
                           cube_yaw_deg=yaw)
-    result = run_on_arm(port, calibration, plan, **run_options)
+    try:
+        result = run_on_arm(port, calibration, plan, **run_options)
+    except MotionAborted as error:  # ended by the fault policy: scored and reported all the same
+        result = error.result
     try:
         after, by = look_through_lerobot(address, camera, size, tags=(CUBE_TAG,),
                                          camera_calibration=camera_calibration)[
             CUBE_TAG.name][:2, 3], "camera"
-    except TagNotInView:
+    except VisionError:  # the tag hidden, or the camera gone: the arm has moved, its end stands
         after, by = (None, None) if result.cube is None else (
             np.asarray(result.cube.position_m[:2]), "cube sensor")
     error = None if after is None else float(np.hypot(*(after - target[:2, 3])))
@@ -137,4 +146,4 @@ def see_and_pick_on_arm(port: str, address: str, calibration: Mapping[str, Any],
     return {"success_rate": 1.0 if placed else 0.0, "trials": [trial],
             "cube_seen": [*map(float, cube[:2, 3]), yaw],
             "target_seen": [*map(float, target[:2, 3]),
-                            float(np.degrees(np.arctan2(target[1, 0], target[0, 0])))]}
+                            float(np.degrees(np.arctan2(target[1, 0], target[0, 0])))]}, result

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import signal
 
 import numpy as np
 import pytest
@@ -22,6 +24,8 @@ pytest.importorskip("cv2")
 pytestmark = [pytest.mark.hw, pytest.mark.vision]
 
 import see_and_pick  # noqa: E402
+from so101_kinematics.frames import ARM_JOINTS  # noqa: E402
+from so101_kinematics.lab.fault_drill import AT_START_DEG  # noqa: E402
 from so101_kinematics.virtual.arm import VirtualSO101  # noqa: E402
 
 CUBE_AT = (0.20, 0.08, 20.0)  # [m, m, deg]
@@ -33,10 +37,17 @@ PLACE_TOLERANCE_M = 0.010  # the course's pick-and-place on the arm: 10 mm
 def test_the_virtual_arm_puts_the_cube_it_saw_on_the_target_it_saw(tmp_path, capsys):
     report = tmp_path / "report.json"
     with VirtualSO101(cube=CUBE_AT, target=TARGET_AT, cameras=["overhead"]) as arm:
+        start = arm.joint_positions()
         code = see_and_pick.main(["--port", arm.port, "--camera",
                                   arm.camera_addresses["overhead"], "--json", str(report)])
-        cube = arm.cube()
-    assert code == 0, capsys.readouterr().err
+        cube, end, torque = arm.cube(), arm.joint_positions(), arm.torque_enabled()
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    # the last line is the arm's, as its servos read back: where it is and its torque
+    assert out.strip().splitlines()[-1] == "Done: back at the starting pose, torque off."
+    assert not any(torque.values()), torque
+    for joint in ARM_JOINTS:
+        assert end[joint] == pytest.approx(start[joint], abs=AT_START_DEG), joint
     x, y, _ = cube.position_m
     assert math.hypot(x - TARGET_AT[0], y - TARGET_AT[1]) <= PLACE_TOLERANCE_M
     assert cube.tilt_deg <= 10.0 and not cube.held
@@ -47,7 +58,59 @@ def test_the_virtual_arm_puts_the_cube_it_saw_on_the_target_it_saw(tmp_path, cap
     assert result["success_rate"] == 1.0 and trial["picked"] and trial["placed"]
     assert trial["placed_error_mm"] == pytest.approx(
         1000 * math.hypot(x - result["target_seen"][0], y - result["target_seen"][1]), abs=2.0)
-    print(capsys.readouterr().out)
+    print(out)
+
+
+def fault_at(monkeypatch, arm, fault: str, step: str = "pre_grasp") -> None:
+    """``fault`` (a virtual-arm fault, or a signal to this process) at ``step``'s first cycle.
+
+    As ``lab/fault_drill.py`` injects them, through ``run_on_arm``'s cycle hook.
+    """
+    from so101_kinematics.lab import see_and_pick_arm
+
+    run_on_arm = see_and_pick_arm.run_on_arm
+    fired = []
+
+    def on_cycle(session, cycle):
+        if cycle.step == step and not fired:
+            fired.append(cycle.step)
+            if fault.startswith("SIG"):
+                os.kill(os.getpid(), getattr(signal, fault))
+            else:
+                arm.inject(fault)
+
+    monkeypatch.setattr(see_and_pick_arm, "run_on_arm",
+                        lambda *args, **kwargs: run_on_arm(*args, on_cycle=on_cycle, **kwargs))
+
+
+@pytest.mark.parametrize(("fault", "says", "last_line"), [
+    ("overheat:elbow_flex", "elbow_flex", "Back at the starting pose, torque off."),
+    ("SIGTERM", "stopped by SIGTERM", "Back at the starting pose, torque off."),
+    ("remove:wrist_flex", "wrist_flex", "Not answering: wrist_flex (id 4)."),
+])
+def test_an_aborted_run_ends_with_the_arms_last_line_not_an_unexpected_error(
+        fault, says, last_line, monkeypatch, capsys):
+    # the fault policy (docs/hardware_safety.md, the fault matrix): a hot servo or a stop
+    # signal stops the arm and brings it back to its start, released there; a servo gone from
+    # the bus leaves the others holding where they stopped, torqued
+    with VirtualSO101(cube=CUBE_AT, target=TARGET_AT, cameras=["overhead"]) as arm:
+        start = arm.joint_positions()
+        fault_at(monkeypatch, arm, fault)
+        code = see_and_pick.main(["--port", arm.port, "--camera",
+                                  arm.camera_addresses["overhead"]])
+        end, torque = arm.joint_positions(), arm.torque_enabled()
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert code == 1 and "nexpected" not in err, err
+    assert lines[-2].startswith("ABORTED: ") and says in lines[-2], err
+    assert lines[-1].startswith(last_line), err
+    if "torque off" in last_line:  # what the line says, the servos say
+        assert not any(torque.values()), torque
+        for joint in ARM_JOINTS:
+            assert end[joint] == pytest.approx(start[joint], abs=AT_START_DEG), joint
+    else:
+        assert "torque ON" in lines[-1] and "--release --port" in lines[-1], err
+        assert all(on for joint, on in torque.items() if joint != "wrist_flex"), torque
 
 
 @pytest.mark.parametrize("option", [["--port", "/dev/null"], ["--camera", "http://x/o.mjpg"]])
