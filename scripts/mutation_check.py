@@ -727,6 +727,12 @@ MUTANTS: list[Mutant] = [
       "press, release = 0, 0",
       "tests/drawing/test_light_switch.py::test_the_press_starts_its_lead_before_the_light_and_"
       "the_release_its_own", "tests/lab/test_light_arm.py"),
+    m("see_and_pick_abort_unexpected", "see_and_pick --port lets the fault policy's abort "
+      "through: a stop signal ends as an unexpected error without the arm's last line",
+      "so101_kinematics/lab/see_and_pick_arm.py", "see_and_pick_on_arm",
+      "    except MotionAborted as error:", "    except ZeroDivisionError as error:",
+      "tests/virtual/test_virtual_see_and_pick.py::test_an_aborted_run_ends_with_the_arms_last_"
+      "line_not_an_unexpected_error"),
     # --- two arms on one board (issue 38) ---------------------------------------------------
     m("two_arms_one_feedforward", "one gravity feed-forward for both arms of a model: its "
       "direction memory mixes them, an arm moves the other", "so101_kinematics/sim/actuation.py",
