@@ -63,9 +63,9 @@ def fault_at(monkeypatch, arm, fault: str, step: str = "pre_grasp") -> None:
 
     As ``lab/fault_drill.py`` injects them, through ``run_on_arm``'s cycle hook.
     """
+    from so101_kinematics.hw.run import run_on_arm
     from so101_kinematics.lab import see_and_pick_arm
 
-    run_on_arm = see_and_pick_arm.run_on_arm
     fired = []
 
     def on_cycle(session, cycle):
