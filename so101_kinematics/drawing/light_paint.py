@@ -59,8 +59,8 @@ from so101_kinematics.vision.camera_model import (
 
 __all__ = [
     "BOARD_CENTRE", "EXPOSURE_CAMERA", "EXPOSURE_SIZE", "LIGHT_TILT_DEG", "SPREAD_PIECE_MM",
-    "base_to_board", "board_to_base", "light_path", "measured_brightness", "paint", "save_exposure",
-    "score_exposure",
+    "base_to_board", "board_to_base", "light_configurations", "light_path", "measured_brightness",
+    "paint", "save_exposure", "score_exposure",
 ]
 
 BOARD_CENTRE = (0.26, 0.0, 0.165)
@@ -122,6 +122,24 @@ def light_path(strokes: Sequence[np.ndarray], speed: float, dt: float):
         parts.append((np.repeat(here[None], max(1, round(DWELL_S / dt)), axis=0),
                       np.zeros(max(1, round(DWELL_S / dt)))))
     return np.vstack([p for p, _ in parts]), np.concatenate([b for _, b in parts])
+
+
+def light_configurations(strokes: Sequence[np.ndarray], speed: float, dt: float):
+    """The arm's configurations along :func:`light_path`, the light at ``LIGHT_TILT_DEG``.
+
+    Returns:
+        ``(configurations, brightness)``: one configuration per sample (each solved from the
+        one before, so the wrist does not flip between samples) and its brightness (n,).
+
+    Raises:
+        UnreachableError: a point of the board the light cannot reach straight ahead.
+    """
+    points, brightness = light_path(strokes, speed, dt)
+    pose, configurations, cfg = PenPose(LIGHT_TILT_DEG), [], None
+    for point in points:
+        cfg = pen_configuration(point, pose, cfg)
+        configurations.append(cfg)
+    return configurations, brightness
 
 
 def measured_brightness(light: np.ndarray, lit: np.ndarray, speed: float,
@@ -207,11 +225,7 @@ def paint(strokes: Sequence[np.ndarray], speed: float = DEFAULT_SPEED_MM_S,
     prepared = prepare(strokes)
     m = build_drawing_model(Page())  # the page lies on the table, far below the light
     dt = control_period(m)
-    light_plan, brightness = light_path(prepared, speed, dt)
-    pose, plan, cfg = PenPose(LIGHT_TILT_DEG), [], None
-    for point in light_plan:
-        cfg = pen_configuration(point, pose, cfg)
-        plan.append(cfg)
+    plan, brightness = light_configurations(prepared, speed, dt)
     commands = with_pen_load(lead_commands(plan, dt, lag_seconds(volts)),
                              np.zeros(len(plan), dtype=bool), volts, None, None)
     light, d = _simulate(commands, dt, m)

@@ -22,13 +22,17 @@ from typing import Any
 import numpy as np
 
 from so101_kinematics.drawing.ink_score import distances_to_strokes
-from so101_kinematics.drawing.light_paint import LIGHT_TILT_DEG, base_to_board, light_path
+from so101_kinematics.drawing.light_paint import (
+    LIGHT_TILT_DEG,
+    base_to_board,
+    light_configurations,
+)
 from so101_kinematics.drawing.light_switch import (
     TorchSwitch,
     gripper_goals,
     switch_times,
 )
-from so101_kinematics.drawing.pen import PenPose, pen_configuration, tip_position
+from so101_kinematics.drawing.pen import tip_position
 from so101_kinematics.drawing.pen_plan import DEFAULT_SPEED_MM_S
 from so101_kinematics.drawing.strokes import prepare
 from so101_kinematics.hw.run import run_on_arm
@@ -80,17 +84,13 @@ def paint_on_arm(port: str, calibration: Mapping[str, Any], strokes: Sequence[np
     switch = switch or TorchSwitch()
     switch.check()
     prepared = prepare(strokes)
-    points, brightness = light_path(prepared, speed, CONTROL_DT)
-    pose, commands, cfg = PenPose(LIGHT_TILT_DEG), [], None
-    for point in points:
-        cfg = pen_configuration(point, pose, cfg)
-        commands.append(cfg)
+    commands, brightness = light_configurations(prepared, speed, CONTROL_DT)
     planned_lit = brightness > 0.0
     goals = gripper_goals(planned_lit, CONTROL_DT, switch, MAX_GRIPPER_SPEED_PCT_S)
     options = {"profile": "linear", "velocity_ff": True, "gravity_ff": True, **run_options}
     result = run_on_arm(port, calibration, _plan(commands, goals, CONTROL_DT, switch),
                         **options)
-    lit, tips = _measured_switching(result.cycles, switch, len(points), CONTROL_DT)
+    lit, tips = _measured_switching(result.cycles, switch, len(commands), CONTROL_DT)
     planned, measured = switch_times(planned_lit, CONTROL_DT), switch_times(lit, CONTROL_DT)
     light = {"planned": [list(p) for p in planned], "measured": [list(m) for m in measured],
              "switch": None, "mean_mm": None, "worst_mm": None}
@@ -104,7 +104,7 @@ def paint_on_arm(port: str, calibration: Mapping[str, Any], strokes: Sequence[np
         light.update(mean_mm=round(float(distance.mean()), 3),
                      worst_mm=round(float(distance.max()), 3))
     return {"light": light, "strokes": len(prepared),
-            "duration_s": round(len(points) * CONTROL_DT, 2),
+            "duration_s": round(len(commands) * CONTROL_DT, 2),
             "switch_gripper": [switch.released, switch.click, switch.pressed],
             "switch_lead_s": [switch.lead_on_s, switch.lead_off_s], "tilt_deg": LIGHT_TILT_DEG,
             "aborted": None if result.aborted is None else str(result.aborted),
