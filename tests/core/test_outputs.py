@@ -444,6 +444,17 @@ def test_a_simulator_refuses_an_unwritable_output_before_it_runs(tmp_path, scrip
     assert "Wrote" not in done.stdout + done.stderr
 
 
+def _open_elsewhere(path: Path) -> bool:
+    """Whether a process has ``path`` open (Linux: its /proc/PID/fd links)."""
+    for fd in Path("/proc").glob("[0-9]*/fd/*"):
+        try:
+            if os.readlink(fd) == str(path):
+                return True
+        except OSError:  # a process or a descriptor gone meanwhile, or not ours to read
+            continue
+    return False
+
+
 def test_a_stop_leaves_no_hidden_part_file(tmp_path):
     """SIGTERM while the video is being written: the temporary file is removed."""
     import signal
@@ -455,12 +466,16 @@ def test_a_stop_leaves_no_hidden_part_file(tmp_path):
                               "--record", str(video)], cwd=REPO, env=env,
                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
+        # frames are being written: ffmpeg has the part file open. Not a fixed wait: on CI's
+        # loaded cores ffmpeg was not yet running 0.5 s after the file appeared, and an
+        # ffmpeg that opens its output after the stop makes it again (a race this test does
+        # not cover; the closing note of stop 41 says so)
         deadline = time.monotonic() + 300
-        while not list(tmp_path.glob(".run.mp4.*.part.mp4")):
+        while not any(_open_elsewhere(part) for part in tmp_path.glob(".run.mp4.*.part.mp4")):
             assert child.poll() is None, child.stderr.read()
             assert time.monotonic() < deadline, "the recording never began"
             time.sleep(0.05)
-        time.sleep(0.5)  # frames are being written
+        time.sleep(0.5)
         child.send_signal(signal.SIGTERM)
         child.wait(timeout=60)
     finally:
