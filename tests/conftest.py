@@ -123,6 +123,8 @@ def pytest_collection_modifyitems(config, items):
     jobs) they miss servos and read holds as drops with or without xdist.
     """
     for item in items:
+        if runs_an_arm(item):
+            item.add_marker(pytest.mark.arm)
         module = item.nodeid.split("::")[0]
         defs = getattr(getattr(item, "_fixtureinfo", None), "name2fixturedefs", {})
         if item.path.name in EXCLUSIVE_ARM_FILES or any(
@@ -180,13 +182,20 @@ def _virtual_arms_alone_for_the_file(request, tmp_path_factory):
         yield
 
 
+def runs_an_arm(item) -> bool:
+    """Whether a test runs a real-time virtual arm (marked hw or alone, or in tests/virtual/):
+    it takes the arms' lock, and collection marks it ``arm`` (.ci/run runs the slow ones
+    that do not in a leg of their own)."""
+    return (item.get_closest_marker("alone") is not None or item.get_closest_marker("hw")
+            is not None or item.path.parent.name == "virtual")
+
+
 @pytest.fixture(autouse=True)
 def _virtual_arm_turn(request, tmp_path_factory):
     node = request.node
     path = _arms_lock_path(tmp_path_factory)
     alone = node.get_closest_marker("alone") is not None
-    if path is None or node.path.name in EXCLUSIVE_ARM_FILES or not (
-            alone or node.get_closest_marker("hw") or node.path.parent.name == "virtual"):
+    if path is None or node.path.name in EXCLUSIVE_ARM_FILES or not runs_an_arm(node):
         yield  # no lock, or the file's (held by the fixture above), or no arm
         return
     with _arms_lock(path, exclusive=alone):
