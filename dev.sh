@@ -96,9 +96,11 @@ fi
 
 # The test jobs run on every core (-n auto; ARGS after it win: -n 0 runs in this
 # process, -m replaces the tier's marker). --dist loadgroup keeps the tests of one
-# xdist_group on one worker (tests/conftest.py groups the real-time virtual arms).
+# xdist_group on one worker (tests/conftest.py groups the real-time virtual arms), and
+# --no-loadscope-reorder hands the work out in the order tests/conftest.py sets (the files
+# that take the arms' lock alone first, then those that run no arm).
 # pytest's exit 5 (no test collected) fails the job as any other failure.
-parallel=(-n auto --dist loadgroup)
+parallel=(-n auto --dist loadgroup --no-loadscope-reorder)
 case "$job" in
   test|test-all)
     # Which lerobot line this run checks (0.4.x on 3.10/3.11, 0.6.x on 3.12+).

@@ -111,7 +111,8 @@ def course_arm():
             course.end_at_start(run, "test teardown")
 
 
-def pytest_collection_modifyitems(config, items):
+@pytest.hookimpl(tryfirst=True)  # before xdist names the groups (its hook, registered after
+def pytest_collection_modifyitems(config, items):  # this file, runs first otherwise) and -m
     """Under pytest-xdist (dev.sh: -n auto --dist loadgroup), a file whose tests share a
     module-scoped fixture of its own (a virtual arm started once, a whole run on it, a checker
     run over every submission) goes to one worker: the fixture's 10-40 s are paid once, not on
@@ -127,9 +128,38 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.arm)
         module = item.nodeid.split("::")[0]
         defs = getattr(getattr(item, "_fixtureinfo", None), "name2fixturedefs", {})
-        if item.path.name in EXCLUSIVE_ARM_FILES or any(
-                d.scope == "module" and d.baseid == module for fds in defs.values() for d in fds):
+        if item.path.name in EXCLUSIVE_ARM_FILES:
+            item.add_marker(pytest.mark.xdist_group(EXCLUSIVE_GROUP))
+        elif any(d.scope == "module" and d.baseid == module for fds in defs.values()
+                 for d in fds):
             item.add_marker(pytest.mark.xdist_group(module))
+    items[:] = _exclusive_first_then_armless(items)
+
+
+EXCLUSIVE_GROUP = "virtual-arms-alone"
+"""The xdist group of every file in :data:`EXCLUSIVE_ARM_FILES`: one worker runs them."""
+
+
+def _exclusive_first_then_armless(items: list) -> list:
+    """The order xdist hands work out in (dev.sh: ``--no-loadscope-reorder``), files kept whole:
+    the files that take the arms' lock for themselves first, on one worker; then the files that
+    run no arm, which the other worker runs meanwhile instead of waiting for that lock (xdist's
+    own order, the biggest groups first, gave both workers an exclusive file at the start: the
+    quick tier's worker waited 60 s on the other's); then the files that run an arm. In each
+    part the grouped files first, the biggest first, as xdist would; the rest in file order."""
+    modules: dict[str, list] = {}
+    for item in items:
+        modules.setdefault(item.nodeid.split("::")[0], []).append(item)
+
+    def rank(entry):
+        index, tests = entry
+        grouped = tests[0].get_closest_marker("xdist_group") is not None
+        part = (0 if tests[0].path.name in EXCLUSIVE_ARM_FILES else
+                2 if any(t.get_closest_marker("arm") for t in tests) else 1)
+        return part, not grouped, -len(tests) if grouped else 0, index
+
+    ordered = sorted(enumerate(modules.values()), key=rank)
+    return [item for _, tests in ordered for item in tests]
 
 
 # Raw-protocol tests (Feetech's SDK and bare packets with its ~35 ms reply timeout): beside
