@@ -114,7 +114,9 @@ def mp4_bytes(comment: bytes) -> bytes:
     (report_of("test_ik_mujoco.py"),
      b'{"generator": "so101-kinematics test_ik_mujoco.py", "results": []}',
      b'{"generator": "so101-kinematics so101-check-fk", "verdict": "pass"}'),
-])
+], ids=["png-unmarked", "png-other-program", "pdf-unmarked", "pdf-postscript", "mp4-other-tool",
+        "mp4-avi", "json-calibration", "json-other-program"])  # a PDF carries its time: as an
+# id, two xdist workers collecting a second apart would disagree on the tests' names
 def test_an_output_replaces_only_its_own_kind(tmp_path, kind, ours, theirs):
     path = tmp_path / "out"
     path.write_bytes(ours)
