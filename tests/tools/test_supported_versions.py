@@ -150,7 +150,8 @@ def test_the_environment_is_keyed_by_the_dependencies_only(tmp_path):
     # ... a dependency does, in the main list or in an extra: the extra's own environments only
     # (a docs or dev tool added must not rebuild the sim environment, nor the docs one the hw one).
     added = pyproject.replace('    "numpy>=1.24",\n', '    "numpy>=1.24",\n    "scipy",\n')
-    extra = pyproject.replace('    "hypothesis>=6.100",\n', '    "hypothesis>=6.100",\n    "pytest-cov",\n')
+    extra = pyproject.replace('    "hypothesis>=6.100",\n',
+                              '    "hypothesis>=6.100",\n    "pytest-cov",\n')
     assert added != pyproject and extra != pyproject
     assert len({key, environment_key(tmp_path, added)}) == 2
     assert environment_key(tmp_path, extra) == key
