@@ -498,6 +498,10 @@ MUTANTS: list[Mutant] = [
     m("part_left_on_sigterm", "a SIGTERM leaves the hidden .part file of an output",
       OUTPUTS, "_clean_up_on_stop_signals", "if signal.getsignal(signum) == signal.SIG_DFL:",
       "if False:", f"{T_OUT}::test_a_stop_leaves_no_hidden_part_file"),
+    m("part_remade_by_a_late_encoder", "a stop removes the .part file but leaves its encoder "
+      "running, which opens it again later", OUTPUTS, "_remove_and_die",
+      "_stop_writers({temporary.name for temporary in ours})", "pass",
+      f"{T_OUT}::test_a_stop_before_the_encoder_opens_its_output_leaves_no_part_file"),
     m("link_replaces_a_users_symlink", "virtual_so101.py --link replaces (and at exit deletes) "
       "a symlink it did not make", "virtual_so101.py", "make_link",
       'if not (target.startswith("/dev/pts/") and not os.path.exists(target)):', "if False:",

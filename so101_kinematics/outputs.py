@@ -280,11 +280,67 @@ def forget_temporary(temporary: str | Path) -> None:
     _LIVE.pop(Path(temporary), None)
 
 
+WRITER_STOP_S = 2.0
+"""[s] How long a stop waits for a killed writer of a temporary file to be gone."""
+
+
+def _writers_of(paths: set[str]) -> list[int]:
+    """Our child processes that name one of the files ``paths`` on their command line.
+
+    The encoders (ffmpeg, started by imageio with the temporary file as its output), found in
+    Linux's /proc; matched by the file's name, which is random (however a writer spells the
+    folder).
+    """
+    me, found = str(os.getpid()), []
+    names = {os.path.basename(path) for path in paths}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            parent = stat.read_text().rsplit(")", 1)[1].split()[1]
+            argv = (stat.parent / "cmdline").read_bytes().split(b"\0")
+        except (OSError, IndexError):  # gone meanwhile, or not readable
+            continue
+        if parent == me and any(os.path.basename(arg.decode(errors="replace")) in names
+                                for arg in argv):
+            found.append(int(stat.parent.name))
+    return found
+
+
+def _stop_writers(paths: set[str]) -> None:
+    """Kill the writers of ``paths`` and wait until each is gone.
+
+    Gone is a zombie (it is our child): none opens its output again after the file is removed.
+    """
+    import time
+
+    writers = _writers_of(paths)
+    for pid in writers:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    deadline = time.monotonic() + WRITER_STOP_S
+    for pid in writers:
+        while time.monotonic() < deadline:
+            try:
+                state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+            except (OSError, IndexError):
+                break
+            if state in ("Z", "X"):
+                break
+            time.sleep(0.01)
+
+
 def _remove_and_die(signum, _frame) -> None:
-    """End on a SIGTERM/SIGHUP as its default would, our temporary files removed first."""
-    for temporary, owner in list(_LIVE.items()):
-        if owner == os.getpid():
-            temporary.unlink(missing_ok=True)
+    """End on a SIGTERM/SIGHUP as its default would, our temporary files removed first.
+
+    Their writers are stopped before that: an encoder that had not yet opened its output
+    would make it again after the removal and leave it behind.
+    """
+    ours = [temporary for temporary, owner in list(_LIVE.items()) if owner == os.getpid()]
+    if ours:
+        _stop_writers({temporary.name for temporary in ours})
+    for temporary in ours:
+        temporary.unlink(missing_ok=True)
     signal.signal(signum, signal.SIG_DFL)
     os.kill(os.getpid(), signum)
 

@@ -470,8 +470,7 @@ def test_a_stop_leaves_no_hidden_part_file(tmp_path):
     try:
         # frames are being written: ffmpeg has the part file open. Not a fixed wait: on CI's
         # loaded cores ffmpeg was not yet running 0.5 s after the file appeared, and an
-        # ffmpeg that opens its output after the stop makes it again (a race this test does
-        # not cover; the closing note of stop 41 says so)
+        # ffmpeg that opens its output after the stop is the next test's case)
         deadline = time.monotonic() + 300
         while not any(_open_elsewhere(part) for part in tmp_path.glob(".run.mp4.*.part.mp4")):
             assert child.poll() is None, child.stderr.read()
@@ -480,6 +479,39 @@ def test_a_stop_leaves_no_hidden_part_file(tmp_path):
         time.sleep(0.5)
         child.send_signal(signal.SIGTERM)
         child.wait(timeout=60)
+    finally:
+        if child.poll() is None:
+            child.kill()
+    assert list(tmp_path.iterdir()) == []
+
+
+LATE_WRITER = """
+import subprocess, sys, time
+from so101_kinematics.outputs import temporary_beside
+part = temporary_beside(sys.argv[1])
+# an encoder that opens its output late (ffmpeg on loaded cores): its own session, as imageio
+# starts it, so the stop signal reaches this program only
+subprocess.Popen([sys.executable, "-c", "import sys, time; time.sleep(1.5); "
+                  "open(sys.argv[1], 'wb').write(b'frames')", str(part)], start_new_session=True)
+print("started", flush=True)
+time.sleep(60)
+"""
+
+
+def test_a_stop_before_the_encoder_opens_its_output_leaves_no_part_file(tmp_path):
+    """SIGTERM before the encoder (a child) has opened the temporary file: it is stopped first,
+    or it would make the file again once it was removed (stop 41's closing note's race)."""
+    import signal
+    import time
+
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    child = subprocess.Popen([sys.executable, "-c", LATE_WRITER, str(tmp_path / "run.mp4")],
+                             env=env, stdout=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout.readline() == "started\n"
+        child.send_signal(signal.SIGTERM)
+        assert child.wait(timeout=30) == -signal.SIGTERM
+        time.sleep(2.5)  # the writer would have made it 1.5 s after it started
     finally:
         if child.poll() is None:
             child.kill()
