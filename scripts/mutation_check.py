@@ -358,6 +358,12 @@ MUTANTS: list[Mutant] = [
     m("fitted_jerk_factor", "the fitted cubic's third derivative taken as 2 c3 (not 3! c3)",
       "so101_kinematics/planning/motion_metrics.py", "fitted_derivatives",
       "6.0 * c[:, 3] / scale**3", "2.0 * c[:, 3] / scale**3", T_PROFILES),
+    m("misread_window_from_the_ends", "the time between two readings' samples taken from "
+      "the reads' ends: a read stamped late makes a swinging joint's step a misread",
+      "so101_kinematics/hw/misreads.py", "ReadingCheck.__call__",
+      "now if started is None else min(started, now)", "now",
+      "tests/hw/test_misreads.py::"
+      "test_the_time_between_samples_runs_from_the_last_reads_start_to_this_ones_end"),
     m("misread_reply_kept", "a misread reply (-2900 deg for one cycle) kept in the figures",
       "so101_kinematics/lab/sim_vs_arm.py", "compare_run", "    if wrong:\n", "    if False:\n",
       T_PROFILES),

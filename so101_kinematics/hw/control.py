@@ -164,8 +164,9 @@ class ArmSession:
     # measurement and command
     def _read(self) -> Configuration:
         """Present_Position less trims, retried in the call; raises as the bus, or Misread."""
-        return self.readings(self.trims.from_wire(read_pose(self.bus, READ_RETRIES)),
-                             self.loop.clock())
+        started = self.loop.clock()
+        pose = self.trims.from_wire(read_pose(self.bus, READ_RETRIES))
+        return self.readings(pose, self.loop.clock(), started)
 
     def read_pose(self) -> Configuration:
         """Present_Position of every joint ([deg]; gripper [0, 100]); raises BusError, PortLost."""

@@ -12,7 +12,11 @@ calibrated range, which would drive every joint at full speed to its lower limit
 - outside the calibrated range by more than :data:`RANGE_MARGIN` (a joint cannot be far
   past the stops its calibration recorded), or
 - further from the last accepted pose than :data:`MAX_PLAUSIBLE_SPEED_DEG_S` allows in
-  the time between them (arm joints; the gripper's unit is not degrees).
+  the time between them (arm joints; the gripper's unit is not degrees). A servo samples its
+  position somewhere between the request and the reply, so that time is the longest the two
+  samples can be apart: from the start of the last accepted read to the end of this one. (The
+  ends alone were once 1 ms apart for a 2.8 deg step of a swinging shoulder_pan: the last
+  read's end stamped late on a loaded machine, CI's slow leg, 2026-12-04.)
 
 A refused reading raises :class:`Misread`, which the loop handles as a failed read (the
 plan pauses, the servos hold their last goals, the next read decides).
@@ -54,11 +58,18 @@ class ReadingCheck:
     def __init__(self, limits: Mapping[str, tuple[float, float]]):
         self.limits = dict(limits)
         self.last: dict[str, float] | None = None
-        self.last_time: float | None = None
+        self.last_time: float | None = None  # [s] when the last accepted read began
         self.refused = 0
 
-    def __call__(self, pose: Mapping[str, float], now: float) -> Mapping[str, float]:
-        """``pose`` if plausible at time ``now`` [s]; raises :class:`Misread` otherwise."""
+    def __call__(self, pose: Mapping[str, float], now: float,
+                 started: float | None = None) -> Mapping[str, float]:
+        """``pose`` if plausible; raises :class:`Misread` otherwise.
+
+        Args:
+            pose: the reading.
+            now: [s] when the read ended (its reply in).
+            started: [s] when the read began (its request sent; default ``now``).
+        """
         for joint, value in pose.items():
             lower, upper = self.limits[joint]
             if not (lower - RANGE_MARGIN <= value <= upper + RANGE_MARGIN):
@@ -75,7 +86,7 @@ class ReadingCheck:
                     self.forget()
                     self._refuse(f"{joint} read {pose[joint]:.1f}, {jump:.1f} deg from "
                                  f"{elapsed * 1e3:.0f} ms before (at most {allowed:.1f})")
-        self.last, self.last_time = dict(pose), now
+        self.last, self.last_time = dict(pose), now if started is None else min(started, now)
         return pose
 
     def forget(self) -> None:

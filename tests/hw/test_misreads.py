@@ -38,6 +38,19 @@ def test_a_joint_at_the_fastest_servos_speed_is_accepted_and_a_jump_is_not():
         check(POSE | {"shoulder_pan": 40.0}, 0.020)
 
 
+def test_the_time_between_samples_runs_from_the_last_reads_start_to_this_ones_end():
+    # CI's slow leg: two reads' ends 1 ms apart, the first stamped late (the machine loaded);
+    # their samples were further apart, and the ends' 1 ms (2.6 deg allowed) called the
+    # swinging shoulder_pan's 2.8 deg a misread. Here the first read took 20 ms.
+    check = ReadingCheck(LIMITS)
+    check(POSE, 1.000, started=0.980)
+    assert check(POSE | {"shoulder_pan": 2.8}, 1.001, started=1.0005)["shoulder_pan"] == 2.8
+    # the window is the longest the samples can be apart, and no longer: 312 x 2 deg/s x
+    # (1.010 - 1.0005) s + 2 deg = 7.9 deg
+    with pytest.raises(Misread, match="shoulder_pan read 11.0, 8.2 deg from 10 ms before"):
+        check(POSE | {"shoulder_pan": 11.0}, 1.010, started=1.009)
+
+
 def test_after_a_jump_the_next_reading_is_judged_by_the_range_alone():
     # One of two readings was wrong; which is unknown: a bad pose must not lock out the rest.
     check = ReadingCheck(LIMITS)
