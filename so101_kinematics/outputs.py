@@ -27,6 +27,7 @@ import os
 import signal
 import tempfile
 import threading
+import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -310,8 +311,6 @@ def _stop_writers(paths: set[str]) -> None:
 
     Gone is a zombie (it is our child): none opens its output again after the file is removed.
     """
-    import time
-
     writers = _writers_of(paths)
     for pid in writers:
         try:
