@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -11,6 +13,7 @@ pytestmark = pytest.mark.hw
 from so101_kinematics.drawing.page import PAGE_THICKNESS, PAGES, Page, page_to_base  # noqa: E402
 from so101_kinematics.drawing.pen import PenPose, pen_configuration  # noqa: E402
 from so101_kinematics.drawing.registration import check_fit, fit_page, page_marks  # noqa: E402
+from so101_kinematics.frames import ARM_JOINTS  # noqa: E402
 from so101_kinematics.lab.page_touch import touch_marks  # noqa: E402
 from so101_kinematics.virtual.arm import VirtualSO101  # noqa: E402
 
@@ -27,6 +30,12 @@ def test_marks_touched_by_hand_on_the_limp_arm_give_the_page_pose(calibration):
             cfg = pen_configuration(tips[len(prompts) - 1], PenPose(10.0))  # any tilt
             arm.hand_move([cfg])
             arm.hand_wait()
+            # and until the joints are there (CI's loaded quick tier once read every mark
+            # 20-100 mm off: the hand's motion had not reached it when "Enter" came)
+            deadline = time.monotonic() + 10.0
+            while time.monotonic() < deadline and any(
+                    abs(arm.joint_positions()[j] - cfg[j]) > 0.5 for j in ARM_JOINTS):
+                time.sleep(0.05)
 
         touched = touch_marks(arm.port, calibration, 3, hand_on_mark)
         limp = not any(arm.torque_enabled().values())
