@@ -4,7 +4,7 @@ A fenced block in ``bash``, ``sh``, ``shell``, ``console`` or ``python`` is eith
 (Python blocks in a subprocess from the repository root; a shell block only when every
 command in it is a cheap ``--help``) or preceded by a line ``<!-- not run: REASON -->`` with
 a reason. Also: the README stays a two-minute read (at most 200 lines), and no page cites
-``../shared`` (a user's clone has none). The site itself is built by ``./dev.sh docs``;
+the workplace's notes folder beside the clone (:data:`OUTSIDE`: a user's clone has none). The site itself is built by ``./dev.sh docs``;
 ``test_docs_site_builds`` builds it here when Sphinx is installed.
 """
 
@@ -149,9 +149,13 @@ def test_readme_is_a_two_minute_read():
     assert len(lines) <= README_MAX_LINES, f"README.md has {len(lines)} lines"
 
 
+OUTSIDE = re.compile(r"\.\./shared\b")
+"""A citation of the notes folder beside the clone (the sources are cited in the repository)."""
+
+
 def test_no_page_cites_a_folder_outside_the_repository():
     citing = [str(p.relative_to(REPO)) for p in doc_files()
-              if p.exists() and "../shared" in p.read_text()]
+              if p.exists() and OUTSIDE.search(p.read_text())]
     assert not citing, f"cite the original source inside the repository instead: {citing}"
 
 
