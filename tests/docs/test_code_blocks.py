@@ -4,8 +4,9 @@ A fenced block in ``bash``, ``sh``, ``shell``, ``console`` or ``python`` is eith
 (Python blocks in a subprocess from the repository root; a shell block only when every
 command in it is a cheap ``--help``) or preceded by a line ``<!-- not run: REASON -->`` with
 a reason. Also: the README stays a two-minute read (at most 200 lines), and no page cites
-the workplace's notes folder beside the clone (:data:`OUTSIDE`: a user's clone has none). The site itself is built by ``./dev.sh docs``;
-``test_docs_site_builds`` builds it here when Sphinx is installed.
+the workplace's notes folder beside the clone (:data:`OUTSIDE`: a user's clone has none).
+The site itself is built by ``./dev.sh docs``; ``test_docs_site_builds`` builds it here when
+Sphinx is installed.
 """
 
 from __future__ import annotations
