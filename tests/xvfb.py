@@ -30,13 +30,20 @@ def missing_tools() -> list[str]:
 
 
 class VirtualDisplay:
-    """An Xvfb server on a free display number; ``name`` is the ``DISPLAY`` value."""
+    """An Xvfb server on a free display number; ``name`` is the ``DISPLAY`` value.
+
+    ``-noreset``: an X server resets when its last client disconnects, and a program that
+    connects during the reset fails with "Failed to open display" (CI's loaded slow leg: the
+    second viewer test's program, started just after the first test's window and the
+    ``xdotool`` polls had all closed). One module's tests share the server, so it must not
+    reset between them.
+    """
 
     def __init__(self, size=SCREEN) -> None:
         read, write = os.pipe()
         self.process = subprocess.Popen(
             ["Xvfb", "-displayfd", str(write), "-screen", "0", f"{size[0]}x{size[1]}x24",
-             "-nolisten", "tcp"], pass_fds=(write,), stdout=subprocess.DEVNULL,
+             "-nolisten", "tcp", "-noreset"], pass_fds=(write,), stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL)
         os.close(write)
         with os.fdopen(read) as pipe:
