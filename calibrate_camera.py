@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from so101_kinematics.cli import EXIT_FAILED, ArgumentParser, number, run_script
+from so101_kinematics.cli import EXIT_FAILED, NOTHING_WRITTEN, ArgumentParser, number, run_script
 from so101_kinematics.errors import InputError, OpenCVMissing, VisionError
 from so101_kinematics.frames import ARM_JOINTS
 from so101_kinematics.opencv_import import require_opencv
@@ -123,7 +123,7 @@ interrupted.""")
     parser.add_argument("-v", "--verbose", action="store_true", help="log details (and show "
                         "the traceback of an unexpected error)")
     return run_script(parser, argv, _run, refused=(InputError, OpenCVMissing),
-                      interrupted="nothing was written; existing output files are as they were.")
+                      interrupted=NOTHING_WRITTEN)
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -17,7 +17,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from so101_kinematics.cli import (
+    NOTHING_WRITTEN,
     ArgumentParser,
+    add_calibration_argument,
     add_servo_arguments,
     number,
     range_help,
@@ -32,9 +34,7 @@ from so101_kinematics.drawing.pen import PenPose
 from so101_kinematics.drawing.pen_plan import DEFAULT_SPEED_MM_S
 from so101_kinematics.drawing.registration import read_page_pose
 from so101_kinematics.errors import (
-    CalibrationError,
-    ConnectionFailed,
-    LerobotMissing,
+    ARM_NOT_STARTED,
     OutputPathError,
     PlanError,
 )
@@ -113,17 +113,16 @@ arm that aborted or an unexpected error, 130 interrupted.""")
                      help="the arm's serial port (virtual_so101.py prints the virtual arm's): "
                      "the same plan through lerobot's bus; the JSON's arm_tip is the tip's "
                      "read-back path against the strokes (the arm has no page that records ink)")
-    arm.add_argument("--calibration", type=Path, default=None, metavar="PATH",
-                     help="the arm's lerobot calibration (default: the virtual arm's)")
+    add_calibration_argument(arm)
     arm.add_argument("--no-pen", action="store_true",
                      help="the arm holds no pen over a page (the virtual arm): its goals are "
                      "not offset for the pen's weight and push")
     add_servo_arguments(parser)
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
-    refused = (OutputPathError, PlanError, CalibrationError, ConnectionFailed, LerobotMissing)
+    refused = (OutputPathError, PlanError, *ARM_NOT_STARTED)
     return run_script(parser, argv, _run, refused=refused,
-                      interrupted="nothing was written; existing output files are as they were.")
+                      interrupted=NOTHING_WRITTEN)
 
 
 def _check_outputs(args: argparse.Namespace) -> tuple[Path | None, Path | None]:

@@ -16,12 +16,18 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number, range_help, run_script
+from so101_kinematics.cli import (
+    EXIT_BAD_INPUT,
+    NOTHING_WRITTEN,
+    ArgumentParser,
+    add_calibration_argument,
+    number,
+    range_help,
+    run_script,
+)
 from so101_kinematics.errors import (
-    CalibrationError,
-    ConnectionFailed,
+    ARM_NOT_STARTED,
     InputError,
-    LerobotMissing,
     OutputPathError,
     RenderError,
     VisionError,
@@ -117,16 +123,14 @@ error or a run aborted (the arm's ending printed), 130 interrupted.""")
                      help="the wrist camera's calibration: the report calibrate_camera.py "
                      "--photos DIR --mount wrist --json PATH wrote (default: the model's wrist "
                      "camera, exact for the virtual arm)")
-    arm.add_argument("--calibration", type=Path, default=None, metavar="PATH",
-                     help="the arm's lerobot calibration (default: the virtual arm's)")
+    add_calibration_argument(arm)
     arm.add_argument("--seconds", type=number(*DURATION_RANGE, "s"), default=None,
                      help=f"follow this long, {range_help(*DURATION_RANGE, 's')} (default 30)")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
-    refused = (InputError, RenderError, VisionError, CalibrationError, ConnectionFailed,
-               LerobotMissing)  # a run on an arm refused before anything moved: one line
+    refused = (InputError, RenderError, VisionError, *ARM_NOT_STARTED)
     return run_script(parser, argv, lambda args: _run(args, parser), refused=refused,
-                      interrupted="nothing was written; existing output files are as they were.")
+                      interrupted=NOTHING_WRITTEN)
 
 
 def _check_outputs(args: argparse.Namespace) -> tuple[Path | None, Path | None]:

@@ -16,7 +16,13 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from so101_kinematics.cli import ArgumentParser, number, range_help, run_script
+from so101_kinematics.cli import (
+    ArgumentParser,
+    add_calibration_argument,
+    number,
+    range_help,
+    run_script,
+)
 from so101_kinematics.drawing.glyphs import DEFAULT_FONT, SHAPES, shape_strokes, text_strokes
 from so101_kinematics.drawing.light_paint import EXPOSURE_CAMERA, paint, save_exposure
 from so101_kinematics.drawing.light_switch import SWITCH_LEAD_S, TorchSwitch
@@ -24,9 +30,7 @@ from so101_kinematics.drawing.pen_plan import DEFAULT_SPEED_MM_S
 from so101_kinematics.drawing.strokes import fit_to_height
 from so101_kinematics.drawing.svg_paths import svg_strokes
 from so101_kinematics.errors import (
-    CalibrationError,
-    ConnectionFailed,
-    LerobotMissing,
+    ARM_NOT_STARTED,
     OutputPathError,
     PlanError,
     UnreachableError,
@@ -81,8 +85,7 @@ Exit code: 0 painted, 2 bad input (one line), 1 an unexpected error.""")
                      help="the arm's serial port: the same path through lerobot's bus, a torch "
                      "on the fixed jaw switched by the gripper; the JSON's light has the "
                      "planned and measured on/off times")
-    arm.add_argument("--calibration", type=Path, default=None, metavar="PATH",
-                     help="the arm's lerobot calibration (default: the virtual arm's)")
+    add_calibration_argument(arm)
     arm.add_argument("--switch-gripper", type=number(0.0, 100.0, "%"), nargs=3,
                      metavar=("RELEASED", "CLICK", "PRESSED"),
                      default=(SWITCH.released, SWITCH.click, SWITCH.pressed),
@@ -95,7 +98,7 @@ Exit code: 0 painted, 2 bad input (one line), 1 an unexpected error.""")
                      "run's JSON light.switch says how late yours is: add it)")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
-    refused = (OutputPathError, PlanError, CalibrationError, ConnectionFailed, LerobotMissing)
+    refused = (OutputPathError, PlanError, *ARM_NOT_STARTED)
     return run_script(parser, argv, _run, refused=refused)
 
 

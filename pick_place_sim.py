@@ -19,6 +19,7 @@ from pathlib import Path
 from so101_forward_kinematics import KinematicsInputError
 from so101_kinematics.cli import (
     EXIT_BAD_INPUT,
+    NOTHING_WRITTEN,
     ArgumentParser,
     StoreGiven,
     add_moved_options,
@@ -174,7 +175,7 @@ traceback), 2 bad input (plan file, options), 130 interrupted.""")
                         "the traceback of an unexpected error)")
     hide_expert_options(parser, EXPERT)
     return run_script(parser, argv, lambda args: _run(parser, args),
-                      interrupted="nothing was written; existing output files are as they were.",
+                      interrupted=NOTHING_WRITTEN,
                       log_format="%(levelname)s %(name)s: %(message)s")
 
 

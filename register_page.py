@@ -12,7 +12,13 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from so101_kinematics.cli import ArgumentParser, number, run_script
+from so101_kinematics.cli import (
+    NOTHING_WRITTEN,
+    ArgumentParser,
+    add_calibration_argument,
+    number,
+    run_script,
+)
 from so101_kinematics.drawing.page import PAGES
 from so101_kinematics.drawing.registration import (
     MARK_INSET_MM,
@@ -24,9 +30,7 @@ from so101_kinematics.drawing.registration import (
     read_touched_points,
 )
 from so101_kinematics.errors import (
-    CalibrationError,
-    ConnectionFailed,
-    LerobotMissing,
+    ARM_NOT_STARTED,
     OutputPathError,
     PlanError,
 )
@@ -63,8 +67,7 @@ written), 1 an unexpected error, 130 interrupted.""")
                         "with the pen's tip and press Enter")
     source.add_argument("--points", type=Path, metavar="FILE", help='touched points from a '
                         'JSON file {"points_m": [[x, y], ...]}, base frame [m]')
-    parser.add_argument("--calibration", type=Path, default=None, metavar="PATH",
-                        help="the arm's lerobot calibration (default: the virtual arm's)")
+    add_calibration_argument(parser)
     parser.add_argument("--page", choices=tuple(PAGES), default="a5",
                         help="the page, laid landscape (default %(default)s)")
     parser.add_argument("--marks", type=int, choices=(3, 4), default=4,
@@ -77,9 +80,9 @@ written), 1 an unexpected error, 130 interrupted.""")
     add_overwrite_argument(parser)
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
-    refused = (OutputPathError, PlanError, CalibrationError, ConnectionFailed, LerobotMissing)
+    refused = (OutputPathError, PlanError, *ARM_NOT_STARTED)
     return run_script(parser, argv, _run, refused=refused,
-                      interrupted="nothing was written; existing output files are as they were.")
+                      interrupted=NOTHING_WRITTEN)
 
 
 def _touched(args: argparse.Namespace):

@@ -15,12 +15,18 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number, range_help, run_script
+from so101_kinematics.cli import (
+    EXIT_BAD_INPUT,
+    NOTHING_WRITTEN,
+    ArgumentParser,
+    add_calibration_argument,
+    number,
+    range_help,
+    run_script,
+)
 from so101_kinematics.errors import (
-    CalibrationError,
-    ConnectionFailed,
+    ARM_NOT_STARTED,
     CubePositionError,
-    LerobotMissing,
     OutputPathError,
     PlanError,
     RenderError,
@@ -110,16 +116,14 @@ in view or a cube out of reach (one line; nothing moved), 130 interrupted.""")
                      help="a real camera's calibration: the report calibrate_camera.py --photos "
                      "DIR --mount fixed --json PATH wrote (default: the model's overhead "
                      "camera, exact for the virtual arm)")
-    arm.add_argument("--calibration", type=Path, default=None, metavar="PATH",
-                     help="the arm's lerobot calibration (default: the virtual arm's)")
+    add_calibration_argument(arm)
     parser.add_argument("--strict", action="store_true",
                         help="exit 1 unless every trial placed its cube")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="show the traceback of an unexpected error")
-    refused = (OutputPathError, PlanError, RenderError, CubePositionError, CalibrationError,
-               ConnectionFailed, LerobotMissing)  # on an arm: refused before anything moved
+    refused = (OutputPathError, PlanError, RenderError, CubePositionError, *ARM_NOT_STARTED)
     return run_script(parser, argv, _run, refused=refused,
-                      interrupted="nothing was written; existing output files are as they were.")
+                      interrupted=NOTHING_WRITTEN)
 
 
 def _check_outputs(args: argparse.Namespace) -> tuple[Path | None, Path | None]:

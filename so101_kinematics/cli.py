@@ -21,10 +21,10 @@ from so101_kinematics.errors import PlanError
 from so101_kinematics.inputs import format_range
 
 __all__ = [
-    "ArgumentParser", "EXIT_BAD_INPUT", "EXIT_FAILED", "StoreGiven", "add_gravity_ff_argument",
-    "add_moved_options", "add_servo_arguments", "hide_expert_options", "ignored_with_plan",
-    "number", "range_help", "requires",
-    "run_script", "servo_from_arguments", "zero_duration_warning",
+    "ArgumentParser", "EXIT_BAD_INPUT", "EXIT_FAILED", "NOTHING_WRITTEN", "StoreGiven",
+    "add_calibration_argument", "add_gravity_ff_argument", "add_moved_options",
+    "add_servo_arguments", "hide_expert_options", "ignored_with_plan", "number", "range_help",
+    "requires", "run_script", "servo_from_arguments", "zero_duration_warning",
 ]
 
 EXIT_BAD_INPUT = 2
@@ -177,6 +177,10 @@ def report_unexpected(error: BaseException, verbose: bool) -> int:
     return EXIT_FAILED
 
 
+NOTHING_WRITTEN = "nothing was written; existing output files are as they were."
+"""``run_script``'s ``interrupted`` for a program that writes its outputs only at its end."""
+
+
 def run_script(parser: argparse.ArgumentParser, argv: Sequence[str] | None,
                run: Callable[[argparse.Namespace], int], *,
                refused: tuple[type[Exception], ...] = (),
@@ -215,6 +219,17 @@ def run_script(parser: argparse.ArgumentParser, argv: Sequence[str] | None,
         return EXIT_INTERRUPTED
     except Exception as error:
         return report_unexpected(error, args.verbose)
+
+
+def add_calibration_argument(parser) -> None:
+    """``--calibration PATH`` (default None: the virtual arm's): every script that runs an arm.
+
+    ``parser``: the parser, or its group of the arm's options.
+    """
+    from pathlib import Path
+
+    parser.add_argument("--calibration", type=Path, default=None, metavar="PATH",
+                        help="the arm's lerobot calibration (default: the virtual arm's)")
 
 
 def add_gravity_ff_argument(parser: argparse.ArgumentParser) -> None:

@@ -12,7 +12,8 @@ with "Fix: ...".
 from __future__ import annotations
 
 __all__ = [
-    "BusError", "CalibrationError", "CallShapeError", "ClearanceError", "ConnectionFailed",
+    "ARM_NOT_STARTED", "BusError", "CalibrationError", "CallShapeError", "ClearanceError",
+    "ConnectionFailed",
     "CubePositionError", "FaultSpecError", "FreezeRequested", "HardwareError", "InputError",
     "JointLimitError", "KinematicsInputError", "KinematicsTypeError", "LerobotMissing",
     "MeshError", "NotConfirmed", "OpenCVMissing", "OutputPathError", "PlanError", "PortInUse",
@@ -141,6 +142,11 @@ class LerobotMissing(HardwareError):
 
 class ConnectionFailed(HardwareError):
     """The port cannot be opened or a servo does not answer."""
+
+
+ARM_NOT_STARTED = (CalibrationError, ConnectionFailed, LerobotMissing)
+"""What refuses a run on an arm before anything moves: every arm script's bad input (one
+line, exit 2) beside its own (``cli.run_script``'s ``refused``)."""
 
 
 class PortInUse(ConnectionFailed):

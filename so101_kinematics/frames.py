@@ -26,7 +26,7 @@ __all__ = [
     "FRAMES", "GRIPPER_MOUNT_TILT_DEG", "GRIPPER_RANGE", "JOINTS", "JOINT_LIMITS",
     "MOVING_JAW_BODY", "JOINT_RANGES_RAD", "Rx", "Ry", "Rz", "TOOL_SITE", "_as_degrees",
     "check_angle",
-    "get_frame_chain", "joint_angles", "joint_transform", "pose", "read_angles",
+    "get_frame_chain", "rigid_fit_2d", "joint_angles", "joint_transform", "pose", "read_angles",
 ]
 
 ARM_JOINTS = ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll")
@@ -271,3 +271,33 @@ def get_frame_chain(position_dict: Mapping[str, float]) -> dict[str, np.ndarray]
         g_w = g_w @ joint_transform(name, angle)
         chain[frame] = g_w
     return chain
+
+
+def rigid_fit_2d(points, targets) -> tuple[float, np.ndarray]:
+    """The turn about the vertical and the shift that take ``points`` nearest ``targets``.
+
+    Least squares, Kabsch's method in the plane, no scale: ``targets ~ R(angle) points +
+    shift``. The one rigid fit of the project (the page's and the chess board's
+    registrations from touched points).
+
+    Args:
+        points: (n, 2) points [m] in their own frame (a page's marks, a board's squares).
+        targets: (n, 2) where each was touched [m], in the arm's base frame.
+
+    Returns:
+        ``(angle, shift)``: the angle [rad] and the shift (2,) [m].
+
+    Example:
+        >>> angle, shift = rigid_fit_2d([[0, 0], [1, 0], [0, 1]], [[2, 3], [2, 4], [1, 3]])
+        >>> round(math.degrees(angle), 6), shift.round(6).tolist()
+        (90.0, [2.0, 3.0])
+    """
+    p = np.asarray(points, dtype=float).reshape(-1, 2)
+    q = np.asarray(targets, dtype=float).reshape(-1, 2)
+    p0, q0 = p.mean(axis=0), q.mean(axis=0)
+    a, b = p - p0, q - q0
+    angle = math.atan2(float((a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum()),
+                       float((a * b).sum()))
+    c, s = math.cos(angle), math.sin(angle)
+    rotation = np.array([[c, -s], [s, c]])
+    return angle, q0 - rotation @ p0

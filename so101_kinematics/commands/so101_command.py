@@ -22,7 +22,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from so101_kinematics import outputs
-from so101_kinematics.cli import ArgumentParser, run_script
+from so101_kinematics.cli import NOTHING_WRITTEN, ArgumentParser, run_script
 from so101_kinematics.errors import InputError, OpenCVMissing
 
 __all__ = ["COMPARE_REPORT", "MOVED_FROM_HW", "MOVED_FROM_SIM", "MOVED_FROM_VIRTUAL", "main"]
@@ -130,7 +130,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             "virtual-calibration": _virtual_calibration}
     return run_script(parser, argv, lambda args: work[args.command](args),
                       refused=(InputError, OpenCVMissing),
-                      interrupted="nothing was written; existing output files are as they were.")
+                      interrupted=NOTHING_WRITTEN)
 
 
 def _compare(args: argparse.Namespace) -> int:

@@ -28,6 +28,7 @@ import numpy as np
 
 from so101_kinematics.drawing.page import PAGES, Page
 from so101_kinematics.errors import PlanError
+from so101_kinematics.frames import rigid_fit_2d
 
 __all__ = [
     "MARK_INSET_MM", "MARK_NAMES", "MAX_RMS_MM", "PageFit", "check_fit", "fit_page",
@@ -84,18 +85,6 @@ def page_marks(name: str, count: int = 4) -> np.ndarray:
     return np.array([[-x, -y], [x, -y], [x, y], [-x, y]])[:count]
 
 
-def _rigid_fit(marks_mm: np.ndarray, touched_m: np.ndarray) -> tuple[float, np.ndarray]:
-    """The rotation angle [rad] and translation [m] taking the marks [m] onto the touches."""
-    p = marks_mm / 1000.0
-    p0, q0 = p.mean(axis=0), touched_m.mean(axis=0)
-    a, b = p - p0, touched_m - q0
-    angle = math.atan2(float((a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]).sum()),
-                       float((a * b).sum()))
-    c, s = math.cos(angle), math.sin(angle)
-    rotation = np.array([[c, -s], [s, c]])
-    return angle, q0 - rotation @ p0
-
-
 def fit_page(marks_mm: np.ndarray, touched_m: np.ndarray, name: str = "a5") -> PageFit:
     """The page's pose that takes its marks [mm] nearest the touched points [m], and the residual.
 
@@ -106,7 +95,7 @@ def fit_page(marks_mm: np.ndarray, touched_m: np.ndarray, name: str = "a5") -> P
     """
     marks_mm = np.asarray(marks_mm, dtype=float).reshape(-1, 2)
     touched_m = np.asarray(touched_m, dtype=float).reshape(-1, 2)
-    angle, centre = _rigid_fit(marks_mm, touched_m)
+    angle, centre = rigid_fit_2d(marks_mm / 1000.0, touched_m)
     # the page's x axis is the base's (sin yaw, -cos yaw): the rotation by yaw - 90 deg
     yaw = (math.degrees(angle) + 90.0 + 180.0) % 360.0 - 180.0
     page = Page(name, PAGES[name], (float(centre[0]), float(centre[1])), yaw)
