@@ -18,6 +18,14 @@ import numpy as np  # noqa: E402
 
 import so101_mujoco_utils as utils  # noqa: E402
 from pick_place_sim import INITIAL_KEYFRAME, CubeStart, build_model, total_duration  # noqa: E402
+from so101_kinematics.errors import OutputPathError  # noqa: E402
+from so101_kinematics.outputs import (  # noqa: E402
+    PNG,
+    add_overwrite_argument,
+    atomic_output,
+    check_output_path,
+    write_png_atomic,
+)
 from so101_kinematics.planning.motion import run_plan  # noqa: E402
 from so101_kinematics.planning.plans import default_plan, pick_and_place_steps  # noqa: E402
 from so101_kinematics.sim.render import QUALITY, FrameRenderer, target_cubes  # noqa: E402
@@ -74,22 +82,30 @@ def render_run(times: list[float], size: tuple[int, int], quality: str) -> list[
 
 
 def main() -> int:
-    """Write the PNG (and the GIF with --gif)."""
+    """Write the PNG (and the GIF with --gif); exit 2 on an output it may not replace."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--gif", action="store_true", help=f"also write {GIF_PATH.name}")
     parser.add_argument("--quality", choices=sorted(QUALITY), default=QUALITY_NAME)
+    add_overwrite_argument(parser)
     args = parser.parse_args()
     import imageio.v2 as imageio
 
-    PNG_PATH.parent.mkdir(parents=True, exist_ok=True)
+    try:  # the PNG replaces only a PNG of ours; the GIF (no marker) only with --overwrite
+        check_output_path(PNG_PATH, "the picture", overwrite=args.overwrite, kind=PNG)
+        if args.gif:
+            check_output_path(GIF_PATH, "the GIF", overwrite=args.overwrite)
+    except OutputPathError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
     (frame,) = render_run([PNG_TIME], PNG_SIZE, args.quality)
-    imageio.imwrite(PNG_PATH, frame)
+    write_png_atomic(PNG_PATH, frame, "scripts/make_readme_media.py")
     print(f"Wrote {PNG_PATH.relative_to(REPO)}")
     if args.gif:
         duration = total_duration(default_plan())
         times = list(np.arange(0.0, duration, 1.0 / GIF_FPS))
         frames = render_run(times, GIF_SIZE, args.quality)
-        imageio.mimsave(GIF_PATH, frames, duration=1.0 / GIF_FPS, loop=0)
+        with atomic_output(GIF_PATH) as temporary:
+            imageio.mimsave(temporary, frames, format="GIF", duration=1.0 / GIF_FPS, loop=0)
         print(f"Wrote {GIF_PATH.relative_to(REPO)} ({len(frames)} frames)")
     return 0
 

@@ -21,6 +21,12 @@ from so101_kinematics.errors import SO101Error  # noqa: E402
 from so101_kinematics.fast_fk import forward_kinematics  # noqa: E402
 from so101_kinematics.ik.call_shapes import get_inverse_kinematics  # noqa: E402
 from so101_kinematics.opencv_import import require_opencv  # noqa: E402
+from so101_kinematics.outputs import (  # noqa: E402
+    PNG,
+    add_overwrite_argument,
+    check_output_path,
+    write_png_atomic,
+)
 from so101_kinematics.planning.plans import (  # noqa: E402
     FINAL_CONFIGURATION,
     STARTING_CONFIGURATION,
@@ -81,10 +87,10 @@ def annotated(camera: SimCamera) -> np.ndarray:
 def main() -> int:
     """Write the PNG: both cameras side by side (the printable tags: ``so101 tags PATH.pdf``)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.parse_args()
-    import imageio.v2 as imageio
-
-    try:
+    add_overwrite_argument(parser)
+    args = parser.parse_args()
+    try:  # replaces only a PNG of ours (its Software chunk), or with --overwrite
+        check_output_path(PNG_PATH, "the picture", overwrite=args.overwrite, kind=PNG)
         m, d = tagged_scene()
         views = []
         for name in CAMERAS:
@@ -93,7 +99,7 @@ def main() -> int:
     except SO101Error as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
-    imageio.imwrite(PNG_PATH, np.hstack(views))
+    write_png_atomic(PNG_PATH, np.hstack(views), "scripts/make_vision_pictures.py")
     print(f"Wrote {PNG_PATH.relative_to(REPO)}")
     return 0
 

@@ -34,12 +34,19 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from so101_kinematics.errors import OutputPathError
-from so101_kinematics.markers import GENERATOR, head_bytes, mp4_ours, pdf_ours, png_ours
+from so101_kinematics.markers import (
+    GENERATOR,
+    head_bytes,
+    mp4_ours,
+    pdf_ours,
+    png_metadata,
+    png_ours,
+)
 
 __all__ = [
     "JSON_REPORT", "MP4", "OutputKind", "PDF", "PNG", "add_overwrite_argument",
     "atomic_output", "check_output_path", "csv_kind", "forget_temporary", "report_of", "stamp",
-    "temporary_beside", "text_kind", "write_text_atomic",
+    "temporary_beside", "text_kind", "write_png_atomic", "write_text_atomic",
 ]
 
 MAX_RECOGNISED_JSON_BYTES = 64 * 1024 * 1024  # a larger .json is not one of our reports
@@ -386,4 +393,20 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
     """Write ``text`` (UTF-8) to ``path`` through a temporary file; returns the path."""
     with atomic_output(path) as temporary:
         temporary.write_text(text, encoding="utf-8")
+    return Path(path)
+
+
+def write_png_atomic(path: str | Path, pixels, program: str) -> Path:
+    """Write an (height, width, 3) uint8 image as a PNG of ours (``markers.py``) to ``path``.
+
+    Through a temporary file, as :func:`write_text_atomic`; ``program`` names the writer in
+    the PNG's ``Software`` chunk (what :data:`PNG` recognises before replacing a file).
+    """
+    from PIL import Image, PngImagePlugin
+
+    marker = PngImagePlugin.PngInfo()
+    for key, text in png_metadata(program).items():
+        marker.add_text(key, text)
+    with atomic_output(path) as temporary:
+        Image.fromarray(pixels).save(temporary, format="PNG", pnginfo=marker)
     return Path(path)

@@ -16,11 +16,11 @@ from so101_kinematics.checker import fk_compare, report, sandbox
 from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number, range_help
 from so101_kinematics.errors import OutputPathError
 from so101_kinematics.outputs import (
-    JSON_REPORT,
     OutputKind,
     add_overwrite_argument,
     check_output_path,
     csv_kind,
+    report_of,
     stamp,
     write_text_atomic,
 )
@@ -29,6 +29,8 @@ __all__ = [
     "add_class_options", "add_tolerance_options", "check_file", "check_outputs", "exit_status",
     "main", "run_and_print", "run_check",
 ]
+
+REPORT = report_of("so101-check-fk")  # --json/--gradescope replace only its own report
 
 EXIT_PASS, EXIT_OUTSIDE, EXIT_UNCHECKED = 0, 1, 2
 
@@ -200,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.gradescope and len(args.files) > 1:
         parser.error("--gradescope writes one submission's results.json; got "
                      f"{len(args.files)} files. Fix: run once per submission, or use --csv")
-    outputs = check_outputs(args, {"json": JSON_REPORT, "gradescope": JSON_REPORT,
+    outputs = check_outputs(args, {"json": REPORT, "gradescope": REPORT,
                                    "csv": csv_kind(report.CSV_COLUMNS, "a CSV of so101-check-fk")},
                             "so101-check-fk")
     if outputs is None:

@@ -32,9 +32,11 @@ from so101_kinematics.checker.fk import (
     run_check,
 )
 from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number
-from so101_kinematics.outputs import JSON_REPORT, csv_kind, stamp, write_text_atomic
+from so101_kinematics.outputs import csv_kind, report_of, stamp, write_text_atomic
 
 __all__ = ["check_ik_file", "main"]
+
+REPORT = report_of("so101-check-ik")  # --json replaces only its own report
 
 
 def check_ik_file(path: str | Path, tolerance=(1.0, 1.0),
@@ -186,7 +188,7 @@ def build_parser() -> ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run the checker; returns the exit status."""
     args = build_parser().parse_args(argv)
-    outputs = check_outputs(args, {"json": JSON_REPORT,
+    outputs = check_outputs(args, {"json": REPORT,
                                    "csv": csv_kind(CSV_COLUMNS, "a CSV of so101-check-ik")},
                             "so101-check-ik")
     if outputs is None:

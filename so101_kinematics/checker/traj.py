@@ -31,9 +31,11 @@ from so101_kinematics.checker.fk import (
     run_check,
 )
 from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number, range_help
-from so101_kinematics.outputs import JSON_REPORT, stamp, write_text_atomic
+from so101_kinematics.outputs import report_of, stamp, write_text_atomic
 
 __all__ = ["POINTS", "check_traj_file", "gradescope_results", "main"]
+
+REPORT = report_of("so101-check-traj")  # --json/--gradescope replace only its own report
 
 PROBE = Path(__file__).with_name("traj_probe.py")
 
@@ -171,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.gradescope and len(args.files) > 1:
         parser.error("--gradescope writes one submission's results.json; got "
                      f"{len(args.files)} files. Fix: run once per submission")
-    outputs = check_outputs(args, {"json": JSON_REPORT, "gradescope": JSON_REPORT},
+    outputs = check_outputs(args, {"json": REPORT, "gradescope": REPORT},
                             "so101-check-traj")
     if outputs is None:
         return EXIT_BAD_INPUT

@@ -27,7 +27,7 @@ from so101_kinematics.frames import (
     get_frame_chain,
 )
 from so101_kinematics.markers import png_metadata
-from so101_kinematics.outputs import atomic_output
+from so101_kinematics.outputs import atomic_output, write_png_atomic
 from so101_kinematics.paths import DOCS_DIR, REPO
 from so101_kinematics.sim.scene import (
     load_model,
@@ -118,18 +118,12 @@ def render_screenshot(m: mujoco.MjModel, d: mujoco.MjData, position, rotation, p
     Returns:
         The (height, width, 3) image.
     """
-    from PIL import Image, PngImagePlugin
-
     width, height = size
     with mujoco.Renderer(m, height, width) as renderer:
         renderer.update_scene(d, camera=camera)
         show_cylinder(renderer.scene, position, rotation)
         pixels = renderer.render()
-    with atomic_output(path) as temporary:
-        marker = PngImagePlugin.PngInfo()
-        for key, text in png_metadata("test_fk_mujoco.py --screenshot").items():
-            marker.add_text(key, text)
-        Image.fromarray(pixels).save(temporary, format="PNG", pnginfo=marker)
+    write_png_atomic(path, pixels, "test_fk_mujoco.py --screenshot")
     return pixels
 
 

@@ -308,6 +308,16 @@ def test_check_fk_replaces_its_own_report_csv_and_gradescope(tmp_path):
     assert json.loads(outputs["--json"].read_text())["verdict"] == "pass"
 
 
+def test_check_fk_json_refuses_another_checkers_report(tmp_path):
+    ik_report = tmp_path / "ik_report.json"  # what so101-check-ik --json writes: ours, not its
+    text = json.dumps([{"generator": "so101-kinematics so101-check-ik", "verdict": "pass"}])
+    ik_report.write_text(text)
+    done = run("-m", "so101_kinematics.checker", FK_SUBMISSION, "--json", ik_report)
+    assert done.returncode == 2, done.stderr
+    assert "not a JSON report of so101-check-fk" in done.stderr
+    assert ik_report.read_text() == text
+
+
 @pytest.mark.parametrize("option", ["--json", "--csv"])
 def test_check_ik_refuses_a_source_file(student_file, option):
     before = student_file.read_bytes()
@@ -600,3 +610,21 @@ def test_link_never_replaces_or_deletes_a_users_symlink(tmp_path):
     assert done.returncode == 0, done.stderr
     assert done.stdout.split()[0].startswith("/dev/pts/")
     assert not fresh.is_symlink()
+
+
+def test_a_png_written_from_pixels_is_ours_and_replaceable(tmp_path):
+    import numpy as np
+    from PIL import Image
+
+    from so101_kinematics.outputs import write_png_atomic
+
+    pixels = np.zeros((4, 6, 3), dtype=np.uint8)
+    pixels[1, 2] = (255, 0, 0)
+    ours = write_png_atomic(tmp_path / "ours.png", pixels, "a test")
+    assert PNG.recognise(ours)
+    assert np.array_equal(np.asarray(Image.open(ours)), pixels)
+    check_output_path(ours, "--image", kind=PNG)  # replaceable without --overwrite
+    theirs = tmp_path / "theirs.png"
+    Image.fromarray(pixels).save(theirs)  # the same pixels, no marker
+    with pytest.raises(OutputPathError, match="not a PNG image written by this project"):
+        check_output_path(theirs, "--image", kind=PNG)
