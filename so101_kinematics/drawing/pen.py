@@ -26,7 +26,7 @@ from so101_kinematics.constants import CUBE_HALF_SIZE
 from so101_kinematics.errors import UnreachableError
 from so101_kinematics.frames import ARM_JOINTS, JOINT_RANGES_RAD
 from so101_kinematics.ik.call_shapes import get_inverse_kinematics
-from so101_kinematics.ik.geometry import _chain, _jacobian_from_chain
+from so101_kinematics.ik.geometry import chain_from_radians, jacobian_from_chain
 
 __all__ = [
     "GRAVITY", "HOLDER_MASS", "PEN_MASS", "PEN_PRELOAD_M", "PEN_PRESS_M", "PEN_SPRING",
@@ -94,7 +94,7 @@ class PenPose:
 def tip_position(cfg: Mapping[str, float], reach: float = PEN_TIP_BELOW_CENTRE) -> np.ndarray:
     """The pen's tip [m] at configuration ``cfg`` [deg] (the spring at rest)."""
     theta = np.radians([cfg[j] for j in ARM_JOINTS])
-    g_wt = _chain(theta)[5]
+    g_wt = chain_from_radians(theta)[5]
     return g_wt[:3, 3] - reach * g_wt[:3, 2]
 
 
@@ -109,8 +109,8 @@ def pen_residual(theta: np.ndarray, tip: Sequence[float],
     Returns:
         ``(error, jacobian)``: (5,) and (5, 5).
     """
-    chain = _chain(theta)
-    jac = _jacobian_from_chain(chain)
+    chain = chain_from_radians(theta)
+    jac = jacobian_from_chain(chain)
     g_wt = chain[5]
     a = -g_wt[:3, 2]  # the approach axis: along the pen, towards its tip
     turn = np.cross(jac[3:].T, a).T  # d a / d theta_j = omega_j x a: (3, 5)

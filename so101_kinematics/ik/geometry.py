@@ -24,7 +24,7 @@ __all__ = [
     "REFERENCE_CONFIGURATION", "REFINE_TOL", "SOLVE_TOL", "_A", "_ACROSS0", "_ALONG", "_B",
     "_C", "_DEFAULT_REFERENCE", "_H0", "_KINK", "_LATERAL0", "_LEN_A", "_LEN_B", "_LIMITS",
     "_LIMIT_SLACK", "_PAN", "_QUARTER", "_REACH_MAX", "_REACH_MIN", "_ROLL", "_T", "_TILT",
-    "_Z0", "_chain", "_jacobian_from_chain", "_wrap", "get_jacobian", "log",
+    "_Z0", "chain_from_radians", "jacobian_from_chain", "_wrap", "get_jacobian", "log",
 ]
 
 MIN_HEIGHT = CUBE_HALF_SIZE - 0.001
@@ -92,7 +92,7 @@ def _wrap(angle: float) -> float:
 
 # ---------------------------------------------------------------------------
 # Frames and Jacobian.
-def _chain(theta: Sequence[float]) -> np.ndarray:
+def chain_from_radians(theta: Sequence[float]) -> np.ndarray:
     """World poses of frames 1..5 (after their joints) and of the object frame: (6, 4, 4).
 
     Args:
@@ -109,8 +109,12 @@ def _chain(theta: Sequence[float]) -> np.ndarray:
     return out
 
 
-def _jacobian_from_chain(chain: np.ndarray) -> np.ndarray:
-    """(6, 5) world-frame Jacobian [linear; angular] of the object frame, from :func:`_chain`."""
+def jacobian_from_chain(chain: np.ndarray) -> np.ndarray:
+    """(6, 5) world-frame Jacobian [linear; angular] of the object frame.
+
+    Args:
+        chain: :func:`chain_from_radians`'s frames (the Jacobian reuses them).
+    """
     axes = chain[:5, :3, 2]      # joint i turns about the z axis of its frame ...
     origins = chain[:5, :3, 3]   # ... which passes through the frame's origin
     jac = np.empty((6, 5))
@@ -138,6 +142,6 @@ def get_jacobian(position_dict: Mapping[str, float]) -> np.ndarray:
         >>> jac[3:, 0] + 0.0  # shoulder_pan turns about the world's -z axis
         array([ 0.,  0., -1.])
     """
-    return _jacobian_from_chain(_chain(np.radians(joint_angles(position_dict))))
+    return jacobian_from_chain(chain_from_radians(np.radians(joint_angles(position_dict))))
 
 

@@ -20,8 +20,8 @@ from so101_kinematics.ik.geometry import (
     _ROLL,
     REFINE_TOL,
     SOLVE_TOL,
-    _chain,
-    _jacobian_from_chain,
+    chain_from_radians,
+    jacobian_from_chain,
     log,
 )
 
@@ -62,7 +62,7 @@ def _task(chain: np.ndarray, p: np.ndarray, psi: float | None, yaw: float | None
         ``(error, jacobian)``: (k,) and (k, 5).
     """
     g_wt = chain[5]
-    jac = _jacobian_from_chain(chain)
+    jac = jacobian_from_chain(chain)
     errors = [p - g_wt[:3, 3]]
     rows = [jac[:3]]
     if psi is not None:
@@ -105,7 +105,7 @@ def _refine(theta: Sequence[float], p: tuple, psi: float | None, yaw: float | No
     residual = math.inf
     history = []
     for _ in range(max_iterations):
-        error, jac = _task(_chain(theta), target, psi, yaw)
+        error, jac = _task(chain_from_radians(theta), target, psi, yaw)
         residual = float(np.max(np.abs(error)))
         history.append(residual)
         if residual < REFINE_TOL or (len(history) > 20 and residual > 0.5 * history[-11]):
@@ -169,7 +169,7 @@ def top_down_task(theta: Sequence[float], p: Sequence[float],
         ``(error, jacobian)``: the position error [m] (3), the approach axis's tilt (3)
         and the jaw's yaw error [rad] (1); and their (7, 5) Jacobian.
     """
-    return _task(_chain(theta), np.asarray(p, dtype=float), _QUARTER, yaw)
+    return _task(chain_from_radians(theta), np.asarray(p, dtype=float), _QUARTER, yaw)
 
 
 def line_task(theta: Sequence[float], p: Sequence[float], approach: Sequence[float],
@@ -188,9 +188,9 @@ def line_task(theta: Sequence[float], p: Sequence[float], approach: Sequence[flo
         wanted one (3: the sine of the angle, about the correcting axis) and the wrist_roll
         error [rad] (1); and their (7, 5) Jacobian (as :func:`top_down_task`'s rows).
     """
-    chain = _chain(theta)
+    chain = chain_from_radians(theta)
     g_wt = chain[5]
-    jac = _jacobian_from_chain(chain)
+    jac = jacobian_from_chain(chain)
     wanted = np.asarray(approach, dtype=float)
     z_t = -g_wt[:3, 2]  # the approach axis: wrist to fingertips
     roll_row = np.zeros((1, len(theta)))
