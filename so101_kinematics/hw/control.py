@@ -41,6 +41,7 @@ from so101_kinematics.hw.bus import (
 from so101_kinematics.hw.cycle_checks import check_status, check_torque, check_tracking
 from so101_kinematics.hw.feedforward import tracking_allowance
 from so101_kinematics.hw.goals import goal_for, guard, send_goal
+from so101_kinematics.hw.grip import held_grip
 from so101_kinematics.hw.lead import VelocityLead
 from so101_kinematics.hw.misreads import ReadingCheck
 from so101_kinematics.hw.timing import (
@@ -336,6 +337,10 @@ class ArmSession:
     def stop_here(self) -> Configuration | None:
         """Controlled stop: goal = present position (clamped to the calibration), torque stays on.
 
+        A gripper holding something (``hw/grip.py``: still, wider than its command) keeps its
+        command: its present width as the goal would end the squeeze, and the cube would slip
+        out of the stopped jaws (on the 12 V arm it fell 10 cm and landed upside down).
+
         Returns:
             The pose the arm stopped at, or None if it cannot be read (then
             every servo that hears us still holds its last goal by itself).
@@ -349,6 +354,8 @@ class ArmSession:
             pose = None
         if pose is not None:
             goal = {j: min(self.limits[j][1], max(self.limits[j][0], pose[j])) for j in JOINTS}
+            if self.command is not None and held_grip(self) is not None:
+                goal["gripper"] = self.command["gripper"]  # the squeeze goes on
             self._led = None  # the stop's goal is where the arm is: nothing leads it
             self._send(goal)
             self.command = goal

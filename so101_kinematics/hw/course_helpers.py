@@ -58,9 +58,10 @@ from so101_kinematics.hw.bus import (
 from so101_kinematics.hw.control import ArmSession
 from so101_kinematics.hw.course_calibration import ScriptEnded, refuse
 from so101_kinematics.hw.feedforward import read_feedforward, sag_allowance, torque_on_in_place
+from so101_kinematics.hw.grip import held_grip
 from so101_kinematics.hw.guarded import RAW_TICKS, GuardedBus, ramp_to_goal, resync
 from so101_kinematics.hw.lead import VelocityLead
-from so101_kinematics.hw.putdown import held_grip, put_down
+from so101_kinematics.hw.putdown import put_down
 from so101_kinematics.hw.run import (
     LIMIT_SLACK_DEG,
     RELEASE_HINT,
@@ -72,6 +73,7 @@ from so101_kinematics.hw.run import (
 )
 from so101_kinematics.hw.servo_settings import configure_as_course
 from so101_kinematics.hw.signals import signals_as_interrupt, stop_on_signals
+from so101_kinematics.hw.timing import TimeSource
 from so101_kinematics.inputs import (
     MISSING,
     Configuration,
@@ -86,7 +88,7 @@ from so101_kinematics.trims import Trims, as_trims
 __all__ = [
     "AT_START_TOLERANCE_DEG", "_RUNS", "_end_forgotten_runs", "course_guarded_call",
     "course_hold_position", "course_logged_move", "course_move_to_pose", "course_trims",
-    "end_at_start", "setup_motors",
+    "end_arm", "end_at_start", "setup_motors",
 ]
 
 logger = logging.getLogger("so101_utils")
@@ -115,7 +117,7 @@ _PROCESS = ExitStack()  # signal handlers and the frozen heap, undone when the l
 
 def setup_motors(calibration: Mapping[str, Any], port: str,
                  offset_config: Mapping[str, float] | str | Path | Callable | None = None,
-                 gravity_ff: bool = True):
+                 gravity_ff: bool = True, *, time_source: TimeSource | None = None):
     """Connect, configure and torque the arm where it stands; returns the lerobot bus.
 
     The port is taken for this program alone; the servos must hold this
@@ -132,6 +134,8 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
         gravity_ff: offset every goal by the sag the servos will have there (read from
             their P_Coefficient and Present_Voltage; ``so101_kinematics/hw/feedforward.py``),
             so the arm rests where it is sent; ``False``: the raw sag, as lerobot alone.
+        time_source: the arm's time (the torque's ramp, every move and hold): None for the
+            wall clock, or the virtual arm's simulated one (``arm.clock``, as ``run_on_arm``'s).
 
     Returns:
         A :class:`~so101_kinematics.hw.guarded.GuardedBus`: lerobot's bus whose
@@ -153,6 +157,8 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
         bus = connect(port, checked, robot_id=robot_id)
     except SO101Error as error:
         raise refuse(error) from None
+    ramp_time = {} if time_source is None else {"clock": time_source.clock,
+                                                "sleep": time_source.sleep}
     armed = False
     try:
         start = trims.from_wire(starting_pose(bus, checked, port, robot_id))
@@ -160,7 +166,8 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
         with bus_errors("configuring the servos and enabling torque"):
             configure_as_course(bus, "setup_motors")
             feedforward = read_feedforward(bus, gravity_ff)
-            with_retries(lambda b: torque_on_in_place(b, feedforward, trims.to_wire(start)), bus)
+            with_retries(lambda b: torque_on_in_place(b, feedforward, trims.to_wire(start),
+                                                      **ramp_time), bus)
     except BaseException as error:
         if armed:  # torque may be on at the starting pose, nothing moved: release there
             release_torque(bus)
@@ -171,8 +178,9 @@ def setup_motors(calibration: Mapping[str, Any], port: str,
     source = getattr(calibration, "source", None)
     arm = f"--id {robot_id}" if robot_id else f"--calibration {source or 'YOUR_CALIBRATION.json'}"
     lead = VelocityLead.for_feedforward(feedforward, enabled=False)  # on per move, when asked
-    run = CourseRun(ArmSession(bus, trims=trims, feedforward=feedforward, velocity_lead=lead),
-                    start, RELEASE_HINT.format(port=port, arm=arm))
+    loop_time = {} if time_source is None else {**ramp_time, "spin": time_source.spin}
+    run = CourseRun(ArmSession(bus, trims=trims, feedforward=feedforward, velocity_lead=lead,
+                               **loop_time), start, RELEASE_HINT.format(port=port, arm=arm))
     run.session.command = dict(start)
     run.session.rest_pose = dict(start)  # moves may come as low as where the arm stood
     run.restore.callback(_unlock_port, bus)  # a run that ended leaves the port to other programs
@@ -351,6 +359,16 @@ def end_at_start(run: CourseRun, why: str) -> str:
         after_abort(session, error, run.start, True, result)
     finish(session, result)
     return _end(run, result)
+
+
+def end_arm(bus, why: str) -> str | None:
+    """End the run of ``bus`` (:func:`setup_motors`'s) as :func:`end_at_start` does; its last line.
+
+    One program driving two arms ends each this way (a fault on one ends the other too).
+    None: that run has ended already (a fault's ending: its ``ScriptEnded.line``).
+    """
+    run = _RUNS.get(id(bus))
+    return None if run is None else end_at_start(run, why)
 
 
 def _end(run: CourseRun, result: RunResult) -> str:

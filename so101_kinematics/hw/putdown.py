@@ -9,10 +9,10 @@ and the cube ended jammed in the limp jaws, tilted 42 deg (issue 33).
 The fault policy (docs/hardware_safety.md), for a stop whose ending is the
 slow return (Ctrl-C, SIGTERM, SIGHUP, a fault the arm recovers from):
 
-1. Whether the jaws hold something is read from the servos, as on a real arm:
-   the gripper stands still more than ``HELD_MARGIN_PCT`` wider than its
-   command (:func:`held_grip`). A gripper still closing in free air is moving,
-   and one closed on nothing stands at its command.
+1. Whether the jaws hold something is read from the servos, as on a real arm
+   (``hw/grip.py``'s :func:`held_grip`: the gripper still, more than
+   ``HELD_MARGIN_PCT`` wider than its command); the controlled stop keeps such a
+   gripper's command, so the squeeze goes on while the arm stops.
 2. Held, the cube is put down at the slow return speed: after a stop signal
    at the plan's own place (the plan's holding waypoints up to the one where
    it opens the jaws), when every move there is inside the limits and clear
@@ -38,39 +38,14 @@ from collections.abc import Mapping
 from so101_kinematics.clearance import check_path
 from so101_kinematics.errors import PlanError, StopRequested
 from so101_kinematics.hw.control import RETURN_MIN_DURATION_S, RETURN_SPEED_DEG_S
+from so101_kinematics.hw.grip import HELD_MARGIN_PCT
 from so101_kinematics.hw.timing import MAX_GRIPPER_SPEED_PCT_S, speed_caps
 from so101_kinematics.inputs import Configuration, check_configuration
 from so101_kinematics.planning.motion import Plan
 
-__all__ = ["held_grip", "put_down"]
+__all__ = ["put_down"]
 
 logger = logging.getLogger("pick_place_hw")
-
-HELD_MARGIN_PCT = 3.0  # the jaws stopped this much wider than commanded hold something [%]
-"""The same margin as ``hw/teach.py``'s EMPTY_GRIP_PCT (a gripper closed on nothing); on the
-course's 26 mm cube the virtual arm's gripper stops at 23.3 % against a command of 5 %."""
-SETTLED_WINDOW_S = 0.1  # the jaws must have stood still this long ... [s]
-SETTLED_PCT = 1.0  # ... within this much [%] (closing in free air they move 100 %/s)
-
-
-def held_grip(session) -> tuple[float, float] | None:
-    """(gripper command, gripper width) [%] if the jaws hold something, else None.
-
-    Read from the session's last measured cycles (call it before the controlled
-    stop, which sets the gripper's goal to where it is).
-    """
-    cycles = [c for c in session.cycles if c.measured is not None and c.step != "stop"]
-    if not cycles:
-        return None
-    last = cycles[-1]
-    command, width = last.command["gripper"], last.measured["gripper"]
-    if width - command <= HELD_MARGIN_PCT:
-        return None
-    recent = [c.measured["gripper"] for c in cycles if c.t_s >= last.t_s - SETTLED_WINDOW_S]
-    if max(recent) - min(recent) > SETTLED_PCT:
-        return None  # still moving: closing in free air, or opening
-    return command, width
-
 
 def put_down(session, plan: Plan | None, held: tuple[float, float] | None,
              error: BaseException | None, start: Mapping[str, float]) -> Configuration:

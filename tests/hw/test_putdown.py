@@ -5,7 +5,8 @@ virtual arm and its cube are tests/hw/test_stop_with_cube.py)."""
 from __future__ import annotations
 
 from so101_kinematics.constants import HOME_POSE
-from so101_kinematics.hw.putdown import held_grip, put_down
+from so101_kinematics.hw.grip import held_grip
+from so101_kinematics.hw.putdown import put_down
 from so101_kinematics.hw.timing import Cycle
 
 GRASP = dict(HOME_POSE, shoulder_lift=-60.0, elbow_flex=60.0)
