@@ -44,7 +44,7 @@ from pathlib import Path
 __all__ = [
     "ACCELERATION_UNIT", "BACKLASH_DEG", "COUNTS_PER_RAD", "COUNTS_PER_TURN", "CURRENT_UNIT_A",
     "DEFAULT_SUPPLY_V", "DEFAULT_VARIANT", "DUTY_MAX", "D_SCALE_S", "FACTORY", "I_RATE",
-    "KIT_SUPPLY_V", "LEROBOT", "LEROBOT_GRIPPER", "LOOP_PERIOD_S", "Settings",
+    "KIT_SUPPLY_V", "LEROBOT", "LEROBOT_GRIPPER", "LOOP_PERIOD_S", "MIN_VOLTS", "Settings",
     "TARGET_RATE_MAX", "VARIANTS", "VELOCITY_STEP", "default_variant", "duty", "holding_error",
     "lag", "stiffness", "supply_problem",
 ]
@@ -185,6 +185,10 @@ VARIANTS = {name: _variant(data) for name, data in _VARIANT_FILES.items()}
 """The variants, by name (the registry: ``servo_variants/*.json``): the kit's C001 (BAM's
 numbers, or its datasheet's, 1.75x weaker; tested both ways) and the 12 V C018, the
 project's default."""
+
+MIN_VOLTS = 4.0
+"""The lowest supply an STS3215 runs on [V]: its Min_Voltage_Limit as shipped, 40 [MEM]
+(below it the servo sets the voltage bit); the highest is each variant's ``max_volts``."""
 
 KIT_SUPPLY_V = 5.0
 """The standard SO-101 kit's supply [V] for its C001 servos (SO-ARM100 README, issue #36)."""

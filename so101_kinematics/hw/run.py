@@ -45,10 +45,16 @@ from so101_kinematics.hw.bus import (
 from so101_kinematics.hw.control import RECOVERY_TIMEOUT_S, ArmSession
 from so101_kinematics.hw.cycle_checks import read_torque
 from so101_kinematics.hw.feedforward import read_feedforward, torque_on_in_place
+from so101_kinematics.hw.grip import held_grip
 from so101_kinematics.hw.lead import VelocityLead
 from so101_kinematics.hw.preflight import check_run_settings, validate_plan_for_arm
-from so101_kinematics.hw.putdown import held_grip, put_down
-from so101_kinematics.hw.servo_settings import configure_as_course, describe_unable, read_back
+from so101_kinematics.hw.putdown import put_down
+from so101_kinematics.hw.servo_settings import (
+    configure_as_course,
+    describe_unable,
+    describe_unread,
+    read_back,
+)
 from so101_kinematics.hw.signals import gc_frozen, stop_on_signals
 from so101_kinematics.hw.timing import (
     DEFAULT_RATE_HZ,
@@ -110,6 +116,7 @@ class RunResult:
     cubes: list[CubeReading] = field(default_factory=list)  # every cube it reports (stacking)
     torque: dict[str, bool] | None = None  # Torque_Enable read back at the end (None: unread)
     unable: dict[str, str] = field(default_factory=dict)  # joint -> why it cannot hold (read back)
+    unread: list[str] = field(default_factory=list)  # hold settings the ending could not read
 
 
 def _describe(error: BaseException, step: str) -> str:
@@ -126,7 +133,7 @@ def _describe(error: BaseException, step: str) -> str:
 def after_abort(session: ArmSession, error: BaseException, start_pose: Configuration,
                 return_on_abort: bool, result: RunResult, plan: Plan | None = None) -> None:
     """Controlled stop; a held cube put down (``hw/putdown.py``); the slow return; else hold."""
-    held = held_grip(session)  # before the stop sets the gripper's goal to where it is
+    held = held_grip(session)  # the run's cycles, before the stop's
     result.aborted = _describe(error, session.step)
     logger.error("Aborting: %s", result.aborted)
     bus = session.bus
@@ -228,7 +235,8 @@ def finish(session: ArmSession, result: RunResult) -> None:
             result.torque_released = not result.unreleased
         result.torque = read_torque(session.bus)  # the last line says what the servos say
         if not result.torque_released:  # and whether each can hold where it is
-            result.torque, result.unable = read_back(session.bus, result.final_pose, result.torque)
+            result.torque, result.unable, result.unread = read_back(
+                session.bus, result.final_pose, result.torque)
 
 
 def ending(result: RunResult, release: str) -> str:
@@ -250,7 +258,7 @@ def ending(result: RunResult, release: str) -> str:
                 f"powered silent servo holds its last goal). Check the cable and power of the "
                 f"silent servo(s). {hold}")
     pose = "" if result.final_pose is None else f" ({format_pose(result.final_pose)})"
-    torque = torque_words(result.torque, result.unable)
+    torque = torque_words(result.torque, result.unable, result.unread)
     holding = "NOT holding" if result.unable else "holding"
     if result.frozen:
         return f"Frozen where it was by a second stop signal{pose}, {torque}. {hold}"
@@ -261,12 +269,16 @@ def ending(result: RunResult, release: str) -> str:
     return f"The arm is {holding} where it stopped{pose}, {torque}. {hold}"
 
 
-def torque_words(torque: dict[str, bool] | None, unable: Mapping[str, str] | None = None) -> str:
+def torque_words(torque: dict[str, bool] | None, unable: Mapping[str, str] | None = None,
+                 unread: list[str] | None = None) -> str:
     """The torque as read back from the servos, for a last line (never what was commanded).
 
-    ``unable``: the servos that cannot hold where they are (``servo_settings.unable_to_hold``).
+    ``unable``: the servos that cannot hold where they are (``servo_settings.unable_to_hold``);
+    ``unread``: the hold settings the ending could not read (said, never guessed).
     """
     cannot = f", but {describe_unable(unable)}" if unable else ""
+    if unread:
+        cannot += f"{'; ' if unable else ', but '}{describe_unread(unread)}"
     if torque is None:
         return f"torque not read back (commanded ON){cannot}"
     limp = [joint for joint, on in torque.items() if not on]
@@ -275,7 +287,7 @@ def torque_words(torque: dict[str, bool] | None, unable: Mapping[str, str] | Non
     if len(limp) == len(torque):
         return "torque OFF on every servo (read back): the arm is limp"
     return (f"torque ON, but OFF on {', '.join(limp)} (read back: limp)"
-            f"{cannot.replace(', but', ';')}")
+            f"{cannot.replace(', but', ';', 1)}")
 
 
 def starting_pose(bus, calibration, port: str, robot_id: str | None) -> Configuration:

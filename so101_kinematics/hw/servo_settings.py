@@ -37,8 +37,9 @@ from so101_kinematics.hw.cycle_checks import GRIPPER_OVERLOAD, STATUS_BITS
 from so101_kinematics.hw.timing import TRACKING_TOLERANCE_DEG
 
 __all__ = [
-    "COURSE", "configure_as_course", "course_value", "describe_unable", "read_back",
-    "unable_to_hold",
+    "COURSE", "HOLD_REGISTERS", "configure_as_course", "course_value", "describe_unable",
+    "describe_unread", "read_back",
+    "read_registers", "unable_to_hold",
 ]
 
 logger = logging.getLogger(__name__)
@@ -75,6 +76,13 @@ HOLD_REGISTERS = ("Torque_Enable", "Operating_Mode", "Torque_Limit", "Max_Torque
                   "P_Coefficient", "Status", "Present_Voltage")
 """What the ending reads back from every servo (raw values)."""
 
+CONFIRMED = HOLD_REGISTERS[:-1]
+"""What the last line names: each read twice and believed only when two reads agree
+(``Present_Voltage`` flickers by itself: a reading outside the servo's range is dropped, and
+an unread supply is guessed low, :func:`unable_to_hold`)."""
+
+_MAX_VOLTS = max(variant.max_volts for variant in servo.VARIANTS.values())
+
 SAG_LIMIT_DEG = TRACKING_TOLERANCE_DEG
 """A joint that would sag farther than this under the arm's weight [deg] cannot hold: the
 loop's stall check calls that much error a stall (``hw/timing.py``)."""
@@ -86,21 +94,32 @@ def course_value(register: str, joint: str) -> int:
     return gripper if joint == "gripper" else arm
 
 
-def read_registers(bus, registers) -> dict[str, dict[str, int]]:
+def read_registers(bus, registers, confirm: tuple[str, ...] = (), attempts: int = 3
+                   ) -> dict[str, dict[str, int]]:
     """Register -> joint -> raw value, for each register that could be read (others left out).
 
     The port is settled first and after a failed read: a late reply to an earlier read
-    (one byte, as most of these) would otherwise be taken for the next register's.
+    (one byte, as most of these) would otherwise be taken for the next register's. A
+    register in ``confirm`` counts only when two reads agree, so that a late reply that
+    slips past the settling (a loaded host, a slow bus) is never reported as the servo's
+    setting. Each register gets ``attempts`` reads (one more when confirmed).
     """
     values = {}
     recover_port(bus)
     for register in registers:
-        try:
-            discard_stale_input(bus)
-            values[register] = {j: int(v) for j, v in
-                                bus.sync_read(register, normalize=False, num_retry=1).items()}
-        except Exception as error:  # noqa: BLE001 - unread: the caller says what it does not know
-            recover_port(bus, settle=isinstance(error, ConnectionError))  # a timeout: settle
+        seen: list[dict[str, int]] = []
+        for _ in range(attempts + (register in confirm)):
+            try:
+                discard_stale_input(bus)
+                value = {j: int(v) for j, v in
+                         bus.sync_read(register, normalize=False, num_retry=1).items()}
+            except Exception as error:  # noqa: BLE001 - unread: the caller says what it does not know
+                recover_port(bus, settle=isinstance(error, ConnectionError))  # a timeout: settle
+                continue
+            if register not in confirm or value in seen:
+                values[register] = value
+                break
+            seen.append(value)
     return values
 
 
@@ -184,7 +203,9 @@ def unable_to_hold(state: Mapping[str, Mapping[str, int]],
     def reg(name: str, joint: str) -> int | None:
         return state.get(name, {}).get(joint)
 
-    volts = [v / 10.0 for v in state.get("Present_Voltage", {}).values() if v > 0]
+    # a reading outside every STS3215's range is no supply (a late reply of another register)
+    volts = [v / 10.0 for v in state.get("Present_Voltage", {}).values()
+             if servo.MIN_VOLTS <= v / 10.0 <= _MAX_VOLTS]
     # unread: the kit's 5 V C001s, the weaker servo (less stiff, less torque than the
     # course's 12 V C018s), so that a guess never claims a hold the arm may not make
     supply = statistics.median(volts) if volts else servo.KIT_SUPPLY_V
@@ -220,8 +241,11 @@ def unable_to_hold(state: Mapping[str, Mapping[str, int]],
 
 
 def read_back(bus, pose: Mapping[str, float] | None, torque: dict[str, bool] | None
-              ) -> tuple[dict[str, bool] | None, dict[str, str]]:
-    """What the servos say now: (Torque_Enable, :func:`unable_to_hold`), for a last line.
+              ) -> tuple[dict[str, bool] | None, dict[str, str], list[str]]:
+    """What the servos say now, for a last line.
+
+    Returns (Torque_Enable, :func:`unable_to_hold`, the registers that could not be read):
+    the line says what it does not know.
 
     Args:
         bus: the raw lerobot bus.
@@ -229,11 +253,19 @@ def read_back(bus, pose: Mapping[str, float] | None, torque: dict[str, bool] | N
         torque: Torque_Enable as read just before (``hw/cycle_checks.py``), or None: then this
             read's, if it got one.
     """
-    state = read_registers(bus, HOLD_REGISTERS)
+    state = read_registers(bus, HOLD_REGISTERS, confirm=CONFIRMED)
     read = state.get("Torque_Enable")
     if torque is None and read and set(read.values()) <= {0, 1}:
         torque = {j: bool(v) for j, v in read.items()}
-    return torque, unable_to_hold(state, pose)
+    unread = [r for r in CONFIRMED  # Torque_Enable: known when read just before
+              if r not in state and not (r == "Torque_Enable" and torque is not None)]
+    return torque, unable_to_hold(state, pose), unread
+
+
+def describe_unread(unread: list[str]) -> str:
+    """``"P_Coefficient not read back: whether each servo can hold here is unknown"``."""
+    return (f"{', '.join(unread)} not read back: whether each servo can hold here is unknown "
+            "(a noisy bus; setup_motors puts the course's servo settings back)")
 
 
 def describe_unable(unable: Mapping[str, str]) -> str:

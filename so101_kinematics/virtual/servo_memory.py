@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from so101_kinematics.servo import COUNTS_PER_TURN, VARIANTS
+from so101_kinematics.servo import COUNTS_PER_TURN, MIN_VOLTS, VARIANTS
 from so101_kinematics.virtual.electrical import AMBIENT_C
 from so101_kinematics.virtual.protocol import (
     ADDR,
@@ -42,7 +42,7 @@ FACTORY = {
     "Model_Number": MODEL_NUMBER, "Baud_Rate": 0, "Return_Delay_Time": 0,
     "Response_Status_Level": 1, "Min_Position_Limit": 0, "Max_Position_Limit": COUNTS_PER_TURN - 1,
     "Max_Temperature_Limit": 70, "Max_Voltage_Limit": round(VARIANTS["C018"].max_volts * 10),
-    "Min_Voltage_Limit": 40,
+    "Min_Voltage_Limit": round(MIN_VOLTS * 10),
     "Max_Torque_Limit": 1000, "Phase": 12, "Unloading_Condition": 44, "LED_Alarm_Condition": 47,
     "P_Coefficient": 32, "D_Coefficient": 32, "I_Coefficient": 0, "Minimum_Startup_Force": 16,
     "CW_Dead_Zone": 1, "CCW_Dead_Zone": 1, "Protection_Current": 500, "Angular_Resolution": 1,

@@ -195,8 +195,8 @@ def test_the_last_line_says_which_servo_cannot_hold_read_back(course_arm, capsys
     time.sleep(0.5)
     bus.disable_torque()
     last = last_line(capsys.readouterr().err)
-    assert "is holding where it stopped" not in last and "is NOT holding" in last
-    assert "UNABLE TO HOLD (read back)" in last and reason in last
+    assert "is holding where it stopped" not in last and "is NOT holding" in last, last
+    assert "UNABLE TO HOLD (read back)" in last and reason in last, last
     cannot = last.split("UNABLE TO HOLD (read back):")[1]
     assert joint in cannot.split(f"({reason}")[0]
     assert "--release" in last
@@ -263,6 +263,45 @@ def test_lerobots_settings_hold_the_stretched_arm_and_each_weakening_is_named():
         "elbow_flex": "status: overloaded"}
     # a register not read decides nothing
     assert unable_to_hold({}, ZERO) == {}
+
+
+class LateReplies:
+    """Stands for lerobot's bus on a loaded host: each register's first read is answered by
+    the reply to the read before it (late, past the settling: the SDK matches replies by id
+    only); the registers in ``silent`` never answer."""
+
+    def __init__(self, registers, silent=()):
+        self.registers, self.silent, self.last = registers, silent, None
+        self.port_handler = type("Port", (), {"is_using": False})()
+
+    def sync_read(self, register, normalize=True, num_retry=0):
+        if register in self.silent:
+            raise ConnectionError(f"no status packet for {register}")
+        answer, self.last = self.last or self.registers[register], self.registers[register]
+        return dict(answer)
+
+
+def test_the_ending_believes_a_setting_only_when_two_reads_agree_and_says_what_it_could_not_read(
+        monkeypatch):
+    from so101_kinematics.hw import bus as hw_bus
+    from so101_kinematics.hw.run import RunResult, ending
+    from so101_kinematics.hw.servo_settings import HOLD_REGISTERS, read_back
+
+    monkeypatch.setattr(hw_bus, "PORT_SETTLE_S", 0.0)
+    weak = state(P_Coefficient__shoulder_lift=1)
+    # in the order the ending reads, each register's first reply is the one before's: believed
+    # once, P_Coefficient would read 1000 (a stiff servo), Status 16, the supply 0 V
+    late = LateReplies({r: weak[r] for r in HOLD_REGISTERS})
+    torque, unable, unread = read_back(late, ZERO, None)
+    assert torque == dict.fromkeys(JOINTS, True) and unread == []
+    assert list(unable) == ["shoulder_lift"] and unable["shoulder_lift"].startswith(
+        "P_Coefficient 1:")
+    # P_Coefficient never answers: nothing is claimed for it, and the last line says so
+    torque, unable, unread = read_back(LateReplies(weak, silent=("P_Coefficient",)), ZERO, None)
+    assert unable == {} and unread == ["P_Coefficient"]
+    last = ending(RunResult(ZERO, aborted="stopped", final_pose=ZERO, torque=torque, unread=unread),
+                  "python pick_place_hw.py --release")
+    assert "torque ON, but P_Coefficient not read back" in last and "unknown" in last
 
 
 # --- the guard's table itself (no arm: a bus that records) --------------------------------
