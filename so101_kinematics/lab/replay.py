@@ -20,15 +20,17 @@ Figures, the same for the recording and the replay (:func:`figures`):
 
 Usage::
 
-    python -m so101_kinematics.lab.replay [--quick] [--servo SUPPLY:VARIANT ...]
+    python -m so101_kinematics.lab.replay [--quick] [--offsets {none,estimated}] [--virtual]
 
 prints both recordings beside the model on the project's default servo and the
-alternatives (C001 on 5 V and 7.4 V, C018 on 12 V).
+alternatives (C001 on 5 V and 7.4 V, C018 on 12 V), then where the recorded rests lie
+against the table (:func:`rest_report`). The recordings are replayed in the model's degrees
+where they show the difference (:func:`estimated_offsets`, ``--offsets estimated``, the
+default); ``--offsets none`` takes the recording's degrees as the model's.
 """
 
 from __future__ import annotations
 
-import argparse
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,15 +38,17 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from so101_kinematics import servo
+from so101_kinematics import clearance, servo
+from so101_kinematics.cli import ArgumentParser
 from so101_kinematics.frames import ARM_JOINTS, JOINT_LIMITS, JOINTS
 from so101_kinematics.paths import REPO
 from so101_kinematics.sim import actuation
 from so101_kinematics.sim.scene import load_model, set_initial_pose, to_radians
 
 __all__ = [
-    "Recording", "STEP_FRAMES", "VIRTUAL_FRAMES", "delay_ms", "figures", "load", "replay",
-    "replay_virtual", "step_figures",
+    "RECORDED_BASE_HEIGHT", "Recording", "STEP_FRAMES", "VIRTUAL_FRAMES", "calibration_slack",
+    "delay_ms", "estimated_offsets", "figures", "heights", "load", "most_lifting_offsets",
+    "replay", "replay_virtual", "rest_heights", "rest_readings", "step_figures",
 ]
 
 DATA_DIR = REPO / "tests" / "data" / "fidelity"
@@ -66,6 +70,25 @@ SERVOS = (("default", None, None), ("C001 5 V", 5.0, "C001"), ("C001 7.4 V", 7.4
 """(label, supply [V], variant) replayed by default; None: the project's default."""
 
 ARM = len(ARM_JOINTS)
+
+OFFSETS = ("none", "estimated")
+"""``--offsets``: the recording's degrees taken as the model's, or shifted by
+:func:`estimated_offsets`."""
+
+STOP_JOINT = "elbow_flex"
+"""The joint whose recorded readings show where its stop is (:func:`estimated_offsets`)."""
+
+REST_FOLDED_DEG = {"shoulder_lift": -80.0, "elbow_flex": 90.0}
+"""A reading is at the folded rest when shoulder_lift is at most, and elbow_flex at least,
+this [deg]: both recordings' rests read -82 to -102 and 95-96 deg; record_test episode 0
+starts at -72 and 66 deg, away from it (the leader already moved)."""
+
+RECORDED_BASE_HEIGHT = 0.035
+"""[m] the table below the base frame that holds every recorded reading: the model's lowest
+point (``clearance.lowest_point``) over every frame of the recordings is 31.6 mm
+(record_test) and 29.8 mm (pick_place_tape) below the base frame, their rests 16-32 mm
+(docs/servo_model.md, "The rest pose and the table"); 35 mm leaves 3 mm of margin.
+Measured from the recordings, not a stated mount: the course's lab mount is 15 mm."""
 
 
 @dataclass(frozen=True)
@@ -91,6 +114,81 @@ def load(name: str, directory: Path = DATA_DIR) -> Recording:
                      data["episode"].astype(int), float(data["fps"]))
 
 
+def estimated_offsets(recording: Recording) -> dict[str, float]:
+    """The model's angle minus the recording's [deg], where the recording shows it.
+
+    lerobot counts degrees from the middle of the range swept at calibration, the model
+    from the middle of its joint range (upstream ``so101_new_calib``); the two zeros differ
+    by how the sweep was made, which neither recording states. One joint shows it:
+    :data:`STOP_JOINT`, folded at rest, which gravity pushes further into its fold
+    (0.37 N m, ``gravity.py``), reads at most a value it never passes while its goal goes
+    beyond it (record_test: 96.48 deg with goals up to 96.92; pick_place_tape: 96.18 in 22 of
+    its 50 episodes with goals up to 96.70). That value is its stop, which in the model is the
+    joint's upper limit: the offset is the limit minus the largest reading (+0.35 and
+    +0.65 deg). The other joints never read past their goals onto a stop; their calibrated
+    ranges only bound their offsets (docs/servo_model.md).
+    """
+    j = JOINTS.index(STOP_JOINT)
+    return {STOP_JOINT: JOINT_LIMITS[STOP_JOINT][1] - float(np.max(recording.state[:, j]))}
+
+
+CALIBRATED_JOINTS = ("shoulder_lift", "elbow_flex", "wrist_flex")
+"""The joints that lift or lower the folded arm's jaws (shoulder_pan and wrist_roll barely)."""
+
+
+def calibration_slack(name: str, directory: Path = DATA_DIR) -> dict[str, float]:
+    """How far [deg] each joint's calibrated zero may sit from the model's, by the ranges.
+
+    The zero is the middle of the range swept at calibration (``range_counts``), the
+    model's the middle of its joint range: if the two ranges cover the same travel, their
+    middles differ by at most half the difference of their lengths.
+    """
+    counts = np.load(directory / f"{name}.npz")["range_counts"]
+    return {j: abs(float(counts[JOINTS.index(j)]) * 360.0 / servo.COUNTS_PER_TURN
+                   - (JOINT_LIMITS[j][1] - JOINT_LIMITS[j][0])) / 2.0 for j in CALIBRATED_JOINTS}
+
+
+def most_lifting_offsets(recording: Recording, slack: dict[str, float]) -> dict[str, float]:
+    """Of the offsets within ``slack`` (each at + or -), those that lift the lowest rest most."""
+    best, chosen = -math.inf, {}
+    for signs in np.ndindex(*(2,) * len(slack)):
+        offsets = {j: (1.0 if s else -1.0) * v
+                   for (j, v), s in zip(slack.items(), signs, strict=True)}
+        lowest = float(np.min(rest_heights(recording, offsets)))
+        if lowest > best:
+            best, chosen = lowest, offsets
+    return chosen
+
+
+def rest_readings(recording: Recording) -> np.ndarray:
+    """Each episode's first reading if it is at the folded rest (:data:`REST_FOLDED_DEG`)."""
+    lift, elbow = JOINTS.index("shoulder_lift"), JOINTS.index("elbow_flex")
+    firsts = [recording.state[i[0]] for i in recording.episodes()]
+    return np.array([r for r in firsts if r[lift] <= REST_FOLDED_DEG["shoulder_lift"]
+                     and r[elbow] >= REST_FOLDED_DEG["elbow_flex"]])
+
+
+def rest_heights(recording: Recording, offsets: dict[str, float] | None = None,
+                 base_height: float = 0.0) -> np.ndarray:
+    """The model's lowest point above the table [m] at each rest (:func:`rest_readings`).
+
+    Args:
+        recording: the recording.
+        offsets: joint -> the model's angle minus the recording's [deg] (None: none).
+        base_height: the table this far below the base frame [m] (0: the model's table).
+    """
+    return heights(rest_readings(recording), offsets, base_height)
+
+
+def heights(readings: np.ndarray, offsets: dict[str, float] | None = None,
+            base_height: float = 0.0) -> np.ndarray:
+    """The model's lowest point above the table [m] at each reading (rows of ``JOINTS``)."""
+    shift = np.array([(offsets or {}).get(j, 0.0) for j in JOINTS])
+    return np.array([clearance.lowest_point(dict(zip(JOINTS, (row + shift).tolist(),
+                                                     strict=True)), base_height)[0]
+                     for row in readings])
+
+
 def _clamped(row) -> dict[str, float]:
     """A frame's values as a configuration, inside the model's limits."""
     return {j: min(max(float(v), JOINT_LIMITS[j][0]), JOINT_LIMITS[j][1])
@@ -98,7 +196,7 @@ def _clamped(row) -> dict[str, float]:
 
 
 def replay(recording: Recording, volts: float | None = None, variant: str | None = None,
-           episodes=None) -> Recording:
+           episodes=None, offsets: dict[str, float] | None = None) -> Recording:
     """The recording's goals replayed in the simulator: the same frames, simulated readings.
 
     Args:
@@ -106,7 +204,11 @@ def replay(recording: Recording, volts: float | None = None, variant: str | None
         volts: the supply [V] (None: the project's default servo).
         variant: a key of ``servo.VARIANTS`` (None: what ``volts`` implies).
         episodes: the episode numbers to replay (None: all).
+        offsets: joint -> the model's angle minus the recording's [deg]
+            (:func:`estimated_offsets`; None: the recording's degrees are the model's).
+            The goals are written and the readings returned in the recording's degrees.
     """
+    shift = np.array([(offsets or {}).get(j, 0.0) for j in JOINTS])
     m = load_model()
     m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
     options = {"feedforward": False}
@@ -123,11 +225,11 @@ def replay(recording: Recording, volts: float | None = None, variant: str | None
     row = 0
     for indices in recording.episodes(episodes):
         mujoco.mj_resetData(m, d)
-        set_initial_pose(d, _clamped(recording.state[indices[0]]))
+        set_initial_pose(d, _clamped(recording.state[indices[0]] + shift))
         for k in indices:
-            angles = np.round(d.qpos[qadr] / count) * count
+            angles = np.round((d.qpos[qadr] - np.radians(shift)) / count) * count
             state[row] = [math.degrees(a) for a in angles]
-            goal = to_radians(m, _clamped(recording.action[k]))
+            goal = to_radians(m, _clamped(recording.action[k] + shift))
             d.ctrl[acts] = [goal[j] for j in JOINTS]
             actuation.step(m, d, steps)
             row += 1
@@ -140,13 +242,9 @@ def replay(recording: Recording, volts: float | None = None, variant: str | None
 VIRTUAL_FRAMES = (0, 300)
 """record_test episode 0's frames replayed through the virtual arm (10 s in real time)."""
 
-VIRTUAL_BASE_HEIGHT = 0.035
-"""The virtual arm's base above its table [m]: the recorded poses lie up to 32 mm inside the
-modelled table (docs/servo_model.md), and the replay is of the servo, not of contacts."""
-
-
 def replay_virtual(recording: Recording, frames, volts: float | None = None,
-                   variant: str | None = None) -> Recording:
+                   variant: str | None = None,
+                   offsets: dict[str, float] | None = None) -> Recording:
     """The recording's goals replayed in real time through the virtual arm and lerobot's bus.
 
     The loop is lerobot's record loop: read Present_Position, write Goal_Position, wait for
@@ -157,6 +255,8 @@ def replay_virtual(recording: Recording, frames, volts: float | None = None,
         frames: the frame indices to replay (consecutive, one episode).
         volts: the virtual arm's supply [V] (None: the project's default).
         variant: a key of ``servo.VARIANTS`` (None: what ``volts`` implies).
+        offsets: joint -> the model's angle minus the recording's [deg], as :func:`replay`'s
+            (the shipped calibration's degrees are the model's).
     """
     import time
 
@@ -166,20 +266,21 @@ def replay_virtual(recording: Recording, frames, volts: float | None = None,
     from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
     volts = servo.DEFAULT_SUPPLY_V if volts is None else volts
+    shift = np.array([(offsets or {}).get(j, 0.0) for j in JOINTS])
     frames = np.asarray(frames)
     state = np.zeros((len(frames), len(JOINTS)))
     with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, supply=volts, variant=variant,
-                      initial=_clamped(recording.state[frames[0]]),
-                      base_height=VIRTUAL_BASE_HEIGHT) as arm:
+                      initial=_clamped(recording.state[frames[0]] + shift),
+                      base_height=RECORDED_BASE_HEIGHT) as arm:
         bus = connect(arm.port, load_calibration(DEFAULT_CALIBRATION_PATH))
         try:
             configure(bus)
             enable_torque_in_place(bus)
             start = time.perf_counter()
             for row, k in enumerate(frames):
-                read = bus.sync_read("Present_Position")
-                state[row] = [read[j] for j in JOINTS]
-                bus.sync_write("Goal_Position", _clamped(recording.action[k]))
+                read = bus.sync_read("Present_Position", num_retry=2)  # a loaded host
+                state[row] = np.array([read[j] for j in JOINTS]) - shift
+                bus.sync_write("Goal_Position", _clamped(recording.action[k] + shift))
                 time.sleep(max(0.0, start + (row + 1) / recording.fps - time.perf_counter()))
         finally:
             disconnect(bus)
@@ -271,11 +372,16 @@ def _row(label: str, result: dict, real: dict | None) -> list[str]:
     return lines
 
 
-def report(names=RECORDINGS, servos=SERVOS, episodes=None) -> str:
-    """The table: each recording's own figures, then the model's on each servo."""
+def report(names=RECORDINGS, servos=SERVOS, episodes=None, offsets: str = "estimated") -> str:
+    """The table: each recording's own figures, then the model's on each servo.
+
+    ``offsets``: one of :data:`OFFSETS` (``estimated``: :func:`estimated_offsets` of the
+    whole recording).
+    """
     lines = []
     for name in names:
         recording = load(name)
+        shift = estimated_offsets(recording) if offsets == "estimated" else None
         chosen = episodes if name != "record_test" else None
         if chosen is not None:
             frames = np.concatenate(recording.episodes(chosen))
@@ -283,28 +389,67 @@ def report(names=RECORDINGS, servos=SERVOS, episodes=None) -> str:
                                   recording.episode[frames], recording.fps)
         real = figures(recording)
         lines.append(f"{name}: {len(np.unique(recording.episode))} episodes, "
-                     f"{len(recording.episode)} frames (joints: {' '.join(ARM_JOINTS)})")
+                     f"{len(recording.episode)} frames (joints: {' '.join(ARM_JOINTS)}), "
+                     + ("the recording's degrees as the model's" if shift is None else
+                        "model = recording + " + ", ".join(f"{j} {v:+.2f} deg"
+                                                            for j, v in shift.items())))
         lines += _row("recording", real, None)
         for label, volts, variant in servos:
             if volts is None:
                 spec = actuation.use_servo(load_model())
                 label = f"default ({spec.variant} {spec.volts:g} V)"
-            lines += _row(label, figures(replay(recording, volts, variant)), real)
+            lines += _row(label, figures(replay(recording, volts, variant, offsets=shift)),
+                          real)
+    return "\n".join(lines)
+
+
+def rest_report(names=RECORDINGS) -> str:
+    """The rests against the table: the model's lowest point at each recorded rest [mm]."""
+    lines = []
+    for name in names:
+        recording = load(name)
+        shift = estimated_offsets(recording)
+        every = heights(recording.state) * 1000.0
+        k = int(np.argmin(every))
+        lines.append(f"  {name}: calibration's slack " + ", ".join(
+            f"{j} {v:.2f}" for j, v in calibration_slack(name).items()) + " deg; every "
+            f"reading: deepest {every[k]:+.1f} mm (episode {recording.episode[k]}, "
+            + " ".join(f"{v:.0f}" for v in recording.state[k, :ARM]) + " deg), "
+            f"{np.mean(every < 0) * 100:.0f} % of the frames inside the model's table")
+        for label, rest in (
+                ("the model's table", rest_heights(recording)),
+                ("estimated offsets", rest_heights(recording, shift)),
+                ("calibration's most lifting",
+                 rest_heights(recording, most_lifting_offsets(recording,
+                                                              calibration_slack(name)))),
+                ("the lab's 15 mm mount", rest_heights(recording, base_height=0.015)),
+                (f"a table {RECORDED_BASE_HEIGHT * 1000:g} mm below the base",
+                 rest_heights(recording, base_height=RECORDED_BASE_HEIGHT))):
+            mm = rest * 1000.0
+            lines.append(f"  {name:16s} {len(mm):2d} rests, {label:28s} lowest point "
+                         f"{mm.min():+6.1f} .. {mm.max():+6.1f} mm (median {np.median(mm):+.1f}), "
+                         f"{int(np.sum(mm < 0))} inside the table")
     return "\n".join(lines)
 
 
 def main(argv=None) -> int:
     """``python -m so101_kinematics.lab.replay``: print the table."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    parser = ArgumentParser(description=__doc__.split("\n", 1)[0])
     parser.add_argument("--quick", action="store_true",
                         help="pick_place_tape's first 10 episodes only (record_test whole)")
     parser.add_argument("--virtual", action="store_true",
                         help="also replay record_test episode 0's first 10 s through the "
                         "virtual arm and lerobot's bus (real time; needs the hw extra)")
+    parser.add_argument("--offsets", choices=OFFSETS, default="estimated",
+                        help="estimated (default): shift the recording's degrees onto the "
+                        "model's where the recording shows the difference (elbow_flex's "
+                        "stop); none: take them as the model's")
     args = parser.parse_args(argv)
     print(f"Servo model: lerobot's P {servo.LEROBOT.p} / I {servo.LEROBOT.i} / "
           f"D {servo.LEROBOT.d}, contacts off, no feed-forward.")
-    print(report(episodes=range(10) if args.quick else None))
+    print(report(episodes=range(10) if args.quick else None, offsets=args.offsets))
+    print("The recorded rests against the table (the model's lowest point; negative: inside):")
+    print(rest_report())
     if args.virtual:
         recording = load("record_test")
         frames = recording.episodes([0])[0][slice(*VIRTUAL_FRAMES)]
@@ -312,11 +457,12 @@ def main(argv=None) -> int:
                          recording.episode[frames], recording.fps)
         print(f"record_test episode 0, frames {VIRTUAL_FRAMES[0]}-{VIRTUAL_FRAMES[1]}: the "
               f"simulator and the virtual arm through lerobot's bus (its base "
-              f"{VIRTUAL_BASE_HEIGHT * 1000:g} mm above its table, contacts on)")
+              f"{RECORDED_BASE_HEIGHT * 1000:g} mm above its table, contacts on)")
         lines = _row("recording", figures(part), None)
-        lines += _row("simulator", figures(replay(part)), figures(part))
-        lines += _row("virtual arm (bus)", figures(replay_virtual(recording, frames)),
-                      figures(part))
+        shift = estimated_offsets(recording) if args.offsets == "estimated" else None
+        lines += _row("simulator", figures(replay(part, offsets=shift)), figures(part))
+        lines += _row("virtual arm (bus)",
+                      figures(replay_virtual(recording, frames, offsets=shift)), figures(part))
         print("\n".join(lines))
     return 0
 

@@ -45,7 +45,8 @@ from so101_kinematics.planning.motion import Plan, Step
 from so101_kinematics.planning.plans import pick_and_place_steps
 from so101_kinematics.servo import COUNTS_PER_TURN, TARGET_RATE_MAX
 
-__all__ = ["Comparison", "LogError", "_plan", "compare_run", "draw_report", "read_log", "replay"]
+__all__ = ["Comparison", "LogError", "compare_run", "draw_report", "logged_plan", "read_log",
+           "replay"]
 
 SETTLE_WINDOW_S = 0.2  # the pick/place pose: mean measured pose over the step's last [s]
 MAX_SPEED_DEG_S = TARGET_RATE_MAX * 360.0 / COUNTS_PER_TURN  # [deg/s] the STS3215's fastest
@@ -245,7 +246,8 @@ def commands_inside_limits(commands: dict[str, np.ndarray],
     return inside
 
 
-def _plan(record: dict) -> Plan:
+def logged_plan(record: dict) -> Plan:
+    """The plan a log's header recorded (``hw/log.py``), as it ran."""
     return Plan([Step(s["name"], s["configuration"], s["duration"], s["hold"])
                  for s in record["steps"]], record.get("return_to_start", True),
                 record.get("return_duration", 2.0))
@@ -329,7 +331,7 @@ def compare_run(path: str | Path) -> Comparison:
     result.read_s = read_s
     steps = np.array([r["step"] for r in rows])
     try:
-        roles = pick_and_place_steps(_plan(info["plan"]))
+        roles = pick_and_place_steps(logged_plan(info["plan"]))
     except Exception:  # noqa: BLE001 - no sidecar, or a plan without its pick and place
         roles = ()
         result.notes.append("no plan in the sidecar with a pick and a place: their positions "
