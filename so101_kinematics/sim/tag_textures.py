@@ -16,7 +16,8 @@ The facts, each written once here:
   6 cells wide (:data:`MARKER_CELLS`);
 - each tag's id and sizes (:data:`TAGS`): the cube's marker is 20 mm on its 26 mm top face
   (``constants.CUBE_SIZE``), leaving 3 mm of white (about one cell, the quiet zone the
-  detector needs); the target's is 40 mm on a 52 mm square, for the table.
+  detector needs); the target's is 40 mm on a 52 mm square, for the table; the cup's (the
+  throw's, ``throwing/cup_camera.py``) the target's size, printed on a mat the cup stands on.
 
 A tag's frame (the pose ``vision/detect.py`` estimates) is OpenCV's for a square marker: its
 origin at the marker's centre on the printed surface, x to the right and y up as the marker
@@ -36,7 +37,8 @@ from so101_kinematics.opencv_import import require_opencv
 
 __all__ = [
     "CUBE_TAG", "MARKER_CELLS", "TAGS", "TAG_DICTIONARY", "TAG_THICKNESS", "TARGET_TAG", "Tag",
-    "add_cube_tag", "add_target_tag", "tag_face_image", "tag_geom_name",
+    "CUP_TAG", "add_cube_tag", "add_tag_geom", "add_target_tag", "tag_face_image",
+    "tag_geom_name",
 ]
 
 TAG_DICTIONARY = "DICT_4X4_50"
@@ -68,7 +70,10 @@ CUBE_TAG = Tag("cube", 0, 0.020, CUBE_SIZE)
 """On the top face of the course's cube: a 20 mm marker on the 26 mm face."""
 TARGET_TAG = Tag("target", 1, 0.040, 0.052)
 """Where the cube goes, on the table: a 40 mm marker on a 52 mm square."""
-TAGS = {tag.tag_id: tag for tag in (CUBE_TAG, TARGET_TAG)}
+CUP_TAG = Tag("cup", 2, 0.040, 0.052)
+"""On the mat the throw's cup stands on (``throwing/cup_camera.py``): the target's sizes, its
+own id (a cup is not the pick-and-place's target)."""
+TAGS = {tag.tag_id: tag for tag in (CUBE_TAG, TARGET_TAG, CUP_TAG)}
 """Every tag of ours by id."""
 
 
@@ -100,8 +105,13 @@ def tag_geom_name(tag: Tag, on: str = "") -> str:
     return f"{on or tag.name}_tag"
 
 
-def _add_tag_geom(spec: mujoco.MjSpec, body, tag: Tag, name: str, pos) -> None:
-    """A paper-thin textured box: no mass, no contact (the physics is unchanged)."""
+def add_tag_geom(spec: mujoco.MjSpec, body, tag: Tag, name: str, pos,
+                 yaw_deg: float = 0.0) -> None:
+    """Print ``tag`` on ``body`` (an ``MjsBody`` of the spec) at ``pos`` [m], face up, turned.
+
+    A paper-thin textured box: no mass, no contact (the physics is unchanged); ``yaw_deg``
+    [deg] turns it about the body's z (0: the tag's top towards the body's +y).
+    """
     texture_name = f"aruco_{tag.tag_id}"
     if spec.texture(texture_name) is None:
         face = tag_face_image(tag)
@@ -112,7 +122,14 @@ def _add_tag_geom(spec: mujoco.MjSpec, body, tag: Tag, name: str, pos) -> None:
         material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texture_name
     body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX,
                   size=[tag.face / 2, tag.face / 2, TAG_THICKNESS / 2], pos=list(pos),
-                  material=texture_name, contype=0, conaffinity=0, density=0.0, group=1)
+                  material=texture_name, contype=0, conaffinity=0, density=0.0, group=1,
+                  quat=_yaw_quat(yaw_deg))
+
+
+def _yaw_quat(yaw_deg: float) -> list[float]:
+    """MuJoCo's quaternion (w, x, y, z) of a turn by ``yaw_deg`` [deg] about z."""
+    half = np.radians(yaw_deg) / 2
+    return [float(np.cos(half)), 0.0, 0.0, float(np.sin(half))]
 
 
 def add_cube_tag(spec: mujoco.MjSpec, body: str = "cube", tag: Tag = CUBE_TAG) -> str:
@@ -122,7 +139,7 @@ def add_cube_tag(spec: mujoco.MjSpec, body: str = "cube", tag: Tag = CUBE_TAG) -
         The tag geom's name (:func:`tag_geom_name`).
     """
     name = tag_geom_name(tag, body)
-    _add_tag_geom(spec, spec.body(body), tag, name, (0.0, 0.0, CUBE_HALF_SIZE + TAG_THICKNESS / 2))
+    add_tag_geom(spec, spec.body(body), tag, name, (0.0, 0.0, CUBE_HALF_SIZE + TAG_THICKNESS / 2))
     return name
 
 
@@ -136,7 +153,6 @@ def add_target_tag(spec: mujoco.MjSpec, x: float, y: float, yaw_deg: float = 0.0
     name = tag_geom_name(tag)
     table_z = float(spec.geom("table").pos[2])
     body = spec.worldbody.add_body(name=name, pos=[x, y, table_z],
-                                   quat=[np.cos(np.radians(yaw_deg) / 2), 0.0, 0.0,
-                                         np.sin(np.radians(yaw_deg) / 2)])
-    _add_tag_geom(spec, body, tag, name, (0.0, 0.0, TAG_THICKNESS / 2))
+                                   quat=_yaw_quat(yaw_deg))
+    add_tag_geom(spec, body, tag, name, (0.0, 0.0, TAG_THICKNESS / 2))
     return name

@@ -65,6 +65,11 @@ class Ball:
     cd: float
     source: str
 
+    def report(self) -> dict:
+        """The ball as a JSON report gives it: name, diameter [m], mass [kg], drag, source."""
+        return {"name": self.name, "diameter_m": self.diameter, "mass_kg": self.mass,
+                "cd": self.cd, "source": self.source}
+
     @property
     def radius(self) -> float:
         """The ball's radius [m]."""

@@ -24,13 +24,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
 from so101_kinematics import servo
 from so101_kinematics.errors import PlanError
-from so101_kinematics.frames import TOOL_SITE
 from so101_kinematics.planning.straight_line import CONTROL_DT
 from so101_kinematics.sim import actuation
 from so101_kinematics.sim.scene import send_position_command, set_initial_pose
@@ -41,10 +41,17 @@ from so101_kinematics.throwing.throw_plan import (
     joint_speed_limits,
     plan_throw,
 )
-from so101_kinematics.throwing.throw_scene import CUP_HEIGHT, Flight, in_cup, place_cup
+from so101_kinematics.throwing.throw_scene import (
+    CUP_HEIGHT,
+    Flight,
+    hold_ball,
+    in_cup,
+    place_cup,
+)
 
 __all__ = [
-    "AIM_TOLERANCE_M", "RELEASE_WINDOW", "SETTLE_S", "ThrowRun", "opening_delay", "throw_at",
+    "AIM_TOLERANCE_M", "OPEN", "RELEASE_WINDOW", "SETTLE_S", "ThrowRun", "TunedThrow", "fly",
+    "opening_delay", "throw_at", "tune_throw",
 ]
 
 AIM_TOLERANCE_M = 0.015
@@ -60,7 +67,8 @@ REHEARSALS = 6
 """The most rehearsals of one throw."""
 AFTER_TOUCH_S = 0.6
 """The simulation runs on this long after the ball's first touch [s] (where it rests)."""
-OPEN = 100.0  # [%]: the gripper's command at the release
+OPEN = 100.0
+"""The gripper's command at the release [%]: fully open, the fastest opening."""
 
 
 class ThrowRun:
@@ -72,17 +80,18 @@ class ThrowRun:
         plan: the planned throw.
         open_at: the time [s] from the swing's start at which the gripper is told to open
             (None: it stays closed, a rehearsal).
+        cup: where the cup stands (x, y) [m] (default the plan's target; the throw aimed at
+            a cup the camera saw stands where it truly is).
     """
 
-    def __init__(self, m: mujoco.MjModel, ball: Ball, plan: ThrowPlan, open_at: float | None):
+    def __init__(self, m: mujoco.MjModel, ball: Ball, plan: ThrowPlan, open_at: float | None,
+                 cup=None):
         self.m, self.ball, self.plan, self.open_at = m, ball, plan, open_at
         self.d = d = mujoco.MjData(m)
-        place_cup(m, d, *plan.target)
+        self.cup = tuple(plan.target if cup is None else cup)
+        place_cup(m, d, *self.cup)
         set_initial_pose(d, plan.configuration(0.0))
-        adr = m.joint("ball").qposadr[0]
-        d.qpos[adr:adr + 3] = d.site(TOOL_SITE).xpos
-        d.qpos[adr + 3:adr + 7] = d.body("gripper").xquat
-        mujoco.mj_forward(m, d)
+        hold_ball(m, d)
         spec = actuation.servo_spec(m)
         faithful = spec is not None and spec.mode != "ideal"
         self.lead = (servo.lag(1.0, spec.settings[0], spec.volts, spec.variant)
@@ -195,19 +204,38 @@ def _tune(m, ball: Ball, plan: ThrowPlan, limits: Mapping[str, float]):
     return plan, states, landings, best
 
 
-def throw_at(m: mujoco.MjModel, ball: Ball, target, volts: float = servo.DEFAULT_SUPPLY_V,
-             variant: str = servo.DEFAULT_VARIANT, delay: float | None = None,
-             record=None) -> dict:
-    """Throw ``ball`` at a cup standing at ``target`` (x, y) [m]; the trial's figures.
+@dataclass(frozen=True)
+class TunedThrow:
+    """A throw rehearsed in the simulator: the commands the arm runs, and when it opens.
 
-    Args:
-        m: the throwing model.
-        ball: its ball.
-        target: the cup's (x, y) [m].
-        volts: the servos' supply [V] (for the plan's speed check).
-        variant: the servos' variant.
-        delay: the gripper's opening delay [s] (default: measured, :func:`opening_delay`).
-        record: called with the :class:`ThrowRun` after every physics step of the throw.
+    Attributes:
+        planned_speed: the Jacobian plan's release speed [m/s] (before the rehearsal).
+        plan: the rehearsed plan (its rate scaled until a release reaches the cup).
+        limits: the swinging servos' top speeds at the release [rad/s].
+        release_at: the release the throw is timed on [s from the swing's start].
+        resting_delay: the gripper's opening delay at rest [s] (:func:`opening_delay`).
+        delay: the opening delay in the swing [s]: the gripper is told to open this long
+            before ``release_at``.
+        aimed: the rehearsed release's landing at the rim's height (x, y, z, t).
+    """
+
+    planned_speed: float
+    plan: ThrowPlan
+    limits: Mapping[str, float]
+    release_at: float
+    resting_delay: float
+    delay: float
+    aimed: np.ndarray
+
+    @property
+    def open_at(self) -> float:
+        """When the gripper is told to open [s from the swing's start]."""
+        return self.release_at - self.delay
+
+
+def tune_throw(m: mujoco.MjModel, ball: Ball, target, volts: float = servo.DEFAULT_SUPPLY_V,
+               variant: str = servo.DEFAULT_VARIANT, delay: float | None = None) -> TunedThrow:
+    """Plan, rehearse and time a throw at ``target`` (x, y) [m] (steps 1-2 of the module).
 
     Raises:
         PlanError: the cup out of range, a speed the servos cannot reach.
@@ -223,15 +251,49 @@ def throw_at(m: mujoco.MjModel, ball: Ball, target, volts: float = servo.DEFAULT
     delay = resting_delay
     if probe.flight is not None and probe.flight.release is not None:
         delay = probe.flight.release[0] - probe.start - (release_at - resting_delay)
-    run = ThrowRun(m, ball, tuned, open_at=release_at - delay)
+    return TunedThrow(planned_speed, tuned, limits, release_at, resting_delay, delay,
+                      landings[best])
+
+
+def throw_at(m: mujoco.MjModel, ball: Ball, target, volts: float = servo.DEFAULT_SUPPLY_V,
+             variant: str = servo.DEFAULT_VARIANT, delay: float | None = None,
+             record=None, cup=None) -> dict:
+    """Throw ``ball`` at a cup standing at ``target`` (x, y) [m]; the trial's figures.
+
+    Args:
+        m: the throwing model.
+        ball: its ball.
+        target: the cup's (x, y) [m].
+        volts: the servos' supply [V] (for the plan's speed check).
+        variant: the servos' variant.
+        delay: the gripper's opening delay [s] (default: measured, :func:`opening_delay`).
+        record: called with the :class:`ThrowRun` after every physics step of the throw.
+        cup: where the cup truly stands (x, y) [m], when the throw aims at ``target`` as a
+            camera saw it (default: at ``target``); "in the cup" is this cup's.
+
+    Raises:
+        PlanError: the cup out of range, a speed the servos cannot reach.
+    """
+    return fly(m, ball, tune_throw(m, ball, target, volts, variant, delay), record, cup)
+
+
+def fly(m: mujoco.MjModel, ball: Ball, throw: TunedThrow, record=None, cup=None) -> dict:
+    """Run a tuned throw in the simulator (steps 3-4 of the module); the trial's figures.
+
+    ``cup``: where the cup truly stands (x, y) [m] (default: the plan's target), as
+    :func:`throw_at`'s.
+    """
+    tuned = throw.plan
+    run = ThrowRun(m, ball, tuned, open_at=throw.open_at, cup=cup)
     run.run(run.start + tuned.duration + 0.2, record)
     flight_ = run.flight
     end = run.start + tuned.duration + 3.0
     while (flight_.touch is None or run.d.time < flight_.touch[0] + AFTER_TOUCH_S) \
             and run.d.time < end:
         run.run(run.d.time + CONTROL_DT, record)
-    report = _trial(run, tuned, planned_speed, release_at, delay, limits, landings[best])
-    report["opening_delay_at_rest_s"] = round(resting_delay, 4)
+    report = _trial(run, tuned, throw.planned_speed, throw.release_at, throw.delay,
+                    throw.limits, throw.aimed)
+    report["opening_delay_at_rest_s"] = round(throw.resting_delay, 4)
     return report
 
 
@@ -239,8 +301,8 @@ def _trial(run: ThrowRun, plan: ThrowPlan, planned_speed: float, release_at: flo
            delay: float, limits: Mapping[str, float], aimed) -> dict:
     """The trial's figures (JSON-ready)."""
     flight_, ball = run.flight, run.ball
-    report = {"cup": [round(v, 4) for v in plan.target],
-              "cup_distance_m": round(float(np.hypot(*plan.target)), 4),
+    report = {"cup": [round(v, 4) for v in run.cup],
+              "cup_distance_m": round(float(np.hypot(*run.cup)), 4),
               "pan_deg": round(plan.pan_deg, 2),
               "planned_release_speed_m_s": round(planned_speed, 3),
               "swing_rate_rad_s": round(plan.rate, 3),
@@ -257,7 +319,7 @@ def _trial(run: ThrowRun, plan: ThrowPlan, planned_speed: float, release_at: flo
     model = flight(p0, v0, ball, float(touch[2]))[0]
     resting = flight_.ball_state()[0]
     return {**report,
-            "in_cup": in_cup(resting, plan.target, ball),
+            "in_cup": in_cup(resting, run.cup, ball),
             "model_error_m": round(float(np.hypot(*(model[:2] - touch[:2]))), 5),
             "release_s": round(t_release - run.start, 4),
             "release_point": [round(float(v), 4) for v in p0],
@@ -269,4 +331,4 @@ def _trial(run: ThrowRun, plan: ThrowPlan, planned_speed: float, release_at: flo
             "model_landing": [round(float(v), 4) for v in model[:3]],
             "flight_s": round(t_touch - t_release, 4),
             "resting": [round(float(v), 4) for v in resting],
-            "miss_m": round(float(np.hypot(*(touch[:2] - np.asarray(plan.target)))), 4)}
+            "miss_m": round(float(np.hypot(*(touch[:2] - np.asarray(run.cup)))), 4)}

@@ -36,7 +36,8 @@ from so101_kinematics.throwing.ball import Ball
 __all__ = [
     "BALL_CONTACT", "CUP_BOTTOM_THICKNESS", "CUP_HEIGHT", "CUP_INNER_DIAMETER", "CUP_WALLS",
     "CUP_WALL_THICKNESS",
-    "Flight", "RELEASE_OPENING_DEG", "SIDE_CAMERA", "build_throw_model", "in_cup", "place_cup",
+    "Flight", "RELEASE_OPENING_DEG", "SIDE_CAMERA", "build_throw_model", "hold_ball", "in_cup",
+    "place_cup", "throw_spec",
 ]
 
 CUP_INNER_DIAMETER = 0.090
@@ -82,13 +83,23 @@ def _add_cup(spec: mujoco.MjSpec) -> None:
                      quat=[math.cos(angle / 2), 0.0, 0.0, math.sin(angle / 2)], **common)
 
 
-def build_throw_model(ball: Ball, servo: Mapping | None = None) -> mujoco.MjModel:
+def build_throw_model(ball: Ball, servo: Mapping | None = None,
+                      spec: mujoco.MjSpec | None = None) -> mujoco.MjModel:
     """The course's scene with the ``ball`` welded in the gripper and the cup; the servo as asked.
 
     Args:
         ball: the ball (``ball.BALLS``).
         servo: ``actuation.use_servo``'s keywords (default: the faithful STS3215 at 12 V).
+        spec: :func:`throw_spec`'s scene for this ball, which a caller added to (a camera, a
+            tag: ``cup_camera.py``); default a new one.
     """
+    m = (spec or throw_spec(ball)).compile()
+    actuation.use_servo(m, **dict(servo or {}))
+    return m
+
+
+def throw_spec(ball: Ball) -> mujoco.MjSpec:
+    """:func:`build_throw_model`'s scene, not yet compiled (for a caller to add to)."""
     ensure_meshes()
     spec = mujoco.MjSpec.from_file(str(SCENE_PATH))
     table = spec.geom("table")
@@ -116,9 +127,7 @@ def build_throw_model(ball: Ball, servo: Mapping | None = None) -> mujoco.MjMode
     spec.worldbody.add_camera(name=SIDE_CAMERA, pos=[0.25, -1.05, 0.33], fovy=45.0,
                               mode=mujoco.mjtCamLight.mjCAMLIGHT_FIXED,
                               quat=_looking_along_y(math.radians(8.0)))
-    m = spec.compile()
-    actuation.use_servo(m, **dict(servo or {}))
-    return m
+    return spec
 
 
 def _looking_along_y(down: float) -> list[float]:
@@ -131,6 +140,18 @@ def _looking_along_y(down: float) -> list[float]:
 def place_cup(m: mujoco.MjModel, d: mujoco.MjData, x: float, y: float) -> None:
     """Stand the cup on the table with its axis at (x, y) [m]."""
     d.mocap_pos[m.body("cup").mocapid[0]] = [x, y, 0.0]
+
+
+def hold_ball(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+    """Put the ball where the weld holds it, the arm's pose in ``d`` as it is; ``mj_forward``.
+
+    Its centre at the object frame, turned as the gripper.
+    """
+    mujoco.mj_forward(m, d)
+    adr = m.joint("ball").qposadr[0]
+    d.qpos[adr:adr + 3] = d.site(TOOL_SITE).xpos
+    d.qpos[adr + 3:adr + 7] = d.body("gripper").xquat
+    mujoco.mj_forward(m, d)
 
 
 def in_cup(position, cup_xy, ball: Ball) -> bool:

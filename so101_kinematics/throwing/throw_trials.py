@@ -47,22 +47,31 @@ def cup_positions(count: int, seed: int) -> list[tuple[float, float]]:
 
 
 def run_throws(m: mujoco.MjModel, ball: Ball, cups, volts: float = servo.DEFAULT_SUPPLY_V,
-               variant: str = servo.DEFAULT_VARIANT) -> dict:
-    """Throw at each cup; the report (``hits``, ``trials``, the worst model error, the speeds)."""
-    trials = [throw_at(m, ball, cup, volts, variant) for cup in cups]
+               variant: str = servo.DEFAULT_VARIANT, aims=None) -> dict:
+    """Throw at each cup; the report (``hits``, ``trials``, the worst model error, the speeds).
+
+    ``aims``: where each throw aims (x, y) [m], when not at the cup itself (where a camera
+    saw it: ``cup_camera.py``); the cups stand at ``cups`` all the same.
+    """
+    aims = cups if aims is None else aims
+    trials = [throw_at(m, ball, aim, volts, variant, cup=cup)
+              for aim, cup in zip(aims, cups, strict=True)]
     errors = [t["model_error_m"] for t in trials if t["model_error_m"] is not None]
     speeds = [t["release_speed_m_s"] for t in trials if "release_speed_m_s" in t]
     return {"hits": sum(t["in_cup"] for t in trials), "throws": len(trials),
             "worst_model_error_m": max(errors) if errors else None,
             "release_speed_m_s": [min(speeds), max(speeds)] if speeds else None,
-            "ball": {"name": ball.name, "diameter_m": ball.diameter, "mass_kg": ball.mass,
-                     "cd": ball.cd, "source": ball.source},
+            "ball": ball.report(),
             "trials": trials}
 
 
 def save_video(path: Path, m: mujoco.MjModel, ball: Ball, cup,
-               volts: float = servo.DEFAULT_SUPPLY_V, variant: str = servo.DEFAULT_VARIANT) -> dict:
-    """Record one throw at ``cup`` to an MP4 (the side camera); the trial."""
+               volts: float = servo.DEFAULT_SUPPLY_V, variant: str = servo.DEFAULT_VARIANT,
+               aim=None) -> dict:
+    """Record one throw at ``cup`` to an MP4 (the side camera); the trial.
+
+    ``aim``: where the throw aims (x, y) [m], when not at the cup (``run_throws``'s ``aims``).
+    """
     from so101_kinematics.sim.video import VideoRecorder
 
     recorders: dict = {}
@@ -73,7 +82,8 @@ def save_video(path: Path, m: mujoco.MjModel, ball: Ball, cup,
             recorders[run.d] = VideoRecorder(m, run.d, path, camera=SIDE_CAMERA, progress=False)
         recorders[run.d].sync()
 
-    trial = throw_at(m, ball, cup, volts, variant, record=on_step)
+    trial = throw_at(m, ball, cup if aim is None else aim, volts, variant, record=on_step,
+                     cup=cup)
     for recorder in recorders.values():
         recorder.close()
     return trial
@@ -81,8 +91,11 @@ def save_video(path: Path, m: mujoco.MjModel, ball: Ball, cup,
 
 def save_picture(path: Path, m: mujoco.MjModel, ball: Ball, cup,
                  volts: float = servo.DEFAULT_SUPPLY_V,
-                 variant: str = servo.DEFAULT_VARIANT) -> dict:
-    """A PNG of one throw at ``cup``: the side camera at the first touch, the ball's path drawn."""
+                 variant: str = servo.DEFAULT_VARIANT, aim=None) -> dict:
+    """A PNG of one throw at ``cup``: the side camera at the first touch, the ball's path drawn.
+
+    ``aim``: where the throw aims (x, y) [m], when not at the cup (``run_throws``'s ``aims``).
+    """
     from matplotlib.figure import Figure
 
     from so101_kinematics.markers import png_metadata
@@ -105,7 +118,8 @@ def save_picture(path: Path, m: mujoco.MjModel, ball: Ball, cup,
             frames["image"] = renderer.render()
             renderer.close()
 
-    trial = throw_at(m, ball, cup, volts, variant, record=on_step)
+    trial = throw_at(m, ball, cup if aim is None else aim, volts, variant, record=on_step,
+                     cup=cup)
     if "image" not in frames:
         raise PlanError("the ball never came down, so there is no picture of its landing. "
                         "Fix: throw at a cup in range (see --help).")

@@ -17,9 +17,8 @@ import numpy as np
 from so101_kinematics.markers import pdf_metadata
 from so101_kinematics.outputs import atomic_output
 from so101_kinematics.sim.tag_textures import (
-    CUBE_TAG,
     TAG_DICTIONARY,
-    TARGET_TAG,
+    TAGS,
     Tag,
     tag_face_image,
 )
@@ -47,7 +46,7 @@ SCALE_BAR_MM = 50.0  # [mm] to check the print with a ruler
 MM_PER_INCH = 25.4
 
 
-def tag_page(tags: Iterable[Tag] = (CUBE_TAG, TARGET_TAG)):
+def tag_page(tags: Iterable[Tag] = tuple(TAGS.values())):
     """The A4 page of :func:`write_tag_sheet` as a matplotlib ``Figure`` (1 unit = 1 mm)."""
     from matplotlib.figure import Figure
     from matplotlib.patches import Rectangle
@@ -75,7 +74,7 @@ def tag_page(tags: Iterable[Tag] = (CUBE_TAG, TARGET_TAG)):
     return figure
 
 
-def write_tag_sheet(path: str | Path, tags: Iterable[Tag] = (CUBE_TAG, TARGET_TAG)) -> Path:
+def write_tag_sheet(path: str | Path, tags: Iterable[Tag] = tuple(TAGS.values())) -> Path:
     """A PDF page (A4) with each tag at its true size, to print at 100 %.
 
     The tags are the same images as the simulator's textures, placed with their printed

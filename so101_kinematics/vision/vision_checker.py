@@ -29,12 +29,13 @@ from so101_kinematics.checker.fk import (
 )
 from so101_kinematics.cli import EXIT_BAD_INPUT, ArgumentParser, number, range_help
 from so101_kinematics.errors import OpenCVMissing, RenderError, VisionError
-from so101_kinematics.outputs import JSON_REPORT, stamp, write_text_atomic
+from so101_kinematics.outputs import report_of, stamp, write_text_atomic
 from so101_kinematics.vision.vision_cases import vision_cases
 
 __all__ = ["check_vision_file", "main", "vision_report"]
 
 PROG = "so101-check-vision"
+REPORT = report_of(PROG)  # --json/--gradescope replace only its own report
 FUNCTIONS = tuple(vision_compare.VISION_POINTS)
 
 
@@ -152,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.gradescope and len(args.files) > 1:
         parser.error("--gradescope writes one submission's results.json; got "
                      f"{len(args.files)} files. Fix: run once per submission")
-    outputs = check_outputs(args, {"json": JSON_REPORT, "gradescope": JSON_REPORT}, PROG)
+    outputs = check_outputs(args, {"json": REPORT, "gradescope": REPORT}, PROG)
     if outputs is None:
         return EXIT_BAD_INPUT
     tolerance = {"tag_pose_in_base": (args.tolerance_mm, args.tolerance_deg)}

@@ -22,7 +22,7 @@ MAY_IMPORT = {
     "virtual": {"core", "sensors", "sim", "virtual"},
     "vision": {"core", "ik", "sensors", "sim", "vision"},
     "drawing": {"core", "ik", "sensors", "sim", "vision", "drawing"},
-    "throwing": {"core", "ik", "sensors", "sim", "throwing"},
+    "throwing": {"core", "ik", "sensors", "sim", "vision", "throwing"},
     "two_arms": {"core", "ik", "sensors", "sim", "two_arms"},
     "lab": {"core", "ik", "sensors", "sim", "hw", "virtual", "vision", "drawing", "throwing",
             "two_arms", "lab"},
@@ -35,7 +35,7 @@ backend (a sensor rides on a backend's transport, passed in); vision (cameras, t
 poses) sits on the simulator, and neither backend imports it: the lab and the commands may;
 drawing (strokes, the pen's path, the simulator's ink, the light painting's exposure through
 a camera) sits on vision and the simulator; throwing (the ball's flight, the release the
-servos reach, the throw) sits on the simulator;
+servos reach, the throw, the cup found by a camera) sits on vision and the simulator;
 nothing imports the course's files."""
 
 

@@ -92,3 +92,14 @@ def test_a_cup_out_of_range_is_refused_with_the_range(model, cup, said):
         plan_throw(model, cup, BALL)
     message = str(error.value)
     assert said in message and "throwing range 0.25-0.90 m" in message and "Fix:" in message
+
+
+@pytest.mark.parametrize("cup", [(0.3, 0.0), (0.5, 0.3), (0.8, -0.2)])
+def test_the_whole_swing_stays_above_the_table(model, cup):
+    # the clearance check of the arm's runs (clearance.lowest_point: the arm's parts, the table
+    # at the base frame's z = 0): the 70 deg swing's wind-up put the moving jaw 54 mm into it
+    from so101_kinematics.clearance import lowest_point
+
+    plan = plan_throw(model, cup, BALL)
+    heights = [lowest_point(plan.configuration(f), 0.0)[0] for f in np.linspace(0, 1, 21)]
+    assert min(heights) > 0.01
