@@ -35,10 +35,12 @@ from so101_kinematics.errors import (
     CalibrationError,
     CubePositionError,
     FaultSpecError,
+    JointLimitError,
     OpenCVMissing,
     RenderSettingError,
     VirtualSO101Error,
 )
+from so101_kinematics.frames import JOINTS
 from so101_kinematics.servo import KIT_SUPPLY_V, VARIANTS
 from so101_kinematics.sim.render import check_frame_size
 from so101_kinematics.virtual import shell
@@ -128,6 +130,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cube-yaw", type=float, default=0.0, metavar="DEG",
                         help="the turn about the vertical [deg] of each cube given without "
                              "its own YAW (default 0)")
+    parser.add_argument("--initial", nargs=6, type=float, default=None,
+                        metavar=("PAN", "LIFT", "ELBOW", "WRIST", "ROLL", "GRIPPER"),
+                        help="the pose the arm powers up holding [deg], the gripper [0, 100], in "
+                             "joint order (default the model's home: 0 -90 90 30 0 9; "
+                             "two_arms.py --print-virtual-arms gives each arm's park pose)")
     parser.add_argument("--base-height", type=float, default=0.0, metavar="M",
                         help="the table is M [m] below the robot's base frame, 0 to 0.05 "
                              "(default 0; the lab's mount: 0.015)")
@@ -177,8 +184,10 @@ def main(argv: list[str] | None = None) -> int:
                                  for c in args.cube or []],
                            base_height=args.base_height, cameras=args.camera,
                            camera_size=args.camera_size, camera_fps=args.camera_fps,
-                           target=args.target)
-    except (CalibrationError, CubePositionError, FaultSpecError, OpenCVMissing,
+                           target=args.target,
+                           initial=None if args.initial is None else dict(
+                               zip(JOINTS, args.initial, strict=True)))
+    except (CalibrationError, JointLimitError, CubePositionError, FaultSpecError, OpenCVMissing,
             RenderSettingError, VirtualSO101Error) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

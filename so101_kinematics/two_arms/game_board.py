@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import ClassVar
 
 import mujoco
 import numpy as np
@@ -27,16 +28,18 @@ from so101_kinematics.ik.geometry import PAN_AXIS_POINT
 from so101_kinematics.two_arms.two_arm_scene import ArmBase, Piece, world_from_base
 
 __all__ = [
-    "DEFAULT_PITCH", "LAYOUT_BOARDS", "MARK_COLOURS", "PIECES", "PLACE_TOLERANCE_MM",
+    "DEFAULT_PITCH", "LAYOUT_BOARDS", "MARK_COLOURS", "MIN_PITCH", "PIECES", "PLACE_TOLERANCE_MM",
     "SUPPLY_BEARINGS",
     "SUPPLY_RADIUS",
-    "TILT_TOLERANCE_DEG", "GameBoard", "MoveCheck", "check_move", "game_pieces", "piece_pose",
-    "read_board",
+    "TILT_TOLERANCE_DEG", "GameBoard", "MoveCheck", "board_of", "check_move", "game_pieces",
+    "judge_move", "piece_pose", "read_board",
 ]
 
 DEFAULT_PITCH = 0.055
 """[m] The distance between two squares' centres (see the module's docstring): 50 mm
 completed the game with the jaws released at 25 to 27 %, 55 mm from 25 to 30 %."""
+MIN_PITCH = CUBE_SIZE + 0.018
+"""[m] The least pitch: a 26 mm piece and 18 mm beside it for the open jaws."""
 PIECES = {"X": 5, "O": 4}
 """How many pieces each mark has: X moves first, so at most five X and four O."""
 MARK_COLOURS = {"X": (0.85, 0.25, 0.2, 1.0), "O": (0.25, 0.45, 0.85, 1.0)}
@@ -61,6 +64,8 @@ class GameBoard:
 
     centre: tuple[float, float] = (0.0, 0.0)
     pitch: float = DEFAULT_PITCH
+    SQUARES: ClassVar[int] = 3
+    """Squares along a side (``chess.ChessBoard``: 8)."""
 
     def square(self, index: int) -> np.ndarray:
         """Where a piece's centre goes on square ``index`` (0-8): (x, y, z) [m] in the world.
@@ -75,12 +80,12 @@ class GameBoard:
 
     def half_width(self) -> float:
         """[m] From the board's centre to its edge (the outer squares' far sides)."""
-        return 1.5 * self.pitch
+        return 0.5 * self.SQUARES * self.pitch
 
     def lines(self) -> tuple[tuple[float, float, float, float], ...]:
         """The board's grid as lines on the table: (x, y, half along x, half along y) [m]."""
         x, y, half, width = *self.centre, self.half_width(), 0.001
-        cuts = (-half, -0.5 * self.pitch, 0.5 * self.pitch, half)
+        cuts = [self.pitch * k - half for k in range(self.SQUARES + 1)]
         return (tuple((x + c, y, width, half) for c in cuts)
                 + tuple((x, y + c, half, width) for c in cuts))
 
@@ -90,11 +95,10 @@ class GameBoard:
         Raises:
             PlanError: one line with the pitch, the minimum and the fix.
         """
-        least = CUBE_SIZE + 0.018
-        if not least <= self.pitch <= 0.2:
-            raise PlanError(f"board pitch {self.pitch * 1e3:g} mm is outside [{least * 1e3:g}, "
+        if not MIN_PITCH <= self.pitch <= 0.2:
+            raise PlanError(f"board pitch {self.pitch * 1e3:g} mm is outside [{MIN_PITCH * 1e3:g}, "
                             "200] mm (a 26 mm piece and 18 mm for the open jaws beside it). "
-                            f"Fix: --pitch-mm {DEFAULT_PITCH * 1e3:g}.")
+                            f"Fix: --pitch-mm {type(self)().pitch * 1e3:g}.")
 
 
 LAYOUT_BOARDS = {"facing": GameBoard((0.0, 0.0), DEFAULT_PITCH),
@@ -134,14 +138,23 @@ def read_board(m: mujoco.MjModel, d: mujoco.MjData, board: GameBoard,
 
     A square holds the piece whose centre is within half a pitch of its centre, resting.
     """
+    return board_of(board, {piece.name: piece_pose(d, piece.name)[0] for piece in pieces})
+
+
+def board_of(board: GameBoard, centres) -> tuple[str, ...]:
+    """The board from the pieces' centres (name -> (x, y, z) [m] in the world): each square's mark.
+
+    A square holds the piece whose centre is within half a pitch of its centre, resting (its
+    centre within 5 mm of a resting piece's height): the simulation's poses, or an arm's cube
+    sensor's readings (``lab/two_arms_arm.py``).
+    """
     marks = [""] * 9
-    for piece in pieces:
-        centre, _ = piece_pose(d, piece.name)
+    for name, centre in centres.items():
         for index in range(9):
             target = board.square(index)
             if (math.dist(centre[:2], target[:2]) < 0.5 * board.pitch
                     and abs(centre[2] - target[2]) < 0.005):
-                marks[index] = _mark_of(piece.name)
+                marks[index] = _mark_of(name)
     return tuple(marks)
 
 
@@ -183,10 +196,21 @@ def check_move(m: mujoco.MjModel, d: mujoco.MjData, board: GameBoard, pieces: tu
         square: where it should be.
         before: each piece's centre [m] before the move.
     """
-    centre, tilt = piece_pose(d, moved)
-    error = 1e3 * math.dist(centre[:2], board.square(square)[:2])
-    others = max((1e3 * math.dist(piece_pose(d, p.name)[0], before[p.name])
-                  for p in pieces if p.name != moved), default=0.0)
-    ok = error <= PLACE_TOLERANCE_MM and tilt <= TILT_TOLERANCE_DEG and others <= MOVED_MM
-    return MoveCheck(_mark_of(moved), square, moved, round(error, 3), round(tilt, 2),
+    after = {p.name: piece_pose(d, p.name) for p in pieces}
+    return judge_move(board, moved, square, before, {name: pose[0] for name, pose in after.items()},
+                      after[moved][1])
+
+
+def judge_move(board: GameBoard, moved: str, square: int, before, after,
+               tilt_deg: float) -> MoveCheck:
+    """Judge a move from the pieces' centres before and after it (name -> (x, y, z) [m], world).
+
+    ``tilt_deg``: the moved piece's up axis from the vertical. The simulation's poses
+    (:func:`check_move`) or an arm's cube sensor's readings (``lab/two_arms_arm.py``).
+    """
+    error = 1e3 * math.dist(after[moved][:2], board.square(square)[:2])
+    others = max((1e3 * math.dist(after[name], before[name])
+                  for name in after if name != moved and name in before), default=0.0)
+    ok = error <= PLACE_TOLERANCE_MM and tilt_deg <= TILT_TOLERANCE_DEG and others <= MOVED_MM
+    return MoveCheck(_mark_of(moved), square, moved, round(error, 3), round(tilt_deg, 2),
                      round(others, 3), ok)

@@ -20,11 +20,20 @@ def _refused(capsys, *argv) -> str:
 
 
 def test_an_unknown_game_is_refused(capsys):
-    assert "game 'checkers'" in _refused(capsys, "--game", "checkers", "--headless")
+    assert "invalid choice: 'checkers'" in _refused(capsys, "--game", "checkers", "--headless")
 
 
-def test_chess_is_refused_as_not_built(capsys):
-    assert "chess is not built yet" in _refused(capsys, "--game", "chess", "--headless")
+def test_chess_out_of_reach_is_refused(capsys):
+    line = _refused(capsys, "--game", "chess", "--spacing", "0.5", "--headless")
+    assert "out of the left arm's reach" in line and "--spacing 0.632" in line
+
+
+def test_chess_on_arms_side_by_side_is_refused(capsys):
+    assert "arms facing each other" in _refused(capsys, "--game", "chess", "--layout", "side")
+
+
+def test_a_base_error_beyond_its_range_is_refused(capsys):
+    assert "--base-error" in _refused(capsys, "--game", "chess", "--base-error", "30", "0")
 
 
 def test_bases_that_overlap_are_refused(capsys):
@@ -39,8 +48,15 @@ def test_one_port_for_both_arms_is_refused(capsys):
     assert "one port for both arms" in _refused(capsys, "--ports", "/dev/pts/7", "/dev/pts/7")
 
 
-def test_two_ports_are_refused_as_not_built(capsys):
-    assert "not built yet" in _refused(capsys, "--ports", "/dev/pts/7", "/dev/pts/8")
+def test_the_simulators_video_on_the_arms_is_refused(capsys, tmp_path):
+    # --ports plays on the arms (tests/virtual/test_virtual_two_arms.py): nothing to film
+    line = _refused(capsys, "--ports", "/dev/pts/7", "/dev/pts/8", "--video",
+                    str(tmp_path / "game.mp4"))
+    assert "no simulation to film" in line
+
+
+def test_the_arms_calibration_without_the_arms_is_refused(capsys):
+    assert "--calibration is the arms'" in _refused(capsys, "--calibration", "a.json", "b.json")
 
 
 def test_one_file_for_two_outputs_is_refused(capsys, tmp_path):
@@ -59,3 +75,28 @@ def test_the_tas_command_writes_the_report_and_the_picture(capsys, tmp_path):
     assert all(isinstance(m["piece_error_mm"], float) for m in report["moves"])
     assert png_ours(image)
     assert "9 moves, completed (draw)" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_the_chess_command_writes_the_issues_report(capsys, tmp_path):
+    """Issue 38's acceptance: completed, collisions, moves with piece_error_mm (and san)."""
+    report_path = tmp_path / "chess.json"
+    assert two_arms.main(["--game", "chess", "--headless", "--json", str(report_path)]) == 0
+    report = json.loads(report_path.read_text())
+    assert report["completed"] is True and report["collisions"] == 0
+    assert len(report["moves"]) == 6 and report["pieces"] == 32
+    assert all(isinstance(m["piece_error_mm"], float) and m["piece_error_mm"] <= 5.0
+               for m in report["moves"])
+    assert [m["san"] for m in report["moves"]] == ["e3", "e6", "Bd3", "Bd6", "c3", "c6"]
+    out = capsys.readouterr().out
+    assert out.count("touched points, residual") == 2 and "6 plies" in out
+
+
+def test_registration_options_on_the_arms_are_refused(capsys):
+    line = _refused(capsys, "--ports", "/dev/pts/7", "/dev/pts/8", "--register", "touch")
+    assert "--register touch: with --ports the plan trusts the bases" in line
+
+
+def test_a_base_error_side_by_side_is_refused(capsys):
+    line = _refused(capsys, "--layout", "side", "--base-error", "3", "1")
+    assert "--base-error 3 1: with --layout side" in line and "--layout facing" in line
