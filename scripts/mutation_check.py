@@ -522,8 +522,14 @@ MUTANTS: list[Mutant] = [
       "session.return_slowly(start_pose)",
       "tests/hw/test_stop_with_cube.py::"
       "test_ctrl_c_after_the_grasp_puts_the_cube_down_at_the_place_then_returns"),
+    m("stop_lets_go_of_the_cube", "the controlled stop sets a holding gripper's goal to its "
+      "width: the squeeze ends and the cube slides out of the stopped jaws (12 V: upside down)",
+      CONTROL, "ArmSession.stop_here",
+      'goal["gripper"] = self.command["gripper"]  # the squeeze goes on', "pass",
+      "tests/hw/test_stop_with_cube.py::"
+      "test_a_fault_while_holding_puts_the_cube_straight_down_where_it_is"),
     m("held_while_closing", "jaws still closing in free air taken for a held cube (every stop "
-      "at a grasp would then put down nothing)", "so101_kinematics/hw/putdown.py", "held_grip",
+      "at a grasp would then put down nothing)", "so101_kinematics/hw/grip.py", "held_grip",
       "if max(recent) - min(recent) > SETTLED_PCT:", "if False:",
       "tests/hw/test_putdown.py::test_jaws_closed_on_nothing_or_still_closing_hold_nothing"),
     m("held_cube_squeezed", "a cube that cannot be put down is squeezed by the return to the "
@@ -545,15 +551,27 @@ MUTANTS: list[Mutant] = [
       f"{T_GUARD}::test_setup_motors_puts_back_what_an_earlier_program_left_and_says_so"),
     m("last_line_from_the_command", "the last line says what was commanded (torque ON, "
       "holding), not whether the servos can hold", RUN, "finish",
-      "result.torque, result.unable = read_back(", "_ = read_back(",
+      "result.torque, result.unable, result.unread = read_back(", "_ = read_back(",
       f"{T_GUARD}::test_the_last_line_says_which_servo_cannot_hold_read_back",
       f"{T_GUARD}::test_the_hardware_scripts_ending_reads_back_too"),
+    m("late_reply_believed", "the ending believes one read of each setting: a late reply "
+      "of the register before passes for the servo's (P_Coefficient 1000 on a weakened servo)",
+      "so101_kinematics/hw/servo_settings.py", "read_registers",
+      "if register not in confirm or value in seen:", "if True:",
+      f"{T_GUARD}::test_the_ending_believes_a_setting_only_when_two_reads_agree_and_says_what_it_"
+      "could_not_read"),
     # --- the servo held to real arms' recordings (issue 34) ------------------------------------
     m("d_scale_one_period", "the D term's scale back to one 1 ms loop period (underdamped: "
       "steps overshoot where the recorded arms do not)", "so101_kinematics/servo.py", None,
       "D_SCALE_S = 0.03\n", "D_SCALE_S = 0.001\n",
       "tests/lab/test_replay.py::"
       "test_the_step_from_rest_does_not_overshoot_and_stops_short_as_the_arm_did"),
+    m("elbow_stop_from_the_goals", "the elbow's stop taken from its largest goal (which goes "
+      "past the stop) instead of its largest reading: the offset -0.09 deg, the replayed elbow "
+      "folds past its goal again", "so101_kinematics/lab/replay.py", "estimated_offsets",
+      "np.max(recording.state[:, j])", "np.max(recording.action[:, j])",
+      "tests/lab/test_replay.py::"
+      "test_with_the_estimated_offsets_every_step_stops_short_as_the_arm_did"),
     m("c001_on_12_v_accepted", "a supply above the variant's Max_Voltage_Limit accepted",
       "so101_kinematics/servo.py", "supply_problem", "if volts <= chosen.max_volts:",
       "if True:",
@@ -710,20 +728,26 @@ MUTANTS: list[Mutant] = [
     m("throwing_opening_delay_ignored", "the gripper told to open at the timed release, not its "
       "opening delay before: the ball leaves 0.15 s late and misses",
       "so101_kinematics/throwing/throw_run.py", "throw_at",
-      "run = ThrowRun(m, ball, tuned, open_at=release_at - delay)",
-      "run = ThrowRun(m, ball, tuned, open_at=release_at)",
+      "run = ThrowRun(m, ball, tuned, open_at=release_at - delay, cup=cup)",
+      "run = ThrowRun(m, ball, tuned, open_at=release_at, cup=cup)",
       "tests/throwing/test_throw_run.py::test_a_throw_lands_in_the_cup_where_the_model_says"),
     m("throwing_linear_drag", "the drag linear in the speed, not quadratic: the model's flight "
       "is wrong at every speed but one", "so101_kinematics/throwing/ball.py", "_acceleration",
       "a = -k * speed * v", "a = -k * v",
       "tests/throwing/test_ball.py::test_a_ball_at_its_terminal_speed_keeps_it"),
+    m("cup_camera_mat_turn_ignored", "the cup's axis taken OFFSET along the base's +x from its "
+      "mat's tag, the tag's yaw ignored: right only for a mat square with the table",
+      "so101_kinematics/throwing/cup_camera.py", "find_cup",
+      "axis = g_bt[:3, 3] + CUP_TAG_OFFSET * g_bt[:3, 1]",
+      "axis = g_bt[:3, 3] + CUP_TAG_OFFSET * np.array([1.0, 0.0, 0.0])",
+      "tests/throwing/test_cup_camera.py::test_the_mats_turn_is_read_from_its_tag"),
     m("drawing_arm_tip_pen_up_too", "the read-back tip scored on every cycle, the pen-up travel "
       "between letters too", "so101_kinematics/lab/draw_arm.py", "draw_on_arm",
       "            and path.down[int(c.step[len(SAMPLE):])]]",
       "            and True]",
       "tests/virtual/test_virtual_drawing.py"),
     m("registration_turn_reversed", "the page's fitted turn of the wrong sign (the cross term "
-      "swapped)", "so101_kinematics/drawing/registration.py", "_rigid_fit",
+      "swapped)", FRAMES, "rigid_fit_2d",
       "(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])", "(a[:, 1] * b[:, 0] - a[:, 0] * b[:, 1])",
       "tests/drawing/test_registration.py::test_exact_touches_give_the_page_back"),
     m("registration_no_order_hint", "a fit of points touched in the wrong order called a "
@@ -743,11 +767,41 @@ MUTANTS: list[Mutant] = [
       "    except MotionAborted as error:", "    except ZeroDivisionError as error:",
       "tests/virtual/test_virtual_see_and_pick.py::test_an_aborted_run_ends_with_the_arms_last_"
       "line_not_an_unexpected_error"),
+    # --- the throw on an arm (issue 38) ------------------------------------------------------
+    m("throw_arm_registers_kept_on_abort", "the register raised for the swing put back only "
+      "when the swing completes: a bus fault or a stop signal leaves Acceleration 0 (no ramp)",
+      "so101_kinematics/lab/throw_arm.py", "_swing",
+      "        finally:  # every ending of the swing: a fault, a stop signal, done\n",
+      "        except ZeroDivisionError:\n            pass\n        if True:\n",
+      "tests/lab/test_throw_arm.py::test_a_bus_outage_mid_swing_puts_the_raised_register_back_"
+      "and_ends_once"),
+    m("throw_arm_release_at_first_motion", "the release read back when the jaw first moves "
+      "(1 deg) instead of when it has opened enough for the ball (10 deg): 0.1 s early",
+      "so101_kinematics/lab/throw_arm.py", "_read_back",
+      "point, velocity = measured_release(m, samples, free)",
+      "point, velocity = measured_release(m, samples, moved)",
+      "tests/lab/test_throw_arm.py::test_a_throw_at_a_cup_0_4_m_away_lands_in_it_from_the_"
+      "release_read_back"),
+    m("throw_windup_into_the_table", "the swing's 70 deg of the first throw: its wind-up "
+      "puts the moving jaw 54 mm below the table top", "so101_kinematics/throwing/throw_plan.py",
+      None, "SWING_DEG = 50.0", "SWING_DEG = 70.0",
+      "tests/throwing/test_throw_plan.py::test_the_whole_swing_stays_above_the_table"),
     # --- two arms on one board (issue 38) ---------------------------------------------------
     m("two_arms_one_feedforward", "one gravity feed-forward for both arms of a model: its "
       "direction memory mixes them, an arm moves the other", "so101_kinematics/sim/actuation.py",
       "_offset", "feedforward = entry[4][k]\n", "feedforward = entry[4][0]\n",
       "tests/two_arms/test_scene_arm.py::test_moving_one_arm_leaves_the_other_still"),
+    m("chess_registered_yaw_reversed", "the base's fitted turn of the wrong sign: the board "
+      "registered by touch puts every square 2 deg off (9 mm at 0.26 m)",
+      "so101_kinematics/two_arms/board_registration.py", "registered_base",
+      "-math.degrees(angle), side)", "math.degrees(angle), side)",
+      "tests/two_arms/test_chess.py::test_a_fit_of_exact_touches_gives_the_displaced_base_back"),
+    m("tictactoe_registration_unused", "tic-tac-toe registers the board by touch, then plans "
+      "with the nominal bases anyway: the bases' 3 mm and 1 deg put pieces 10 mm off",
+      "so101_kinematics/two_arms/two_arm_game.py", "run_game",
+      "return _play(m, d, scratch, arms, planned,", "return _play(m, d, scratch, arms, bases,",
+      "tests/two_arms/test_two_arm_game.py::test_the_game_registered_by_touch_recovers_the_"
+      "bases_3_mm_and_1_deg_off"),
     m("two_arms_board_shared", "the shared-workspace rule never asks where the other arm is: "
       "both arms may reach into the board at once", "so101_kinematics/two_arms/shared_workspace.py",
       "check_shared_path", "and in_zone(scratch.site_xpos[other.tool_site], zone)):",
@@ -756,6 +810,11 @@ MUTANTS: list[Mutant] = [
       "is_there_is_refused",
       "tests/two_arms/test_shared_workspace.py::test_a_path_with_the_other_arm_parked_passes_and_"
       "says_how_close"),
+    m("two_arms_arm_sensor_frame", "each virtual arm's cube sensor read as if in the world: its "
+      "pieces picked and judged in the wrong frame", "so101_kinematics/lab/two_arms_arm.py",
+      "_pieces_seen", "(world_from_base(base, cube.position_m),", "(cube.position_m,",
+      "tests/virtual/test_virtual_two_arms.py::test_the_whole_game_on_two_virtual_arms_through_"
+      "lerobots_bus"),
 ]
 
 
