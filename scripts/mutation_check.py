@@ -690,6 +690,13 @@ MUTANTS: list[Mutant] = [
       "if why is not None:", "if False:",
       "tests/virtual/test_virtual_follow_tag.py::"
       "test_a_tag_out_of_reach_is_refused_and_the_arm_holds"),
+    m("video_end_raises_in_its_thread", "a video file read as a camera is lerobot's camera "
+      "as is: at the file's end its read thread logs 11 warnings and dies with a traceback",
+      "so101_kinematics/vision/webcam.py", "Webcam.__init__",
+      "(_video_file_camera(OpenCVCamera) if is_file else OpenCVCamera)(config)",
+      "OpenCVCamera(config)",
+      "tests/vision/test_webcam.py::test_the_end_of_the_video_is_a_stale_frame_in_one_line_and_"
+      "no_thread_traceback"),
     # --- the drawing (issue 37) ---------------------------------------------------------------
     m("drawing_lead_behind", "the servo's lag led the wrong way (the plan minus tau v): the pen "
       "trails twice as far", DRAW_PLAN, "lead_commands", "led = q + tau * rate",

@@ -7,6 +7,11 @@ arm's served camera (``http://...``) through its subclass ``so101_virtual``
 colour order is handled once, by lerobot (``color_mode=RGB``): :meth:`Webcam.read`
 returns lerobot's image as it is. lerobot is imported only when a Webcam is made.
 
+A video file ends: lerobot's read thread then fails 11 times, logs each, and raises, and
+Python prints that thread's traceback. On a file, a failed read is the end: the thread
+stops as on a disconnect (lerobot's ``DeviceNotConnectedError``, which its loop treats as
+the end), and :meth:`Webcam.read` says "a stale frame ... the video at its end?" in one line.
+
 The calibration is the report that ``calibrate_camera.py --photos DIR --json PATH`` writes
 (:func:`so101_kinematics.vision.calibration_photos.calibrate_from_photos`): its
 ``intrinsics`` hold ``K`` (the camera matrix [px]), ``distortion`` (OpenCV's coefficients)
@@ -109,6 +114,20 @@ def open_camera(address: str, width: int = 640, height: int = 480,
     return Webcam(source, width, height, calibration=calibration, max_age=max_age)
 
 
+def _video_file_camera(camera_class):
+    """The camera class (lerobot's), made to stop its read thread quietly at a video's end."""
+    from lerobot.utils.errors import DeviceNotConnectedError
+
+    class VideoFileCamera(camera_class):
+        def _read_from_hardware(self):
+            try:
+                return super()._read_from_hardware()
+            except RuntimeError as error:  # lerobot's "read failed": no frame left
+                raise DeviceNotConnectedError(f"{self}: the video's end") from error
+
+    return VideoFileCamera
+
+
 class Webcam:
     """A USB camera (index, ``/dev/videoN``) or a video file, read through lerobot.
 
@@ -153,7 +172,7 @@ class Webcam:
                                     width=None if is_file else width,
                                     height=None if is_file else height,
                                     fourcc=None if is_file else "MJPG")
-        self._camera = OpenCVCamera(config)
+        self._camera = (_video_file_camera(OpenCVCamera) if is_file else OpenCVCamera)(config)
         self._connect(source)
 
     def _connect(self, source, warmup: bool = False) -> None:
