@@ -12,8 +12,8 @@ from __future__ import annotations
 __all__ = ["HELD_MARGIN_PCT", "held_grip"]
 
 HELD_MARGIN_PCT = 3.0  # the jaws stopped this much wider than commanded hold something [%]
-"""The same margin as ``hw/teach.py``'s EMPTY_GRIP_PCT (a gripper closed on nothing); on the
-course's 26 mm cube the virtual arm's gripper stops at 23.3 % against a command of 5 %."""
+"""Also ``hw/teach.py``'s test of a grasp that closed on nothing; on the course's 26 mm cube
+the virtual arm's gripper stops at 23.3 % against a command of 5 %."""
 SETTLED_WINDOW_S = 0.1  # the jaws must have stood still this long ... [s]
 SETTLED_PCT = 1.0  # ... within this much [%] (closing in free air they move 100 %/s)
 

@@ -13,6 +13,7 @@ from so101_kinematics.fast_fk import forward_kinematics
 from so101_kinematics.frames import ARM_JOINTS, JOINTS
 from so101_kinematics.hw.bus import port_lost, read_pose, recover_port
 from so101_kinematics.hw.control import READ_RETRIES, RECOVERY_TIMEOUT_S
+from so101_kinematics.hw.grip import HELD_MARGIN_PCT
 from so101_kinematics.hw.timing import RateLoop, capped_duration
 from so101_kinematics.inputs import Configuration
 from so101_kinematics.planning import stack_report
@@ -143,9 +144,6 @@ def teach(bus, *, rate_hz: float = TEACH_RATE_HZ, duration: float | None = None,
     return pose
 
 
-EMPTY_GRIP_PCT = 3.0  # the gripper this close to its closed command holds nothing [%]
-
-
 def grasp_outcome(plan: Plan, cycles) -> str | None:
     """Whether the jaws closed on something, from the log: works on a real arm too.
 
@@ -163,7 +161,7 @@ def grasp_outcome(plan: Plan, cycles) -> str | None:
     if not measured:
         return None
     final = measured[-1]
-    if final <= GRIPPER_CLOSED + EMPTY_GRIP_PCT:
+    if final <= GRIPPER_CLOSED + HELD_MARGIN_PCT:  # hw/grip.py's rule: nothing held
         return (f"The jaws closed on nothing at '{step}' (gripper {final:.1f} %, commanded "
                 f"{GRIPPER_CLOSED:g} %): the cube was not picked. Check where it stands against "
                 "the FK pick position.")
