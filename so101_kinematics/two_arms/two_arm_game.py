@@ -21,6 +21,7 @@ import mujoco
 
 from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.errors import PlanError, UnreachableError
+from so101_kinematics.frames import JOINT_LIMITS
 from so101_kinematics.markers import png_metadata
 from so101_kinematics.outputs import atomic_output
 from so101_kinematics.planning.cartesian_plan import PRE_GRASP_SLIDE, cartesian_plan
@@ -89,8 +90,9 @@ in order: the four edges' middles, empty before the game, 110 mm apart across at
 55 mm pitch. Not the corners: side by side, with the bases 3 mm and 1 deg off, the far corner
 needs wrist_flex 95.2 deg from the left arm, beyond its 95 deg (measured)."""
 SIDE_NOT_REGISTERED = ("with --layout side the bases are the nominal ones: the board's far corner "
-                       "is at the arms' reach, 3 mm and 1 deg off put it beyond wrist_flex's 95 "
-                       "deg (measured). Fix: leave it out (or --layout facing).")
+                       "is at the arms' reach, 3 mm and 1 deg off put it beyond wrist_flex's "
+                       f"{JOINT_LIMITS['wrist_flex'][1]:.0f} deg (measured). Fix: leave it out "
+                       "(or --layout facing).")
 """Why ``two_arms.py --layout side`` refuses ``--register`` and ``--base-error``: measured, the
 left arm's place on the far corner, 0.30 m from its base's origin, needs wrist_flex 95.3 deg
 from its base 3 mm and 1 deg off (registered by touch; the touch reached every mark)."""
