@@ -273,7 +273,7 @@ def get_frame_chain(position_dict: Mapping[str, float]) -> dict[str, np.ndarray]
     return chain
 
 
-def rigid_fit_2d(points, targets) -> tuple[float, np.ndarray]:
+def rigid_fit_2d(points, targets) -> tuple[float, np.ndarray, np.ndarray]:
     """The turn about the vertical and the shift that take ``points`` nearest ``targets``.
 
     Least squares, Kabsch's method in the plane, no scale: ``targets ~ R(angle) points +
@@ -285,12 +285,14 @@ def rigid_fit_2d(points, targets) -> tuple[float, np.ndarray]:
         targets: (n, 2) where each was touched [m], in the arm's base frame.
 
     Returns:
-        ``(angle, shift)``: the angle [rad] and the shift (2,) [m].
+        ``(angle, shift, residuals)``: the angle [rad], the shift (2,) [m] and each point's
+        distance from its target after the fit (n,) [m].
 
     Example:
-        >>> angle, shift = rigid_fit_2d([[0, 0], [1, 0], [0, 1]], [[2, 3], [2, 4], [1, 3]])
-        >>> round(math.degrees(angle), 6), shift.round(6).tolist()
-        (90.0, [2.0, 3.0])
+        >>> angle, shift, residuals = rigid_fit_2d([[0, 0], [1, 0], [0, 1]],
+        ...                                        [[2, 3], [2, 4], [1, 3]])
+        >>> round(math.degrees(angle), 6), shift.round(6).tolist(), residuals.round(9).tolist()
+        (90.0, [2.0, 3.0], [0.0, 0.0, 0.0])
     """
     p = np.asarray(points, dtype=float).reshape(-1, 2)
     q = np.asarray(targets, dtype=float).reshape(-1, 2)
@@ -300,4 +302,5 @@ def rigid_fit_2d(points, targets) -> tuple[float, np.ndarray]:
                        float((a * b).sum()))
     c, s = math.cos(angle), math.sin(angle)
     rotation = np.array([[c, -s], [s, c]])
-    return angle, q0 - rotation @ p0
+    shift = q0 - rotation @ p0
+    return angle, shift, np.linalg.norm(p @ rotation.T + shift - q, axis=1)

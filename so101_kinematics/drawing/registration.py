@@ -95,13 +95,11 @@ def fit_page(marks_mm: np.ndarray, touched_m: np.ndarray, name: str = "a5") -> P
     """
     marks_mm = np.asarray(marks_mm, dtype=float).reshape(-1, 2)
     touched_m = np.asarray(touched_m, dtype=float).reshape(-1, 2)
-    angle, centre = rigid_fit_2d(marks_mm / 1000.0, touched_m)
+    angle, centre, residuals = rigid_fit_2d(marks_mm / 1000.0, touched_m)
     # the page's x axis is the base's (sin yaw, -cos yaw): the rotation by yaw - 90 deg
     yaw = (math.degrees(angle) + 90.0 + 180.0) % 360.0 - 180.0
     page = Page(name, PAGES[name], (float(centre[0]), float(centre[1])), yaw)
-    c, s = math.cos(angle), math.sin(angle)
-    fitted = centre + (marks_mm / 1000.0) @ np.array([[c, -s], [s, c]]).T
-    residuals = 1000.0 * np.linalg.norm(fitted - touched_m, axis=1)
+    residuals = 1000.0 * residuals
     return PageFit(page, page.centre, yaw, tuple(float(r) for r in residuals),
                    float(np.sqrt((residuals ** 2).mean())))
 

@@ -144,11 +144,10 @@ def registered_base(name: str, side: float, board_points, touched) -> tuple[ArmB
     """
     marks = np.asarray(board_points, dtype=float)[:, :2]
     touched = np.asarray(touched, dtype=float)[:, :2]
-    angle, shift = rigid_fit_2d(marks, touched)  # base point = R(angle) board point + shift
+    # base point = R(angle) board point + shift
+    angle, shift, residuals = rigid_fit_2d(marks, touched)
     c, s = math.cos(angle), math.sin(angle)
-    rotation = np.array([[c, -s], [s, c]])
-    residuals = np.linalg.norm(marks @ rotation.T + shift - touched, axis=1)
-    origin = -rotation.T @ shift  # the base's origin in the board's frame
+    origin = -np.array([[c, s], [-s, c]]) @ shift  # R^T: the base's origin in the board's frame
     return (ArmBase(name, float(origin[0]), float(origin[1]), -math.degrees(angle), side),
             residuals)
 
