@@ -372,6 +372,12 @@ def _swing_start(result: RunResult) -> float | None:
     return None
 
 
+def _windup_plan(windup: Mapping[str, float]) -> Plan:
+    """The run's plan before its closed loop: to the wind-up, settle there; the return after."""
+    return Plan([Step("wind_up", windup, WINDUP_S, 0.0), Step("settle", windup, 0.0, SETTLE_S)],
+                return_to_start=True, return_duration=WINDUP_S)
+
+
 def throw_on_arm(port: str, calibration: Mapping[str, Any], m: mujoco.MjModel, ball: Ball,
                  target, *, volts: float | None = None, opening_delay: float | None = None,
                  registers: Mapping[str, int] | None = None,
@@ -419,8 +425,7 @@ def throw_on_arm(port: str, calibration: Mapping[str, Any], m: mujoco.MjModel, b
     commands = _swing_commands(m, ball, throw)
     caps = _swing_caps(commands, windup, throw.limits)
     chosen = swing_registers(throw.plan) if registers is None else dict(registers)
-    plan = Plan([Step("wind_up", windup, WINDUP_S, 0.0), Step("settle", windup, 0.0, SETTLE_S)],
-                return_to_start=True, return_duration=WINDUP_S)
+    plan = _windup_plan(windup)
     # the swing's commands checked before the port is armed (the approach's are run_on_arm's)
     validate_plan_for_arm(Plan([Step(f"{SAMPLE}{k:04d}", c, CONTROL_DT, 0.0)
                                 for k, c in enumerate(commands)], return_to_start=False),
@@ -467,8 +472,7 @@ def measure_opening_on_arm(port: str, calibration: Mapping[str, Any], m: mujoco.
         session.move(opened, CONTROL_DT, step=f"{SAMPLE}open", max_speed=caps, profile="linear")
         session.hold(1.0, step="follow_through")
 
-    plan = Plan([Step("wind_up", windup, WINDUP_S, 0.0), Step("settle", windup, 0.0, SETTLE_S)],
-                return_to_start=True, return_duration=WINDUP_S)
+    plan = _windup_plan(windup)
     try:
         result = run_on_arm(port, calibration, plan, then=open_and_watch,
                             **{"gravity_ff": True, **run_options})
