@@ -183,10 +183,15 @@ def rest_heights(recording: Recording, offsets: dict[str, float] | None = None,
 def heights(readings: np.ndarray, offsets: dict[str, float] | None = None,
             base_height: float = 0.0) -> np.ndarray:
     """The model's lowest point above the table [m] at each reading (rows of ``JOINTS``)."""
-    shift = np.array([(offsets or {}).get(j, 0.0) for j in JOINTS])
+    shift = _shift(offsets)
     return np.array([clearance.lowest_point(dict(zip(JOINTS, (row + shift).tolist(),
                                                      strict=True)), base_height)[0]
                      for row in readings])
+
+
+def _shift(offsets: dict[str, float] | None) -> np.ndarray:
+    """The offsets (joint -> the model's angle minus the recording's [deg]) as a row of JOINTS."""
+    return np.array([(offsets or {}).get(j, 0.0) for j in JOINTS])
 
 
 def _clamped(row) -> dict[str, float]:
@@ -208,7 +213,7 @@ def replay(recording: Recording, volts: float | None = None, variant: str | None
             (:func:`estimated_offsets`; None: the recording's degrees are the model's).
             The goals are written and the readings returned in the recording's degrees.
     """
-    shift = np.array([(offsets or {}).get(j, 0.0) for j in JOINTS])
+    shift = _shift(offsets)
     m = load_model()
     m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
     options = {"feedforward": False}
@@ -266,7 +271,7 @@ def replay_virtual(recording: Recording, frames, volts: float | None = None,
     from so101_kinematics.virtual.shipped_calibration import DEFAULT_CALIBRATION_PATH
 
     volts = servo.DEFAULT_SUPPLY_V if volts is None else volts
-    shift = np.array([(offsets or {}).get(j, 0.0) for j in JOINTS])
+    shift = _shift(offsets)
     frames = np.asarray(frames)
     state = np.zeros((len(frames), len(JOINTS)))
     with VirtualSO101(calibration=DEFAULT_CALIBRATION_PATH, supply=volts, variant=variant,
