@@ -182,7 +182,8 @@ def _check_ports(args: argparse.Namespace) -> None:
 
     check_ports(ports)
     registration_options(args.register, args.base_error, "with --ports the plan trusts the "
-                         "bases where you set the arms down. Fix: leave it out (or --ports).")
+                         "bases where you set the arms down. Fix: leave it out (or leave out "
+                         "--ports).")
     if args.game != "tictactoe":
         raise PlanError(f"--ports with --game {args.game}: the arms play tictactoe only. Fix: "
                         "--game tictactoe, or leave out --ports.")
