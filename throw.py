@@ -168,15 +168,16 @@ def _run(args: argparse.Namespace) -> int:
             raise PlanError(f"{flag} is for an arm: it needs --port PORT (nothing was thrown). "
                             f"Fix: add --port, or leave out {flag}.")
     ball = BALLS[args.ball]
-    servo_keywords = {"volts": args.supply, "variant": "C018"}
+    variant = "C018"  # SUPPLY_RANGE's servo (its 9 V end too, where default_variant says C001)
+    servo_keywords = {"volts": args.supply, "variant": variant}
     cups = [tuple(args.cup)] if args.cup else cup_positions(args.trials or SIM_TRIALS, args.seed)
     if args.find_cup:
         m = build_cup_camera_model(ball, servo_keywords)
         looks = look_at_cups(m, cups, args.seed)  # every cup seen before anything is thrown
-        report = throw_at_seen_cups(m, ball, cups, args.seed, args.supply, "C018", looks)
+        report = throw_at_seen_cups(m, ball, cups, args.seed, args.supply, variant, looks)
     else:
         m = build_throw_model(ball, servo_keywords)
-        report = run_throws(m, ball, cups, args.supply, "C018")
+        report = run_throws(m, ball, cups, args.supply, variant)
     report["seed"] = None if args.cup else args.seed
     for number_, trial in enumerate(report["trials"], 1):
         where = "in the cup" if trial["in_cup"] else "missed"
@@ -196,9 +197,9 @@ def _run(args: argparse.Namespace) -> int:
         save_camera_image(paths["camera_image"], looks[0], cups[0])
     aim = report["trials"][0].get("cup_seen_xy")  # --find-cup: where the camera saw it
     if paths["video"] is not None:
-        save_video(paths["video"], m, ball, cups[0], args.supply, "C018", aim)
+        save_video(paths["video"], m, ball, cups[0], args.supply, variant, aim)
     if paths["image"] is not None:
-        save_picture(paths["image"], m, ball, cups[0], args.supply, "C018", aim)
+        save_picture(paths["image"], m, ball, cups[0], args.supply, variant, aim)
     if paths["json"] is not None:
         write_text_atomic(paths["json"], json.dumps(stamp(report, "throw.py"), indent=2) + "\n")
     return 0
