@@ -41,7 +41,7 @@ from so101_kinematics.two_arms.chess import (
     square_index,
     square_name,
 )
-from so101_kinematics.two_arms.game_board import check_move, piece_pose
+from so101_kinematics.two_arms.game_board import check_move, occupants, piece_pose
 from so101_kinematics.two_arms.scene_arm import SceneArm
 from so101_kinematics.two_arms.shared_workspace import ArmDistanceWatch
 from so101_kinematics.two_arms.two_arm_game import (
@@ -95,15 +95,8 @@ def _touch_points(board: ChessBoard) -> tuple[list, list]:
 
 def _read_squares(d, board: ChessBoard, names) -> dict[str, str]:
     """The board as the simulation has it: square name -> piece, each piece at rest on one."""
-    seen = {}
-    for name in names:
-        centre, _ = piece_pose(d, name)
-        for index in range(64):
-            target = board.square(index)
-            if (math.dist(centre[:2], target[:2]) < 0.5 * board.pitch
-                    and abs(centre[2] - target[2]) < 0.005):
-                seen[square_name(index)] = name
-    return seen
+    held = occupants(board, {name: piece_pose(d, name)[0] for name in names})
+    return {square_name(index): name for index, name in held.items()}
 
 
 def run_chess(bases: tuple[ArmBase, ArmBase], board: ChessBoard, servo: dict | None = None,

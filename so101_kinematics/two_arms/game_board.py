@@ -32,7 +32,7 @@ __all__ = [
     "SUPPLY_BEARINGS",
     "SUPPLY_RADIUS",
     "TILT_TOLERANCE_DEG", "GameBoard", "MoveCheck", "board_of", "check_move", "game_pieces",
-    "judge_move", "piece_pose", "read_board",
+    "judge_move", "occupants", "piece_pose", "read_board",
 ]
 
 DEFAULT_PITCH = 0.055
@@ -141,21 +141,28 @@ def read_board(m: mujoco.MjModel, d: mujoco.MjData, board: GameBoard,
     return board_of(board, {piece.name: piece_pose(d, piece.name)[0] for piece in pieces})
 
 
-def board_of(board: GameBoard, centres) -> tuple[str, ...]:
-    """The board from the pieces' centres (name -> (x, y, z) [m] in the world): each square's mark.
+def occupants(board: GameBoard, centres) -> dict[int, str]:
+    """Square index -> the piece on it, from the pieces' centres (name -> (x, y, z) [m], world).
 
     A square holds the piece whose centre is within half a pitch of its centre, resting (its
     centre within 5 mm of a resting piece's height): the simulation's poses, or an arm's cube
-    sensor's readings (``lab/two_arms_arm.py``).
+    sensor's readings (``lab/two_arms_arm.py``). Every board's rule (``chess_game.py``'s too).
     """
-    marks = [""] * 9
+    held = {}
     for name, centre in centres.items():
-        for index in range(9):
+        for index in range(board.SQUARES ** 2):
             target = board.square(index)
             if (math.dist(centre[:2], target[:2]) < 0.5 * board.pitch
                     and abs(centre[2] - target[2]) < 0.005):
-                marks[index] = _mark_of(name)
-    return tuple(marks)
+                held[index] = name
+    return held
+
+
+def board_of(board: GameBoard, centres) -> tuple[str, ...]:
+    """The board from the pieces' centres (as :func:`occupants`'): each square's mark ("" empty)."""
+    held = occupants(board, centres)
+    return tuple(_mark_of(held[index]) if index in held else ""
+                 for index in range(board.SQUARES ** 2))
 
 
 @dataclass
