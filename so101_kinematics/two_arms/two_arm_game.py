@@ -22,8 +22,7 @@ import mujoco
 from so101_kinematics.constants import HOME_POSE
 from so101_kinematics.errors import PlanError, UnreachableError
 from so101_kinematics.frames import JOINT_LIMITS
-from so101_kinematics.markers import png_metadata
-from so101_kinematics.outputs import atomic_output
+from so101_kinematics.outputs import write_png_atomic
 from so101_kinematics.planning.cartesian_plan import PRE_GRASP_SLIDE, cartesian_plan
 from so101_kinematics.sim import actuation
 from so101_kinematics.sim.render import QUALITY, FrameRenderer
@@ -280,18 +279,12 @@ def play_filmed(m: mujoco.MjModel, d: mujoco.MjData, arms, video, image: Path | 
 def save_frame(m: mujoco.MjModel, d: mujoco.MjData, path: Path,
                size: tuple[int, int] = (960, 720)) -> None:
     """Write what the ``two_arms`` camera sees now as a PNG of ours (``markers.py``)."""
-    from PIL import Image, PngImagePlugin
-
     renderer = FrameRenderer(m, d, size, GAME_CAMERA, quality=QUALITY["fast"])
     try:
         pixels = renderer.render()
     finally:
         renderer.close()
-    marker = PngImagePlugin.PngInfo()
-    for key, text in png_metadata("two_arms.py --image").items():
-        marker.add_text(key, text)
-    with atomic_output(path) as temporary:
-        Image.fromarray(pixels).save(temporary, format="PNG", pnginfo=marker)
+    write_png_atomic(path, pixels, "two_arms.py --image")
 
 
 def _play(m, d, scratch, arms, planned, board: GameBoard, pieces, opening: int,
